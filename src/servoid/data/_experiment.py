@@ -1,0 +1,475 @@
+"""The :class:`Experiment`: sampled signals of one test run with metadata."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._errors import ChannelError, DataError, check_option
+
+if TYPE_CHECKING:
+    from scipy.signal import dlti  # noqa: F401
+
+__all__ = ["ROLES", "Channel", "Experiment", "ExperimentSet", "Role"]
+
+Role = Literal["r", "u", "y", "side"]
+ROLES: tuple[Role, ...] = ("r", "u", "y", "side")
+_ROLE_WORDS = {"r": "reference", "u": "plant input", "y": "output", "side": "side channel"}
+
+
+@dataclass(frozen=True, eq=False)
+class Channel:
+    """One sampled signal: name, role, unit and read-only values."""
+
+    name: str
+    role: Role
+    values: NDArray[np.float64]
+    unit: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise DataError(f"channel name must be a non-empty string, got {self.name!r}")
+        check_option("channel role", self.role, ROLES)
+        values = np.array(self.values, dtype=np.float64, copy=True)
+        if values.ndim != 1:
+            raise DataError(
+                f"channel {self.name!r} must be 1-D, got an array of shape {values.shape}"
+            )
+        bad = ~np.isfinite(values)
+        if bad.any():
+            first = int(np.flatnonzero(bad)[0])
+            kind = "NaN" if np.isnan(values[first]) else "inf"
+            raise DataError(
+                f"channel {self.name!r} has {int(bad.sum())} non-finite value(s), the first "
+                f"({kind}) at sample {first}; remove or interpolate them before building an "
+                "Experiment"
+            )
+        values.setflags(write=False)
+        object.__setattr__(self, "values", values)
+
+    def with_values(self, values: ArrayLike, unit: str | None = None) -> Channel:
+        """Return a copy with new values (and optionally a new unit)."""
+        return Channel(self.name, self.role, np.asarray(values), self.unit if unit is None else unit)
+
+
+@dataclass(frozen=True, eq=False)
+class Experiment:
+    """Immutable record of one test run: r, u, y and side channels.
+
+    Build it with :meth:`from_arrays` (or a loader); every operation returns
+    a new experiment and leaves this one untouched.
+
+    Parameters
+    ----------
+    channels : tuple of Channel
+        The signals, each with a role ``"r"``, ``"u"``, ``"y"`` or ``"side"``.
+    dt : float
+        Sample period [s], > 0.
+    t0 : float
+        Time of the first sample [s].
+    name : str
+        A label for reports.
+    """
+
+    channels: tuple[Channel, ...]
+    dt: float
+    t0: float = 0.0
+    name: str = ""
+    notes: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        dt = self.dt
+        if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating, np.integer)):
+            raise TypeError(f"dt must be a number of seconds, got {type(dt).__name__}")
+        if not np.isfinite(dt) or dt <= 0:
+            raise DataError(f"dt must be > 0 s, got {dt}")
+        object.__setattr__(self, "dt", float(dt))
+        channels = tuple(self.channels)
+        if not channels:
+            raise DataError("an Experiment needs at least one channel")
+        for ch in channels:
+            if not isinstance(ch, Channel):
+                raise TypeError(f"channels must be Channel objects, got {type(ch).__name__}")
+        lengths = {ch.name: ch.values.size for ch in channels}
+        if len(set(lengths.values())) > 1:
+            listed = ", ".join(f"{k}: {v}" for k, v in lengths.items())
+            raise DataError(f"channels must have equal lengths, got {listed}")
+        names = [ch.name for ch in channels]
+        dupes = sorted({n for n in names if names.count(n) > 1})
+        if dupes:
+            raise DataError(f"channel names must be unique, repeated: {', '.join(dupes)}")
+        if channels[0].values.size < 2:
+            raise DataError(f"an Experiment needs at least 2 samples, got {channels[0].values.size}")
+        object.__setattr__(self, "channels", channels)
+        object.__setattr__(self, "notes", dict(self.notes))
+
+    # -- construction -------------------------------------------------------------------------
+
+    @classmethod
+    def from_arrays(
+        cls,
+        dt: float | None = None,
+        *,
+        r: ArrayLike | None = None,
+        u: ArrayLike | None = None,
+        y: ArrayLike | None = None,
+        side: Mapping[str, ArrayLike] | None = None,
+        names: Mapping[str, str | Sequence[str]] | None = None,
+        units: Mapping[str, str] | None = None,
+        time: ArrayLike | None = None,
+        time_tolerance: float = 1e-3,
+        t0: float = 0.0,
+        name: str = "",
+    ) -> Experiment:
+        """Build an experiment from arrays.
+
+        Parameters
+        ----------
+        dt : float, optional
+            Sample period [s]. Required unless ``time`` is given.
+        r, u, y : array_like, optional
+            Reference, plant input and output, shape ``(N,)`` or ``(N, channels)``.
+            Samples run along axis 0; a wider-than-long array is refused, never transposed.
+        side : mapping of str to array_like, optional
+            Named side channels of shape ``(N,)`` (pressures, temperature, ...).
+        names : mapping, optional
+            Channel names per role, e.g. ``{"y": "position", "u": ["i1", "i2"]}``.
+            Defaults are ``r``, ``u``, ``y`` (``y0``, ``y1``, ... for several channels).
+        units : mapping of str to str, optional
+            Unit per channel name, e.g. ``{"position": "m"}``.
+        time : array_like, optional
+            Time stamps [s]; must be uniform within ``time_tolerance`` of ``dt``.
+        time_tolerance : float
+            Largest accepted deviation of a time step from the mean step, as a fraction of it.
+        t0 : float
+            Time of the first sample [s] when ``time`` is not given.
+        name : str
+            A label for reports.
+        """
+        names = dict(names or {})
+        units = dict(units or {})
+        channels: list[Channel] = []
+        for role, data in (("r", r), ("u", u), ("y", y)):
+            if data is None:
+                continue
+            arr = _as_samples(data, role)
+            role_names = _role_names(role, arr.shape[1], names.get(role))
+            for k, ch_name in enumerate(role_names):
+                channels.append(Channel(ch_name, role, arr[:, k], units.get(ch_name, "")))
+        for ch_name, data in (side or {}).items():
+            arr = np.asarray(data, dtype=float)
+            if arr.ndim != 1:
+                raise DataError(f"side channel {ch_name!r} must be 1-D, got shape {arr.shape}")
+            channels.append(Channel(ch_name, "side", arr, units.get(ch_name, "")))
+        if time is not None:
+            n = channels[0].values.size if channels else 0
+            dt_t, t0 = _check_time(np.asarray(time, dtype=float), n, time_tolerance)
+            if dt is not None and not np.isclose(dt, dt_t, rtol=time_tolerance):
+                raise DataError(f"dt = {dt} s disagrees with the time stamps (mean step {dt_t} s)")
+            dt = dt_t
+        if dt is None:
+            raise DataError("give either dt [s] or a time column")
+        return cls(tuple(channels), dt, t0=t0, name=name)
+
+    # -- access ---------------------------------------------------------------------------------
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples N."""
+        return int(self.channels[0].values.size)
+
+    def __len__(self) -> int:
+        return self.n_samples
+
+    @property
+    def time(self) -> NDArray[np.float64]:
+        """Sample times [s]."""
+        return self.t0 + self.dt * np.arange(self.n_samples)
+
+    @property
+    def duration(self) -> float:
+        """Record length N·dt [s]."""
+        return self.n_samples * self.dt
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """All channel names in order."""
+        return tuple(ch.name for ch in self.channels)
+
+    def names_of(self, role: Role) -> tuple[str, ...]:
+        """Names of the channels with a given role."""
+        check_option("role", role, ROLES)
+        return tuple(ch.name for ch in self.channels if ch.role == role)
+
+    def channel(self, name: str) -> Channel:
+        """The channel called ``name``; :class:`ChannelError` lists the others if absent."""
+        for ch in self.channels:
+            if ch.name == name:
+                return ch
+        raise ChannelError(
+            f"no channel named {name!r}; this experiment has: {', '.join(self.names)}"
+        )
+
+    def __getitem__(self, name: str) -> NDArray[np.float64]:
+        return self.channel(name).values
+
+    def unit(self, name: str) -> str:
+        """Unit of a channel ('' when unknown)."""
+        return self.channel(name).unit
+
+    def _stack(self, role: Role) -> NDArray[np.float64] | None:
+        cols = [ch.values for ch in self.channels if ch.role == role]
+        if not cols:
+            return None
+        out = np.column_stack(cols)
+        out.setflags(write=False)
+        return out
+
+    @property
+    def r(self) -> NDArray[np.float64] | None:
+        """Reference, shape (N, nr), or None."""
+        return self._stack("r")
+
+    @property
+    def u(self) -> NDArray[np.float64] | None:
+        """Plant input, shape (N, nu), or None."""
+        return self._stack("u")
+
+    @property
+    def y(self) -> NDArray[np.float64] | None:
+        """Output, shape (N, ny), or None."""
+        return self._stack("y")
+
+    @property
+    def side(self) -> dict[str, NDArray[np.float64]]:
+        """Side channels by name."""
+        return {ch.name: ch.values for ch in self.channels if ch.role == "side"}
+
+    def signal(self, role: Role) -> NDArray[np.float64]:
+        """The (N, k) array of a role, or a :class:`DataError` naming what is missing."""
+        arr = self._stack(role)
+        if arr is None:
+            raise DataError(
+                f"this experiment has no {_ROLE_WORDS[role]} ({role!r}) channel; it has: "
+                f"{self._describe()}. Map one in the experiment file or pass {role}= to "
+                "Experiment.from_arrays"
+            )
+        return arr
+
+    def require_samples(self, needed: int, purpose: str) -> None:
+        """Raise :class:`DataError` unless there are at least ``needed`` samples."""
+        if self.n_samples < needed:
+            raise DataError(
+                f"{purpose} needs at least {needed} samples, the experiment"
+                f"{' ' + repr(self.name) if self.name else ''} has {self.n_samples}"
+            )
+
+    def _describe(self) -> str:
+        return ", ".join(f"{ch.name} ({ch.role})" for ch in self.channels)
+
+    def __repr__(self) -> str:
+        label = f" {self.name!r}" if self.name else ""
+        return (
+            f"<Experiment{label}: {self.n_samples} samples, dt={self.dt:g} s, "
+            f"channels: {self._describe()}>"
+        )
+
+    # -- channel operations -------------------------------------------------------------------
+
+    def replace_channels(self, channels: Iterable[Channel], **changes: Any) -> Experiment:
+        """A new experiment with other channels (and optionally other fields)."""
+        return replace(self, channels=tuple(channels), **changes)
+
+    def select(self, *names: str) -> Experiment:
+        """Keep only the named channels, in the order given."""
+        if len(names) == 1 and not isinstance(names[0], str):
+            names = tuple(names[0])  # type: ignore[arg-type]
+        return self.replace_channels(self.channel(n) for n in names)
+
+    def drop(self, *names: str) -> Experiment:
+        """Remove the named channels."""
+        for n in names:
+            self.channel(n)
+        return self.replace_channels(ch for ch in self.channels if ch.name not in names)
+
+    def rename(self, mapping: Mapping[str, str]) -> Experiment:
+        """Rename channels, ``{old: new}``."""
+        for old in mapping:
+            self.channel(old)
+        return self.replace_channels(
+            replace(ch, name=mapping.get(ch.name, ch.name)) for ch in self.channels
+        )
+
+    def with_role(self, name: str, role: Role) -> Experiment:
+        """Give one channel another role (e.g. make a side channel the plant input)."""
+        self.channel(name)
+        check_option("role", role, ROLES)
+        return self.replace_channels(
+            replace(ch, role=role) if ch.name == name else ch for ch in self.channels
+        )
+
+    def add_channel(
+        self, name: str, values: ArrayLike, role: Role = "side", unit: str = ""
+    ) -> Experiment:
+        """Append one channel of the same length."""
+        return self.replace_channels((*self.channels, Channel(name, role, np.asarray(values), unit)))
+
+    def slice(self, start: int | None = None, stop: int | None = None) -> Experiment:
+        """Samples ``start:stop`` as a new experiment; time stays consistent."""
+        idx = range(self.n_samples)[slice(start, stop)]
+        if len(idx) < 2:
+            raise DataError(
+                f"slice {start}:{stop} of {self.n_samples} samples leaves {len(idx)}; need >= 2"
+            )
+        return self.replace_channels(
+            (ch.with_values(ch.values[idx.start : idx.stop]) for ch in self.channels),
+            t0=self.t0 + idx.start * self.dt,
+        )
+
+    # -- preprocessing (implemented in _preprocess) --------------------------------------------
+
+    def calibrate(self, *args: Any, **kwargs: Any) -> Experiment:
+        """Apply gain and offset per channel; see :func:`servoid.data.calibrate`."""
+        from ._preprocess import calibrate
+
+        return calibrate(self, *args, **kwargs)
+
+    def detrend(self, *args: Any, **kwargs: Any) -> Experiment:
+        """Remove mean, linear trend or an operating point; see :func:`servoid.data.detrend`."""
+        from ._preprocess import detrend
+
+        return detrend(self, *args, **kwargs)
+
+    def decimate(self, *args: Any, **kwargs: Any) -> Experiment:
+        """Anti-aliased decimation; see :func:`servoid.data.decimate`."""
+        from ._preprocess import decimate
+
+        return decimate(self, *args, **kwargs)
+
+    def lowpass(self, *args: Any, **kwargs: Any) -> Experiment:
+        """Butterworth low-pass filtering; see :func:`servoid.data.lowpass`."""
+        from ._preprocess import lowpass
+
+        return lowpass(self, *args, **kwargs)
+
+    def filter(self, *args: Any, **kwargs: Any) -> Experiment:
+        """Filter channels with a given digital filter; see :func:`servoid.data.filter`."""
+        from ._preprocess import filter as _filter
+
+        return _filter(self, *args, **kwargs)
+
+    def split(self, *args: Any, **kwargs: Any) -> tuple[Experiment, Experiment]:
+        """Split into estimation and validation parts; see :func:`servoid.data.split`."""
+        from ._preprocess import split
+
+        return split(self, *args, **kwargs)
+
+
+@dataclass(frozen=True, eq=False)
+class ExperimentSet:
+    """Several experiments fitted together as separate segments.
+
+    Segments are never joined end to end: estimators build their regressors
+    within each segment, so no lag reaches across a boundary.
+    """
+
+    experiments: tuple[Experiment, ...]
+
+    def __post_init__(self) -> None:
+        exps = tuple(self.experiments)
+        if not exps:
+            raise DataError("an ExperimentSet needs at least one experiment")
+        for e in exps:
+            if not isinstance(e, Experiment):
+                raise TypeError(f"ExperimentSet holds Experiments, got {type(e).__name__}")
+        first = exps[0]
+        for k, e in enumerate(exps[1:], start=1):
+            if not np.isclose(e.dt, first.dt, rtol=1e-9):
+                raise DataError(
+                    f"segment {k} has dt = {e.dt} s but segment 0 has {first.dt} s; "
+                    "resample to a common rate first"
+                )
+            sig_a = [(c.name, c.role) for c in first.channels]
+            sig_b = [(c.name, c.role) for c in e.channels]
+            if sig_a != sig_b:
+                raise DataError(
+                    f"segment {k} has channels {sig_b}, segment 0 has {sig_a}; "
+                    "select and rename to the same channels first"
+                )
+        object.__setattr__(self, "experiments", exps)
+
+    @property
+    def dt(self) -> float:
+        """Common sample period [s]."""
+        return self.experiments[0].dt
+
+    @property
+    def n_samples(self) -> int:
+        """Samples over all segments."""
+        return sum(e.n_samples for e in self.experiments)
+
+    def __iter__(self) -> Iterator[Experiment]:
+        return iter(self.experiments)
+
+    def __len__(self) -> int:
+        return len(self.experiments)
+
+    def __getitem__(self, k: int) -> Experiment:
+        return self.experiments[k]
+
+
+def as_segments(data: Experiment | ExperimentSet) -> tuple[Experiment, ...]:
+    """The experiments of ``data`` as a tuple of segments."""
+    if isinstance(data, Experiment):
+        return (data,)
+    if isinstance(data, ExperimentSet):
+        return data.experiments
+    raise TypeError(f"expected an Experiment or ExperimentSet, got {type(data).__name__}")
+
+
+def _as_samples(data: ArrayLike, role: str) -> NDArray[np.float64]:
+    arr = np.asarray(data, dtype=float)
+    if arr.ndim == 1:
+        return arr[:, None]
+    if arr.ndim != 2:
+        raise DataError(f"{role} must be 1-D or 2-D (samples, channels), got shape {arr.shape}")
+    if arr.shape[1] > arr.shape[0]:
+        raise DataError(
+            f"{role} has shape {arr.shape}: more channels than samples. Samples run along "
+            f"axis 0; if the array is (channels, samples), pass {role}.T"
+        )
+    return arr
+
+
+def _role_names(role: str, k: int, given: str | Sequence[str] | None) -> list[str]:
+    if given is None:
+        return [role] if k == 1 else [f"{role}{i}" for i in range(k)]
+    listed = [given] if isinstance(given, str) else list(given)
+    if len(listed) != k:
+        raise DataError(f"{len(listed)} name(s) given for {k} {role} channel(s): {listed}")
+    return listed
+
+
+def _check_time(time: NDArray[np.float64], n: int, tol: float) -> tuple[float, float]:
+    if time.ndim != 1 or time.size != n:
+        raise DataError(f"time has shape {time.shape}, expected ({n},) to match the channels")
+    if not np.all(np.isfinite(time)):
+        raise DataError("time column has non-finite values")
+    steps = np.diff(time)
+    dt = float((time[-1] - time[0]) / (n - 1))
+    if dt <= 0:
+        raise DataError(f"time stamps must increase; mean step is {dt} s")
+    dev = np.abs(steps - dt)
+    worst = int(np.argmax(dev))
+    if dev[worst] > tol * dt:
+        raise DataError(
+            f"time stamps are not uniform: step {worst} ({time[worst]:.6g} s -> "
+            f"{time[worst + 1]:.6g} s) is {steps[worst]:.6g} s against a mean of {dt:.6g} s "
+            f"(tolerance {tol:.0e} relative). Resample to a uniform grid or split the record "
+            "at the gap"
+        )
+    return dt, float(time[0])

@@ -1,0 +1,263 @@
+"""Preprocessing: calibration, detrending, filtering, decimation, splitting.
+
+Each function takes an :class:`Experiment` and returns a new one; the input
+is never modified.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy import signal as sps
+
+from .._errors import DataError, check_option
+from ._experiment import Channel, Experiment
+
+__all__ = [
+    "calibrate",
+    "decimate",
+    "detrend",
+    "filter",
+    "lowpass",
+    "split",
+    "split_periods",
+]
+
+DetrendKind = Literal["mean", "linear", "offset"]
+
+
+def calibrate(
+    exp: Experiment,
+    gains: Mapping[str, float | tuple[float, float]],
+    units: Mapping[str, str] | None = None,
+) -> Experiment:
+    """Apply ``value = gain·raw + offset`` per channel (e.g. volts → SI).
+
+    Parameters
+    ----------
+    exp : Experiment
+        The raw record.
+    gains : mapping
+        ``{channel: gain}`` or ``{channel: (gain, offset)}``.
+    units : mapping, optional
+        New unit per channel, e.g. ``{"position": "m"}``.
+    """
+    units = dict(units or {})
+    table: dict[str, tuple[float, float]] = {}
+    for name, spec in gains.items():
+        exp.channel(name)
+        gain, offset = (spec, 0.0) if np.isscalar(spec) else tuple(spec)  # type: ignore[misc]
+        if not (np.isfinite(gain) and np.isfinite(offset)) or gain == 0:
+            raise DataError(f"calibration of {name!r} needs a finite non-zero gain, got {spec!r}")
+        table[name] = (float(gain), float(offset))
+    for name in units:
+        exp.channel(name)
+    return exp.replace_channels(
+        ch.with_values(table[ch.name][0] * ch.values + table[ch.name][1], units.get(ch.name))
+        if ch.name in table
+        else ch.with_values(ch.values, units.get(ch.name))
+        for ch in exp.channels
+    )
+
+
+def detrend(
+    exp: Experiment,
+    kind: DetrendKind = "mean",
+    channels: Sequence[str] | None = None,
+    offsets: Mapping[str, float] | None = None,
+) -> Experiment:
+    """Remove the mean, a linear trend, or a given operating point.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The record.
+    kind : {"mean", "linear", "offset"}
+        ``"offset"`` subtracts ``offsets[channel]`` (an operating point).
+    channels : sequence of str, optional
+        Channels to treat; default all r, u and y channels (side channels keep their level).
+    offsets : mapping, optional
+        Operating point per channel, required for ``kind="offset"``.
+    """
+    check_option("kind", kind, ("mean", "linear", "offset"))
+    if channels is None:
+        channels = [ch.name for ch in exp.channels if ch.role != "side"]
+    for name in channels:
+        exp.channel(name)
+    if kind == "offset":
+        if not offsets:
+            raise DataError('detrend(kind="offset") needs offsets={channel: value}')
+        missing = [n for n in channels if n not in offsets]
+        channels = [n for n in channels if n in offsets] if missing else channels
+        for n in offsets:
+            exp.channel(n)
+
+    def treat(ch: Channel) -> Channel:
+        if ch.name not in channels:
+            return ch
+        if kind == "mean":
+            return ch.with_values(ch.values - ch.values.mean())
+        if kind == "linear":
+            return ch.with_values(sps.detrend(ch.values, type="linear"))
+        return ch.with_values(ch.values - float(offsets[ch.name]))  # type: ignore[index]
+
+    return exp.replace_channels(treat(ch) for ch in exp.channels)
+
+
+def decimate(exp: Experiment, q: int, ftype: Literal["fir", "iir"] = "fir") -> Experiment:
+    """Low-pass filter without phase shift, then keep every ``q``-th sample.
+
+    The anti-alias filter (scipy's ``decimate``, zero phase) cuts at 0.8× the
+    new Nyquist frequency, so content above that is removed, not folded back.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The record sampled at ``1/dt``.
+    q : int
+        Decimation factor, >= 1.
+    ftype : {"fir", "iir"}
+        Anti-alias filter: a 30-tap FIR (linear phase) or an order-8 Chebyshev I.
+    """
+    if isinstance(q, bool) or not isinstance(q, (int, np.integer)) or q < 1:
+        raise DataError(f"decimation factor q must be an integer >= 1, got {q!r}")
+    check_option("ftype", ftype, ("fir", "iir"))
+    if q == 1:
+        return exp
+    needed = 3 * 31 if ftype == "fir" else 3 * 9
+    exp.require_samples(needed, f"decimation by {q}")
+    return exp.replace_channels(
+        (ch.with_values(sps.decimate(ch.values, int(q), ftype=ftype, zero_phase=True))
+         for ch in exp.channels),
+        dt=exp.dt * q,
+    )
+
+
+def lowpass(
+    exp: Experiment,
+    cutoff: float,
+    order: int = 4,
+    zero_phase: bool = True,
+    channels: Sequence[str] | None = None,
+) -> Experiment:
+    """Butterworth low-pass filter, zero phase (forward–backward) or causal.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The record.
+    cutoff : float
+        -3 dB frequency [Hz] of one pass; must lie below the Nyquist frequency.
+    order : int
+        Butterworth order.
+    zero_phase : bool
+        Filter forward and backward (no delay, squared magnitude) or only forward.
+    channels : sequence of str, optional
+        Channels to filter; default all.
+    """
+    nyquist = 0.5 / exp.dt
+    if not 0 < cutoff < nyquist:
+        raise DataError(f"cutoff must lie in (0, {nyquist:g}) Hz (the Nyquist frequency), got {cutoff}")
+    sos = sps.butter(order, cutoff, btype="low", fs=1.0 / exp.dt, output="sos")
+    return filter(exp, sos, zero_phase=zero_phase, channels=channels)
+
+
+def filter(
+    exp: Experiment,
+    sos: ArrayLike,
+    zero_phase: bool = False,
+    channels: Sequence[str] | None = None,
+) -> Experiment:
+    """Filter channels with a digital filter in second-order sections.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The record.
+    sos : array_like, shape (n_sections, 6)
+        The filter, as from ``scipy.signal.butter(..., output="sos")`` at ``fs = 1/dt``.
+    zero_phase : bool
+        Forward–backward (``sosfiltfilt``) instead of causal (``sosfilt``).
+    channels : sequence of str, optional
+        Channels to filter; default all.
+    """
+    sos = np.atleast_2d(np.asarray(sos, dtype=float))
+    if sos.shape[1] != 6:
+        raise DataError(f"sos must have shape (n_sections, 6), got {sos.shape}")
+    names = exp.names if channels is None else tuple(channels)
+    for n in names:
+        exp.channel(n)
+    if zero_phase:
+        exp.require_samples(3 * (2 * sos.shape[0] + 1) + 1, "zero-phase filtering")
+    run = sps.sosfiltfilt if zero_phase else sps.sosfilt
+    return exp.replace_channels(
+        ch.with_values(run(sos, ch.values)) if ch.name in names else ch for ch in exp.channels
+    )
+
+
+def split(
+    exp: Experiment, at: float | int = 0.5, period: int | None = None
+) -> tuple[Experiment, Experiment]:
+    """Split into an estimation part and a validation part.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The record.
+    at : float or int
+        A fraction in (0, 1) of the record, or a sample index.
+    period : int, optional
+        Excitation period [samples]: the split point is moved down to a whole
+        number of periods, and the second part is cut to whole periods too.
+    """
+    n = exp.n_samples
+    if isinstance(at, (float, np.floating)):
+        if not 0 < at < 1:
+            raise DataError(f"split fraction must lie in (0, 1), got {at}")
+        index = int(round(at * n))
+    elif isinstance(at, (int, np.integer)) and not isinstance(at, bool):
+        index = int(at)
+    else:
+        raise TypeError(f"at must be a fraction (float) or a sample index (int), got {at!r}")
+    stop = n
+    if period is not None:
+        if period < 1:
+            raise DataError(f"period must be >= 1 sample, got {period}")
+        index = (index // period) * period
+        stop = index + ((n - index) // period) * period
+        if index == 0 or stop == index:
+            raise DataError(
+                f"{n} samples hold {n // period} whole period(s) of {period}; "
+                "need at least 2 to split into estimation and validation"
+            )
+    if not 2 <= index <= n - 2:
+        raise DataError(f"split at sample {index} of {n} leaves a part with fewer than 2 samples")
+    return exp.slice(0, index), exp.slice(index, stop)
+
+
+def split_periods(exp: Experiment, period: int, skip: int = 0) -> list[Experiment]:
+    """Cut the record into whole excitation periods.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The record.
+    period : int
+        Period of the excitation [samples].
+    skip : int
+        Leading periods to drop (transient).
+    """
+    if period < 2:
+        raise DataError(f"period must be >= 2 samples, got {period}")
+    count = exp.n_samples // period
+    if count - skip < 1:
+        raise DataError(
+            f"{exp.n_samples} samples hold {count} whole period(s) of {period}; "
+            f"cannot skip {skip}"
+        )
+    return [exp.slice(k * period, (k + 1) * period) for k in range(skip, count)]
+
+
