@@ -457,6 +457,8 @@ def _role_names(role: str, k: int, given: str | Sequence[str] | None) -> list[st
 def _check_time(time: NDArray[np.float64], n: int, tol: float) -> tuple[float, float]:
     if time.ndim != 1 or time.size != n:
         raise DataError(f"time has shape {time.shape}, expected ({n},) to match the channels")
+    if n < 2:
+        raise DataError(f"time stamps give no sample period: {n} sample(s), need >= 2")
     if not np.all(np.isfinite(time)):
         raise DataError("time column has non-finite values")
     steps = np.diff(time)

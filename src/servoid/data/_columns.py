@@ -1,0 +1,125 @@
+"""Shared helpers of the rig-file readers: named columns to an Experiment."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import ChannelError, DataError, FileFormatError, ServoidError, check_option
+from ._experiment import ROLES, Channel, Experiment, _check_time
+
+__all__ = ["RolesArg", "build_experiment", "existing_file", "library_errors"]
+
+RolesArg = Mapping[str, str | Sequence[str]] | None
+
+#: Relative deviation of a time step from the mean step accepted in a time column;
+#: the same default as :meth:`Experiment.from_arrays`.
+TIME_TOLERANCE = 1e-3
+
+
+def existing_file(path: str | os.PathLike[str]) -> Path:
+    """Return ``path`` as a Path, or raise FileNotFoundError naming it."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such file")
+    if not path.is_file():
+        raise FileFormatError(f"{path} is not a regular file")
+    return path
+
+
+@contextmanager
+def library_errors(path: Path, what: str) -> Iterator[None]:
+    """Turn any exception of a parsing library into a :class:`FileFormatError`.
+
+    Our own errors pass through; permission problems stay ``OSError``.
+    """
+    try:
+        yield
+    except (ServoidError, PermissionError, MemoryError):
+        raise
+    except Exception as exc:
+        raise FileFormatError(
+            f"{path}: cannot be read as {what} ({type(exc).__name__}: {exc})"
+        ) from exc
+
+
+def build_experiment(
+    path: Path,
+    columns: Mapping[str, NDArray[Any]],
+    units: Mapping[str, str],
+    *,
+    roles: RolesArg = None,
+    default_roles: Mapping[str, str] | None = None,
+    dt: float | None = None,
+    time: NDArray[np.float64] | None = None,
+    t0: float = 0.0,
+    notes: Mapping[str, Any] | None = None,
+) -> Experiment:
+    """Assemble an Experiment from the named columns of a file.
+
+    Channels mapped in ``roles`` come first (role order r, u, y, side, then the
+    order listed), the others follow as side channels in file order. Errors
+    from validation are prefixed with the file name.
+    """
+    table = _role_table(path, list(columns), roles, default_roles)
+    order = sorted(columns, key=lambda n: (ROLES.index(table[n]), _listed_rank(n, roles)))
+    try:
+        channels = tuple(Channel(n, table[n], columns[n], units.get(n, "")) for n in order)
+        n = channels[0].values.size if channels else 0
+        if not channels:
+            raise DataError("no numeric channels found")
+        if time is not None:
+            dt_t, t0 = _check_time(np.asarray(time, dtype=float), n, TIME_TOLERANCE)
+            if dt is not None and not np.isclose(dt, dt_t, rtol=TIME_TOLERANCE):
+                raise DataError(f"dt = {dt} s disagrees with the time stamps (mean step {dt_t} s)")
+            dt = dt_t
+        if dt is None:
+            raise DataError("no sample period: the file has no time information, pass dt [s]")
+        return Experiment(channels, dt, t0=t0, name=path.stem, notes=dict(notes or {}))
+    except FileFormatError:
+        raise
+    except DataError as exc:
+        raise DataError(f"{path}: {exc}") from exc
+
+
+def _listed_rank(name: str, roles: RolesArg) -> int:
+    for listed in (roles or {}).values():
+        names = [listed] if isinstance(listed, str) else list(listed)
+        if name in names:
+            return names.index(name)
+    return 0
+
+
+def _role_table(
+    path: Path,
+    names: list[str],
+    roles: RolesArg,
+    default_roles: Mapping[str, str] | None,
+) -> dict[str, str]:
+    if roles is None:
+        table = {n: "side" for n in names}
+        for n, role in (default_roles or {}).items():
+            if n in table and role in ROLES:
+                table[n] = role
+        return table
+    table = {n: "side" for n in names}
+    seen: dict[str, str] = {}
+    for role, listed in roles.items():
+        check_option("role", role, ROLES)
+        for n in [listed] if isinstance(listed, str) else list(listed):
+            if n not in table:
+                raise ChannelError(
+                    f"channel {n!r} (role {role!r}) is not in {path}; the file has: "
+                    f"{', '.join(names)}"
+                )
+            if n in seen and seen[n] != role:
+                raise DataError(f"channel {n!r} is given two roles: {seen[n]!r} and {role!r}")
+            seen[n] = role
+            table[n] = role
+    return table

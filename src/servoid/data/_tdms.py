@@ -1,0 +1,242 @@
+"""LabVIEW TDMS rig files, read and written with npTDMS.
+
+One group holds the channels of a run. Each channel carries the waveform
+properties ``wf_increment`` (sample period [s]), ``wf_start_offset`` (time of
+the first sample [s]) and ``unit_string``. servoid also writes
+``servoid_role`` per channel and the experiment's simple notes as group
+properties; group properties read back become ``Experiment.notes``.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._atomic import atomic_path
+from .._errors import DataError, FileFormatError, OptionError
+from ._columns import RolesArg, build_experiment, existing_file, library_errors
+from ._experiment import Experiment
+
+__all__ = ["read_tdms", "write_tdms"]
+
+_ROLE_PROPERTY = "servoid_role"
+# npTDMS reports a truncated file by logging these and returning partial data.
+_TRUNCATION_HINTS = ("less data than expected", "incomplete", "not a multiple")
+
+
+def read_tdms(
+    path: str | os.PathLike[str],
+    *,
+    group: str | None = None,
+    roles: RolesArg = None,
+    dt: float | None = None,
+    time: str | None = None,
+) -> Experiment:
+    """Read one group of a TDMS file into an Experiment.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    group : str, optional
+        Group to read; may be omitted when the file has exactly one.
+    roles : mapping of str to list of str, optional
+        Role to channel names, e.g. ``{"r": ["AI0"], "y": ["AI1"]}``. Channels
+        not mapped become side channels. Default: the ``servoid_role``
+        property written by :func:`write_tdms`, else side.
+    dt : float, optional
+        Sample period [s] when the channels have no ``wf_increment``;
+        otherwise it must agree with it.
+    time : str, optional
+        A channel of time stamps [s] to use instead of waveform properties.
+
+    Returns
+    -------
+    Experiment
+        Named after the file stem; ``notes`` holds the group properties.
+
+    Raises
+    ------
+    FileFormatError
+        Not a TDMS file, truncated, channels of unequal length or period.
+    OptionError
+        ``group`` missing or not given when the file has several groups.
+    """
+    path = existing_file(path)
+    with _truncation_watch() as warnings, library_errors(path, "TDMS"):
+        from nptdms import TdmsFile
+
+        tdms = TdmsFile.read(path)
+        groups = {g.name: g for g in tdms.groups()}
+        if warnings:
+            raise FileFormatError(f"{path}: truncated or damaged TDMS file ({warnings[0]})")
+        tdms_group = groups[_pick_group(path, list(groups), group)]
+        columns: dict[str, np.ndarray] = {}
+        props: dict[str, Mapping[str, Any]] = {}
+        for ch in tdms_group.channels():
+            data = ch[:]
+            if data.dtype.kind not in "biuf":
+                continue  # timestamps and strings are not signals
+            columns[ch.name] = np.asarray(data, dtype=float)
+            props[ch.name] = dict(ch.properties)
+        if warnings:
+            raise FileFormatError(f"{path}: truncated or damaged TDMS file ({warnings[0]})")
+        notes = {k: _plain(v) for k, v in tdms_group.properties.items()}
+    if not columns:
+        raise FileFormatError(f"{path}: group {tdms_group.name!r} has no numeric channels")
+    lengths = {n: v.size for n, v in columns.items()}
+    if len(set(lengths.values())) > 1:
+        listed = ", ".join(f"{n}: {k}" for n, k in lengths.items())
+        raise FileFormatError(
+            f"{path}: channels of group {tdms_group.name!r} have different lengths ({listed}); "
+            "the file may be truncated"
+        )
+    stamps = None
+    t0 = 0.0
+    if time is not None:
+        if time not in columns:
+            raise DataError(
+                f"{path}: no time channel {time!r} in group {tdms_group.name!r}; it has: "
+                f"{', '.join(columns)}"
+            )
+        stamps = columns.pop(time)
+        props.pop(time)
+    else:
+        dt, t0 = _waveform_timing(path, props, dt)
+    units = {n: str(p.get("unit_string", "")) for n, p in props.items()}
+    default_roles = {n: str(p[_ROLE_PROPERTY]) for n, p in props.items() if _ROLE_PROPERTY in p}
+    return build_experiment(
+        path, columns, units, roles=roles, default_roles=default_roles,
+        dt=dt, time=stamps, t0=t0, notes=notes,
+    )
+
+
+def write_tdms(
+    exp: Experiment,
+    path: str | os.PathLike[str],
+    *,
+    group: str = "servoid",
+    overwrite: bool = False,
+) -> Path:
+    """Write an Experiment as one TDMS group, atomically.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The record.
+    path : path-like
+        Target file.
+    group : str
+        Group name.
+    overwrite : bool
+        Replace an existing file; otherwise :class:`OutputExistsError`.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
+    from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
+
+    if not group:
+        raise DataError("group must be a non-empty string")
+    notes = {k: v for k, v in exp.notes.items() if _is_simple(v)}
+    objects: list[Any] = [
+        RootObject(properties={"name": exp.name}),
+        GroupObject(group, properties=notes),
+    ]
+    for ch in exp.channels:
+        objects.append(
+            ChannelObject(
+                group,
+                ch.name,
+                np.ascontiguousarray(ch.values),
+                properties={
+                    "wf_increment": exp.dt,
+                    "wf_start_offset": exp.t0,
+                    "wf_samples": exp.n_samples,
+                    "unit_string": ch.unit,
+                    _ROLE_PROPERTY: ch.role,
+                },
+            )
+        )
+    with atomic_path(path, overwrite) as tmp, TdmsWriter(str(tmp)) as writer:
+        writer.write_segment(objects)
+    return Path(path)
+
+
+def _pick_group(path: Path, names: list[str], group: str | None) -> str:
+    if group is None:
+        if len(names) == 1:
+            return names[0]
+        if not names:
+            raise FileFormatError(f"{path}: no groups: an empty or truncated TDMS file")
+        raise OptionError(
+            f"{path} has {len(names)} groups; pass group= one of: "
+            f"{', '.join(repr(n) for n in names)}"
+        )
+    if group not in names:
+        raise OptionError(
+            f"{path} has no group {group!r}; it has: {', '.join(repr(n) for n in names)}"
+        )
+    return group
+
+
+def _waveform_timing(
+    path: Path, props: Mapping[str, Mapping[str, Any]], dt: float | None
+) -> tuple[float | None, float]:
+    incs = {n: p.get("wf_increment") for n, p in props.items()}
+    have = {n: float(v) for n, v in incs.items() if v is not None}
+    if not have:
+        return dt, 0.0
+    if len(have) != len(incs) or len(set(have.values())) > 1:
+        listed = ", ".join(f"{n}: {incs[n]}" for n in incs)
+        raise FileFormatError(
+            f"{path}: channels must share one wf_increment (sample period [s]); got {listed}"
+        )
+    dt_file = next(iter(have.values()))
+    if dt is not None and not np.isclose(dt, dt_file, rtol=1e-9):
+        raise DataError(f"{path}: dt = {dt} s disagrees with wf_increment = {dt_file} s")
+    offsets = {float(p.get("wf_start_offset", 0.0)) for p in props.values()}
+    if len(offsets) > 1:
+        raise FileFormatError(
+            f"{path}: channels have different wf_start_offset values: {sorted(offsets)}"
+        )
+    return dt_file, offsets.pop()
+
+
+def _is_simple(value: object) -> bool:
+    return isinstance(value, (str, bool, int, float, np.integer, np.floating))
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        if isinstance(value, np.datetime64):
+            return str(value)
+        return value.item()
+    return value
+
+
+@contextmanager
+def _truncation_watch() -> Iterator[list[str]]:
+    seen: list[str] = []
+
+    class _Catch(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            message = record.getMessage()
+            if any(hint in message for hint in _TRUNCATION_HINTS):
+                seen.append(message)
+
+    logger = logging.getLogger("nptdms")
+    handler = _Catch(logging.WARNING)
+    logger.addHandler(handler)
+    try:
+        yield seen
+    finally:
+        logger.removeHandler(handler)
