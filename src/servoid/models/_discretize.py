@@ -1,0 +1,305 @@
+"""Conversion between continuous and discrete time: ZOH and Tustin, both ways.
+
+ZOH uses the matrix exponential of the augmented matrix ``[[A, B], [0, 0]]``
+and its inverse the principal matrix logarithm.  Tustin (bilinear) maps
+``s = k(z − 1)/(z + 1)`` with ``k = 2/dt``, or ``k = ω_p/tan(ω_p·dt/2)``
+when prewarped at ω_p [rad/s]; for transfer functions it is an exact
+polynomial substitution, for state space the bilinear formulas.  Both
+inverses are exact, so ``d2c(c2d(G))`` reproduces G to rounding.
+
+Transfer functions are discretised by ZOH through a state-space
+realisation; their coefficients set the accuracy: a high-order discrete
+denominator whose roots cluster near z = 1 (dt much shorter than the time
+constants) determines its poles poorly, so keep high-order models in state
+space when that matters.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import overload
+
+import numpy as np
+import scipy.linalg as la
+
+from .._errors import ModelError, check_option
+from ._common import METHODS, Method, check_dt, check_method
+from ._statespace import StateSpace
+from ._transfer import TransferFunction
+
+__all__ = ["c2d", "d2c"]
+
+_EPS = np.finfo(float).eps
+
+
+@overload
+def c2d(
+    model: TransferFunction, dt: float, method: Method = ..., prewarp: float | None = ...
+) -> TransferFunction: ...
+@overload
+def c2d(
+    model: StateSpace, dt: float, method: Method = ..., prewarp: float | None = ...
+) -> StateSpace: ...
+def c2d(model, dt, method="zoh", prewarp=None):  # type: ignore[no-untyped-def]
+    """Discretise a continuous model.
+
+    Parameters
+    ----------
+    model : TransferFunction or StateSpace
+        Continuous-time model (``dt=None``).
+    dt : float
+        Sample period [s], > 0.
+    method : {"zoh", "tustin"}
+        Zero-order hold, or the bilinear (Tustin) map.
+    prewarp : float, optional
+        Tustin only: frequency [rad/s] in (0, π/dt) where the continuous
+        and discrete frequency responses agree exactly.
+
+    Returns
+    -------
+    TransferFunction or StateSpace
+        The discrete model, same type; it remembers `method` and `prewarp`.
+
+    Examples
+    --------
+    >>> g = c2d(TransferFunction([1.0], [1.0, 0.0]), 0.1, "tustin")
+    >>> [float(x) for x in g.num], [float(x) for x in g.den]
+    ([0.05, 0.05], [1.0, -1.0])
+    """
+    _check_model(model)
+    if model.dt is not None:
+        raise ModelError(f"c2d needs a continuous-time model (dt=None), got dt = {model.dt} s")
+    check_option("method", method, METHODS)
+    dt = check_dt(dt, owner="c2d", allow_none=False)
+    method, prewarp = check_method(method, prewarp, dt, owner="c2d")
+    if isinstance(model, TransferFunction):
+        if method == "tustin":
+            return _tf_tustin(model, dt, prewarp)
+        return _ss_zoh(_balanced(model.to_ss()), dt).to_tf()
+    if method == "tustin":
+        return _ss_tustin(model, dt, prewarp)
+    return _ss_zoh(model, dt)
+
+
+@overload
+def d2c(
+    model: TransferFunction, method: Method | None = ..., prewarp: float | None = ...
+) -> TransferFunction: ...
+@overload
+def d2c(
+    model: StateSpace, method: Method | None = ..., prewarp: float | None = ...
+) -> StateSpace: ...
+def d2c(model, method=None, prewarp=None):  # type: ignore[no-untyped-def]
+    """Return the continuous model that discretises to ``model``.
+
+    Parameters
+    ----------
+    model : TransferFunction or StateSpace
+        Discrete-time model.
+    method : {"zoh", "tustin"} or None
+        Inverse to apply.  None uses the method the model remembers, and
+        "zoh" if it remembers none.
+    prewarp : float, optional
+        Tustin prewarp [rad/s].  None uses the model's own prewarp when the
+        method is the one it remembers.
+
+    Returns
+    -------
+    TransferFunction or StateSpace
+        The continuous model (``dt=None``), same type.
+
+    Raises
+    ------
+    ModelError
+        ZOH: a pole on the negative real axis or at 0 has no real
+        continuous-time preimage.  Tustin: a pole at z = −1 maps to s = ∞.
+
+    Notes
+    -----
+    The ZOH inverse is the principal matrix logarithm: a continuous pole
+    whose imaginary part exceeded the Nyquist frequency π/dt before
+    sampling comes back aliased into (−π/dt, π/dt].
+    """
+    _check_model(model)
+    if model.dt is None:
+        raise ModelError("d2c needs a discrete-time model, got a continuous one (dt=None)")
+    if method is None:
+        method = model.method or "zoh"
+    check_option("method", method, METHODS)
+    if prewarp is None and method == model.method:
+        prewarp = model.prewarp
+    method, prewarp = check_method(method, prewarp, model.dt, owner="d2c")
+    if isinstance(model, TransferFunction):
+        if method == "tustin":
+            return _tf_tustin_inverse(model, prewarp)
+        return _ss_zoh_inverse(_balanced(model.to_ss())).to_tf()
+    if method == "tustin":
+        return _ss_tustin_inverse(model, prewarp)
+    return _ss_zoh_inverse(model)
+
+
+def _check_model(model: object) -> None:
+    if not isinstance(model, (TransferFunction, StateSpace)):
+        raise TypeError(
+            f"model must be a TransferFunction or StateSpace, got {type(model).__name__}"
+        )
+
+
+def _tustin_k(dt: float, prewarp: float | None) -> float:
+    """Return k in s = k(z − 1)/(z + 1)."""
+    if prewarp is None:
+        return 2.0 / dt
+    return prewarp / math.tan(prewarp * dt / 2.0)
+
+
+def _substitute(
+    coeffs: np.ndarray, n: int, top: tuple[float, float], bottom: tuple[float, float]
+) -> np.ndarray:
+    """Return Σ c_j·top(x)^m_j·bottom(x)^(n − m_j) for descending ``coeffs``.
+
+    ``top`` and ``bottom`` are first-order polynomials (slope, offset);
+    m_j is the power c_j multiplies.  Coefficients smaller than the
+    rounding bound of this very sum are set to exact zeros, so structural
+    zeros (an integrator, missing high powers) stay exact.
+    """
+    deg = coeffs.size - 1
+    out = np.zeros(n + 1)
+    bound = np.zeros(n + 1)
+    t_abs = np.abs(top)
+    b_abs = np.abs(bottom)
+    for j, cj in enumerate(coeffs):
+        m = deg - j
+        term = np.polymul(_power(top, m), _power(bottom, n - m))
+        out[n + 1 - term.size :] += cj * term
+        mag = np.polymul(_power(t_abs, m), _power(b_abs, n - m))
+        bound[n + 1 - mag.size :] += abs(cj) * mag
+    out[np.abs(out) <= 4 * (n + 1) * _EPS * bound] = 0.0
+    return out
+
+
+def _power(p: tuple[float, float] | np.ndarray, m: int) -> np.ndarray:
+    out = np.ones(1)
+    for _ in range(m):
+        out = np.polymul(out, p)
+    return out
+
+
+def _tf_tustin(model: TransferFunction, dt: float, prewarp: float | None) -> TransferFunction:
+    k = _tustin_k(dt, prewarp)
+    n = model.order
+    # s^m -> k^m (z − 1)^m (z + 1)^(n − m), after multiplying through by (z + 1)^n
+    num = _substitute(model.num, n, (k, -k), (1.0, 1.0))
+    den = _substitute(model.den, n, (k, -k), (1.0, 1.0))
+    if den[0] == 0.0:
+        raise ModelError("Tustin: the model has a pole at s = k (maps to z = ∞)")
+    return TransferFunction(num, den, dt, "tustin", prewarp)
+
+
+def _tf_tustin_inverse(model: TransferFunction, prewarp: float | None) -> TransferFunction:
+    assert model.dt is not None
+    k = _tustin_k(model.dt, prewarp)
+    n = model.order
+    scale = float(np.sum(np.abs(model.den)))
+    if abs(np.polyval(model.den, -1.0)) <= 1e3 * (n + 1) * _EPS * scale:
+        raise ModelError(
+            "Tustin d2c: a pole at z = -1 has no continuous preimage (it maps to s = ∞); "
+            "the model resolves dynamics at the Nyquist frequency"
+        )
+    # z^m -> (k + s)^m (k − s)^(n − m), after multiplying through by (k − s)^n
+    num = _substitute(model.num, n, (1.0, k), (-1.0, k))
+    den = _substitute(model.den, n, (1.0, k), (-1.0, k))
+    return TransferFunction(num, den, None)
+
+
+def _ss_tustin(model: StateSpace, dt: float, prewarp: float | None) -> StateSpace:
+    # scipy's generalised bilinear form (alpha = 1/2), with T = 2/k when prewarped
+    k = _tustin_k(dt, prewarp)
+    n = model.n_states
+    ima = np.eye(n) - model.A / k
+    if np.linalg.cond(ima) > 1.0 / _EPS:
+        raise ModelError("Tustin: the model has a pole at s = k (maps to z = ∞)")
+    ad = la.solve(ima, np.eye(n) + model.A / k)
+    bd = la.solve(ima, model.B) * (2.0 / k)
+    cd = la.solve(ima.T, model.C.T).T
+    dd = model.D + cd @ model.B / k
+    return StateSpace(ad, bd, cd, dd, dt, "tustin", prewarp)
+
+
+def _ss_tustin_inverse(model: StateSpace, prewarp: float | None) -> StateSpace:
+    assert model.dt is not None
+    k = _tustin_k(model.dt, prewarp)
+    n = model.n_states
+    ipa = np.eye(n) + model.A
+    if n and np.linalg.cond(ipa) > 1e-3 / _EPS:
+        raise ModelError(
+            "Tustin d2c: a pole at z = -1 has no continuous preimage (it maps to s = ∞)"
+        )
+    # exact inverse of _ss_tustin: with M = (I + Ad)⁻¹, A = k(Ad − I)M, B = k·M·Bd,
+    # C = 2·Cd·M, D = Dd − Cd·M·Bd
+    a = k * la.solve(ipa.T, (model.A - np.eye(n)).T).T
+    mb = la.solve(ipa, model.B)
+    c = 2.0 * la.solve(ipa.T, model.C.T).T
+    return StateSpace(a, k * mb, c, model.D - model.C @ mb, None)
+
+
+def _ss_zoh(model: StateSpace, dt: float) -> StateSpace:
+    n, m = model.n_states, model.n_inputs
+    aug = np.zeros((n + m, n + m))
+    aug[:n, :n] = model.A
+    aug[:n, n:] = model.B
+    e = _scaled(la.expm, aug * dt)
+    return StateSpace(e[:n, :n], e[:n, n:], model.C, model.D, dt, "zoh")
+
+
+def _ss_zoh_inverse(model: StateSpace) -> StateSpace:
+    assert model.dt is not None
+    n, m = model.n_states, model.n_inputs
+    p = la.eigvals(model.A)
+    bad = p[(np.abs(p.imag) <= 1e-12 * np.maximum(np.abs(p), 1.0)) & (p.real <= 1e-12)]
+    if bad.size:
+        raise ModelError(
+            f"ZOH d2c: discrete pole(s) {bad} on the negative real axis or at 0 have no real "
+            "continuous-time equivalent (log of a negative number is complex); such poles "
+            "usually model dynamics faster than the Nyquist frequency. Try method='tustin' "
+            "or reduce the model"
+        )
+    aug = np.eye(n + m)
+    aug[:n, :n] = model.A
+    aug[:n, n:] = model.B
+    log = _scaled(la.logm, aug) / model.dt
+    if np.iscomplexobj(log):
+        if np.max(np.abs(log.imag)) > 1e-8 * max(1.0, float(np.max(np.abs(log.real)))):
+            raise ModelError("ZOH d2c: the matrix logarithm is not real; no real preimage")
+        log = log.real
+    return StateSpace(log[:n, :n], log[:n, n:], model.C, model.D, None)
+
+
+def _scaled(func, mat: np.ndarray) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """Apply expm/logm after diagonal balancing by powers of 2 (exact to undo).
+
+    Companion realisations of high-order models have entries spanning many
+    decades; balancing keeps the norm near the spectral radius, which the
+    scaling-and-squaring algorithms need for full accuracy.
+    """
+    if mat.shape[0] == 0:
+        return mat.copy()
+    _, (scale, _) = la.matrix_balance(mat, permute=False, separate=True)
+    balanced = mat / scale[:, None] * scale[None, :]
+    return func(balanced) * scale[:, None] / scale[None, :]
+
+
+def _balanced(model: StateSpace) -> StateSpace:
+    """Return a diagonally balanced realisation (powers-of-2 scaling)."""
+    if model.n_states == 0:
+        return model
+    _, (scale, _) = la.matrix_balance(model.A, permute=False, separate=True)
+    return StateSpace(
+        model.A / scale[:, None] * scale[None, :],
+        model.B / scale[:, None],
+        model.C * scale[None, :],
+        model.D,
+        model.dt,
+        model.method,
+        model.prewarp,
+    )
+

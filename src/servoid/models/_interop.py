@@ -1,0 +1,139 @@
+"""Conversion to and from scipy.signal and python-control objects.
+
+python-control is optional (``pip install servoid[control]``) and is
+imported only when one of its converters is called.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy import signal
+
+from .._errors import ModelError
+from ._statespace import StateSpace
+from ._transfer import TransferFunction
+
+__all__ = ["from_control", "from_scipy", "to_control", "to_scipy"]
+
+
+def to_scipy(model: TransferFunction | StateSpace) -> signal.TransferFunction | signal.StateSpace:
+    """Return the equivalent scipy.signal system.
+
+    Parameters
+    ----------
+    model : TransferFunction or StateSpace
+        The model; the discretisation method is not carried over.
+
+    Returns
+    -------
+    scipy.signal.TransferFunction or scipy.signal.StateSpace
+        Continuous (lti) for ``dt=None``, else discrete (dlti) with the same dt.
+    """
+    kw = {} if model.dt is None else {"dt": model.dt}
+    if isinstance(model, TransferFunction):
+        return signal.TransferFunction(np.array(model.num), np.array(model.den), **kw)
+    if isinstance(model, StateSpace):
+        return signal.StateSpace(
+            np.array(model.A), np.array(model.B), np.array(model.C), np.array(model.D), **kw
+        )
+    raise TypeError(
+        f"model must be a TransferFunction or StateSpace, got {type(model).__name__}; "
+        "for a PolynomialModel convert model.transfer_function(i) first"
+    )
+
+
+def from_scipy(obj: signal.lti | signal.dlti) -> TransferFunction | StateSpace:
+    """Return a servoid model from a scipy.signal system.
+
+    Parameters
+    ----------
+    obj : scipy.signal.lti or scipy.signal.dlti
+        A TransferFunction, ZerosPolesGain (converted to a transfer
+        function) or StateSpace; SISO for transfer functions.
+
+    Returns
+    -------
+    TransferFunction or StateSpace
+        With ``dt=None`` for continuous systems.
+    """
+    if not isinstance(obj, (signal.lti, signal.dlti)):
+        raise TypeError(f"obj must be a scipy.signal lti or dlti system, got {type(obj).__name__}")
+    dt = getattr(obj, "dt", None)
+    if isinstance(obj, signal.StateSpace):
+        return StateSpace(obj.A, obj.B, obj.C, obj.D, dt)
+    tf = obj.to_tf()
+    num = np.asarray(tf.num)
+    if num.ndim > 1:
+        if num.shape[0] != 1:
+            raise ModelError(f"only SISO transfer functions are supported, got {num.shape[0]} outputs")
+        num = num[0]
+    return TransferFunction(num, tf.den, dt)
+
+
+def to_control(model: TransferFunction | StateSpace) -> Any:
+    """Return the equivalent python-control system.
+
+    Parameters
+    ----------
+    model : TransferFunction or StateSpace
+        The model.
+
+    Returns
+    -------
+    control.TransferFunction or control.StateSpace
+        With python-control's ``dt = 0`` for continuous time.
+    """
+    control = _import_control()
+    dt = 0 if model.dt is None else model.dt
+    if isinstance(model, TransferFunction):
+        return control.tf(np.array(model.num), np.array(model.den), dt)
+    if isinstance(model, StateSpace):
+        return control.ss(
+            np.array(model.A), np.array(model.B), np.array(model.C), np.array(model.D), dt
+        )
+    raise TypeError(f"model must be a TransferFunction or StateSpace, got {type(model).__name__}")
+
+
+def from_control(obj: Any) -> TransferFunction | StateSpace:
+    """Return a servoid model from a python-control system.
+
+    Parameters
+    ----------
+    obj : control.TransferFunction or control.StateSpace
+        SISO for transfer functions.  python-control's ``dt = 0`` and
+        ``dt = None`` (unspecified time base) become continuous time;
+        ``dt = True`` (discrete, unknown period) is refused.
+
+    Returns
+    -------
+    TransferFunction or StateSpace
+        The servoid model.
+    """
+    control = _import_control()
+    dt = obj.dt if hasattr(obj, "dt") else None
+    if dt is True:
+        raise ModelError("python-control dt=True (discrete, unspecified period) has no dt [s]")
+    dt = None if dt is None or dt == 0 else float(dt)
+    if isinstance(obj, control.StateSpace):
+        return StateSpace(obj.A, obj.B, obj.C, obj.D, dt)
+    if isinstance(obj, control.TransferFunction):
+        if obj.ninputs != 1 or obj.noutputs != 1:
+            raise ModelError(
+                f"only SISO transfer functions are supported, got {obj.noutputs}×{obj.ninputs}"
+            )
+        return TransferFunction(obj.num[0][0], obj.den[0][0], dt)
+    raise TypeError(
+        f"obj must be a control.TransferFunction or control.StateSpace, got {type(obj).__name__}"
+    )
+
+
+def _import_control() -> Any:
+    try:
+        import control
+    except ImportError as exc:
+        raise ImportError(
+            "python-control is required for this conversion: pip install servoid[control]"
+        ) from exc
+    return control
