@@ -265,7 +265,7 @@ def _write_v73(path: Path, arrays: dict[str, np.ndarray], userblock: bool = True
             ds = f.create_dataset(name, data=arr.T)  # MATLAB is column-major
             ds.attrs["MATLAB_class"] = np.bytes_("double")
     if userblock:
-        header = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jan  1 00:00:00 2024 HDF5"
+        header = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jan  1 2024 HDF5"
         with path.open("r+b") as f:
             f.write(header.ljust(128, b" "))
     return path

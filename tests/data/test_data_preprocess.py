@@ -67,6 +67,15 @@ def test_decimate_keeps_low_removes_high(q: int) -> None:
     assert _amplitude(d_high["y"][inner], td, f_alias) < 2.6e-3
 
 
+def test_decimate_keeps_offset_and_ramp_at_the_edges() -> None:
+    k = np.arange(1000)
+    exp = Experiment.from_arrays(1e-3, y=2.5 + 0.01 * k)
+    out = decimate(exp, 5)
+    # A symmetric unit-DC-gain FIR passes a line unchanged, and the line padding continues
+    # it past the ends: only rounding of ~100 products of order 10 remains.
+    np.testing.assert_allclose(out["y"], 2.5 + 0.01 * k[::5], rtol=1e-12)
+
+
 def test_decimate_checks() -> None:
     exp = Experiment.from_arrays(0.01, y=np.ones(50))
     assert decimate(exp, 1) is exp

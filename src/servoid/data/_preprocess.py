@@ -10,7 +10,7 @@ from collections.abc import Mapping, Sequence
 from typing import Literal
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from scipy import signal as sps
 
 from .._errors import DataError, check_option
@@ -121,8 +121,9 @@ def decimate(exp: Experiment, q: int, ftype: Literal["fir", "iir"] = "fir") -> E
         Decimation factor, >= 1.
     ftype : {"fir", "iir"}
         Anti-alias filter. ``"fir"``: a Hamming-window FIR of ``20q + 1`` taps
-        applied once with its delay removed; -6 dB at the new Nyquist frequency
-        and at least 50 dB down from 1.2 times it. ``"iir"``: an order-8
+        applied once with its delay removed, the record extended by a fitted
+        line at both ends; -6 dB at the new Nyquist frequency and at least
+        50 dB down from 1.2 times it. ``"iir"``: an order-8
         Chebyshev I cutting at 0.8 times the new Nyquist frequency, applied
         forward and backward.
     """
@@ -135,11 +136,21 @@ def decimate(exp: Experiment, q: int, ftype: Literal["fir", "iir"] = "fir") -> E
     # pads 3·(2·4 sections + 1) = 27 samples and needs more than that.
     needed = q + 1 if ftype == "fir" else 28
     exp.require_samples(needed, f"decimation by {q}")
-    return exp.replace_channels(
-        (ch.with_values(sps.decimate(ch.values, int(q), ftype=ftype, zero_phase=True))
-         for ch in exp.channels),
-        dt=exp.dt * q,
-    )
+    q = int(q)
+    if ftype == "fir":
+        # scipy's decimate filter, but padded with a fitted line instead of zeros: with zero
+        # padding a channel with an offset (volts, positions) rings at both ends.
+        taps = sps.firwin(20 * q + 1, 1.0 / q, window="hamming")
+
+        def run(x: NDArray[np.float64]) -> NDArray[np.float64]:
+            return sps.resample_poly(x, 1, q, window=taps, padtype="line")
+    else:
+
+        def run(x: NDArray[np.float64]) -> NDArray[np.float64]:
+            return sps.decimate(x, q, ftype="iir", zero_phase=True)
+
+    return exp.replace_channels((ch.with_values(run(ch.values)) for ch in exp.channels),
+                                dt=exp.dt * q)
 
 
 def lowpass(
@@ -166,7 +177,9 @@ def lowpass(
     """
     nyquist = 0.5 / exp.dt
     if not 0 < cutoff < nyquist:
-        raise DataError(f"cutoff must lie in (0, {nyquist:g}) Hz (the Nyquist frequency), got {cutoff}")
+        raise DataError(
+            f"cutoff must lie in (0, {nyquist:g}) Hz (the Nyquist frequency), got {cutoff}"
+        )
     sos = sps.butter(order, cutoff, btype="low", fs=1.0 / exp.dt, output="sos")
     return filter(exp, sos, zero_phase=zero_phase, channels=channels)
 
