@@ -206,7 +206,10 @@ class Experiment:
         return tuple(ch.name for ch in self.channels if ch.role == role)
 
     def channel(self, name: str) -> Channel:
-        """The channel called ``name``; :class:`ChannelError` lists the others if absent."""
+        """The channel called ``name``.
+
+        Raises :class:`ChannelError` listing the others if it is absent.
+        """
         for ch in self.channels:
             if ch.name == name:
                 return ch
@@ -250,7 +253,10 @@ class Experiment:
         return {ch.name: ch.values for ch in self.channels if ch.role == "side"}
 
     def signal(self, role: Role) -> NDArray[np.float64]:
-        """The (N, k) array of a role, or a :class:`DataError` naming what is missing."""
+        """The (N, k) array of the channels with a role.
+
+        Raises :class:`DataError` naming what is missing if there are none.
+        """
         arr = self._stack(role)
         if arr is None:
             raise DataError(
@@ -261,7 +267,7 @@ class Experiment:
         return arr
 
     def require_samples(self, needed: int, purpose: str) -> None:
-        """Raise :class:`DataError` unless there are at least ``needed`` samples."""
+        """Raise DataError unless there are ``needed`` samples or more."""
         if self.n_samples < needed:
             raise DataError(
                 f"{purpose} needs at least {needed} samples, the experiment"
@@ -281,7 +287,7 @@ class Experiment:
     # -- channel operations -------------------------------------------------------------------
 
     def replace_channels(self, channels: Iterable[Channel], **changes: Any) -> Experiment:
-        """A new experiment with other channels (and optionally other fields)."""
+        """A new experiment with other channels (and other fields)."""
         return replace(self, channels=tuple(channels), **changes)
 
     def select(self, *names: str) -> Experiment:
@@ -305,7 +311,7 @@ class Experiment:
         )
 
     def with_role(self, name: str, role: Role) -> Experiment:
-        """Give one channel another role (e.g. make a side channel the plant input)."""
+        """Give one channel another role (e.g. side -> plant input)."""
         self.channel(name)
         check_option("role", role, ROLES)
         return self.replace_channels(
@@ -319,7 +325,7 @@ class Experiment:
         return self.replace_channels((*self.channels, Channel(name, role, np.asarray(values), unit)))
 
     def slice(self, start: int | None = None, stop: int | None = None) -> Experiment:
-        """Samples ``start:stop`` as a new experiment; time stays consistent."""
+        """Samples ``start:stop`` as a new experiment; t0 follows."""
         idx = range(self.n_samples)[slice(start, stop)]
         if len(idx) < 2:
             raise DataError(
@@ -333,13 +339,13 @@ class Experiment:
     # -- preprocessing (implemented in _preprocess) --------------------------------------------
 
     def calibrate(self, *args: Any, **kwargs: Any) -> Experiment:
-        """Apply gain and offset per channel; see :func:`servoid.data.calibrate`."""
+        """Apply gain and offset per channel; see :func:`calibrate`."""
         from ._preprocess import calibrate
 
         return calibrate(self, *args, **kwargs)
 
     def detrend(self, *args: Any, **kwargs: Any) -> Experiment:
-        """Remove mean, linear trend or an operating point; see :func:`servoid.data.detrend`."""
+        """Remove mean, trend or operating point; see :func:`detrend`."""
         from ._preprocess import detrend
 
         return detrend(self, *args, **kwargs)
@@ -351,19 +357,19 @@ class Experiment:
         return decimate(self, *args, **kwargs)
 
     def lowpass(self, *args: Any, **kwargs: Any) -> Experiment:
-        """Butterworth low-pass filtering; see :func:`servoid.data.lowpass`."""
+        """Butterworth low-pass filtering; see :func:`lowpass`."""
         from ._preprocess import lowpass
 
         return lowpass(self, *args, **kwargs)
 
     def filter(self, *args: Any, **kwargs: Any) -> Experiment:
-        """Filter channels with a given digital filter; see :func:`servoid.data.filter`."""
+        """Filter channels with a digital filter; see :func:`filter`."""
         from ._preprocess import filter as _filter
 
         return _filter(self, *args, **kwargs)
 
     def split(self, *args: Any, **kwargs: Any) -> tuple[Experiment, Experiment]:
-        """Split into estimation and validation parts; see :func:`servoid.data.split`."""
+        """Split into estimation and validation parts; see :func:`split`."""
         from ._preprocess import split
 
         return split(self, *args, **kwargs)

@@ -34,7 +34,7 @@ def calibrate(
     gains: Mapping[str, float | tuple[float, float]],
     units: Mapping[str, str] | None = None,
 ) -> Experiment:
-    """Apply ``value = gain·raw + offset`` per channel (e.g. volts → SI).
+    """Apply ``value = gain·raw + offset`` per channel (volts → SI).
 
     Parameters
     ----------
@@ -108,7 +108,7 @@ def detrend(
 
 
 def decimate(exp: Experiment, q: int, ftype: Literal["fir", "iir"] = "fir") -> Experiment:
-    """Low-pass filter without phase shift, then keep every ``q``-th sample.
+    """Anti-alias filter (zero phase), then keep every q-th sample.
 
     The anti-alias filter (scipy's ``decimate``, zero phase) removes content
     above the new Nyquist frequency instead of folding it back.
@@ -160,7 +160,7 @@ def lowpass(
     zero_phase: bool = True,
     channels: Sequence[str] | None = None,
 ) -> Experiment:
-    """Butterworth low-pass filter, zero phase (forward–backward) or causal.
+    """Butterworth low-pass filter, zero phase or causal.
 
     Parameters
     ----------
