@@ -141,7 +141,9 @@ def test_zoh_inverse_aliases_poles_above_nyquist():
     back = d2c(c2d(plant_ss(), DT, "zoh"))
     nyquist = math.pi / DT
     assert np.all(np.abs(back.poles().imag) <= nyquist * (1 + 1e-9))  # principal logarithm
-    assert match_error(back.poles(), g_plant_poles()) > 0.1  # the 600/800 Hz pairs come back aliased
+    assert (
+        match_error(back.poles(), g_plant_poles()) > 0.1
+    )  # the 600/800 Hz pairs come back aliased
 
 
 @pytest.mark.parametrize("method", ["tustin", "zoh"])

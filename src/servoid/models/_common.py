@@ -43,9 +43,7 @@ def check_dt(dt: object, *, owner: str, allow_none: bool = True) -> float | None
             raise ModelError(f"{owner} is discrete-time only: dt must be > 0 s, got None")
         return None
     if isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating)):
-        raise TypeError(
-            f"{owner}: dt must be a float [s] or None for continuous time, got {dt!r}"
-        )
+        raise TypeError(f"{owner}: dt must be a float [s] or None for continuous time, got {dt!r}")
     value = float(dt)
     if not math.isfinite(value) or value <= 0.0:
         raise ModelError(f"{owner}: dt must be > 0 s (None for continuous time), got {dt!r}")
@@ -86,13 +84,13 @@ def as_coefficients(name: str, values: ArrayLike, *, owner: str) -> NDArray[np.f
     try:
         arr = np.array(values, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise TypeError(f"{owner}: {name} must be a 1-D array of real numbers, got {values!r}") from exc
+        raise TypeError(
+            f"{owner}: {name} must be a 1-D array of real numbers, got {values!r}"
+        ) from exc
     if arr.ndim == 0:
         arr = arr.reshape(1)
     if arr.ndim != 1 or arr.size == 0:
-        raise ModelError(
-            f"{owner}: {name} must be a non-empty 1-D array, got shape {arr.shape}"
-        )
+        raise ModelError(f"{owner}: {name} must be a non-empty 1-D array, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ModelError(f"{owner}: {name} must be finite, got {arr}")
     return arr

@@ -302,4 +302,3 @@ def _balanced(model: StateSpace) -> StateSpace:
         model.method,
         model.prewarp,
     )
-

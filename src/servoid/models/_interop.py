@@ -31,16 +31,16 @@ def to_scipy(model: TransferFunction | StateSpace) -> signal.TransferFunction | 
     scipy.signal.TransferFunction or scipy.signal.StateSpace
         Continuous (lti) for ``dt=None``, else discrete (dlti) with the same dt.
     """
+    if not isinstance(model, (TransferFunction, StateSpace)):
+        raise TypeError(
+            f"model must be a TransferFunction or StateSpace, got {type(model).__name__}; "
+            "for a PolynomialModel convert model.transfer_function(i) first"
+        )
     kw = {} if model.dt is None else {"dt": model.dt}
     if isinstance(model, TransferFunction):
         return signal.TransferFunction(np.array(model.num), np.array(model.den), **kw)
-    if isinstance(model, StateSpace):
-        return signal.StateSpace(
-            np.array(model.A), np.array(model.B), np.array(model.C), np.array(model.D), **kw
-        )
-    raise TypeError(
-        f"model must be a TransferFunction or StateSpace, got {type(model).__name__}; "
-        "for a PolynomialModel convert model.transfer_function(i) first"
+    return signal.StateSpace(
+        np.array(model.A), np.array(model.B), np.array(model.C), np.array(model.D), **kw
     )
 
 
@@ -67,7 +67,9 @@ def from_scipy(obj: signal.lti | signal.dlti) -> TransferFunction | StateSpace:
     num = np.asarray(tf.num)
     if num.ndim > 1:
         if num.shape[0] != 1:
-            raise ModelError(f"only SISO transfer functions are supported, got {num.shape[0]} outputs")
+            raise ModelError(
+                f"only SISO transfer functions are supported, got {num.shape[0]} outputs"
+            )
         num = num[0]
     return TransferFunction(num, tf.den, dt)
 
@@ -85,15 +87,17 @@ def to_control(model: TransferFunction | StateSpace) -> Any:
     control.TransferFunction or control.StateSpace
         With python-control's ``dt = 0`` for continuous time.
     """
+    if not isinstance(model, (TransferFunction, StateSpace)):
+        raise TypeError(
+            f"model must be a TransferFunction or StateSpace, got {type(model).__name__}"
+        )
     control = _import_control()
     dt = 0 if model.dt is None else model.dt
     if isinstance(model, TransferFunction):
         return control.tf(np.array(model.num), np.array(model.den), dt)
-    if isinstance(model, StateSpace):
-        return control.ss(
-            np.array(model.A), np.array(model.B), np.array(model.C), np.array(model.D), dt
-        )
-    raise TypeError(f"model must be a TransferFunction or StateSpace, got {type(model).__name__}")
+    return control.ss(
+        np.array(model.A), np.array(model.B), np.array(model.C), np.array(model.D), dt
+    )
 
 
 def from_control(obj: Any) -> TransferFunction | StateSpace:

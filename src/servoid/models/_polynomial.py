@@ -156,8 +156,10 @@ class PolynomialModel:
         PolynomialModel
             The ARX model.
         """
-        if isinstance(b, np.ndarray) and b.ndim == 1 or (
-            isinstance(b, Sequence) and all(np.ndim(x) == 0 for x in b)
+        if (
+            isinstance(b, np.ndarray)
+            and b.ndim == 1
+            or (isinstance(b, Sequence) and all(np.ndim(x) == 0 for x in b))
         ):
             bs: tuple[ArrayLike, ...] = (b,)
         elif isinstance(b, np.ndarray) and b.ndim == 2 or isinstance(b, Sequence):
@@ -270,9 +272,7 @@ class PolynomialModel:
             y += signal.lfilter(num, den, uu[:, i], zi=zi)[0]
         return y
 
-    def predict(
-        self, y: ArrayLike, u: ArrayLike, horizon: float | None = 1
-    ) -> NDArray[np.float64]:
+    def predict(self, y: ArrayLike, u: ArrayLike, horizon: float | None = 1) -> NDArray[np.float64]:
         """Return the k-step-ahead prediction ŷ(t | t − k).
 
         Uses the exact predictor ``ŷ = W_k G u + (1 − W_k) y`` with

@@ -285,10 +285,18 @@ class StateSpace:
         if t.shape != (n, n):
             raise ModelError(f"T must have shape ({n}, {n}), got {t.shape}")
         if not np.all(np.isfinite(t)) or np.linalg.cond(t) > 1.0 / np.finfo(float).eps:
-            raise ModelError("T must be finite and invertible (it is singular to working precision)")
+            raise ModelError(
+                "T must be finite and invertible (it is singular to working precision)"
+            )
         t_inv = np.linalg.inv(t)
         return StateSpace(
-            t @ self.A @ t_inv, t @ self.B, self.C @ t_inv, self.D, self.dt, self.method, self.prewarp
+            t @ self.A @ t_inv,
+            t @ self.B,
+            self.C @ t_inv,
+            self.D,
+            self.dt,
+            self.method,
+            self.prewarp,
         )
 
     # -- private ----------------------------------------------------------

@@ -310,9 +310,7 @@ class TransferFunction:
         if o is None:
             return NotImplemented
         dt = common_dt(self.dt, o.dt, what="multiply")
-        return _with_memory(
-            np.polymul(self.num, o.num), np.polymul(self.den, o.den), dt, self, o
-        )
+        return _with_memory(np.polymul(self.num, o.num), np.polymul(self.den, o.den), dt, self, o)
 
     __rmul__ = __mul__
 
@@ -392,7 +390,9 @@ class TransferFunction:
             kept_p.append(p)
         gain = self.num[0] if np.any(self.num) else 0.0
         num = gain * _real_poly(zeros, "zeros")
-        return TransferFunction(num, _real_poly(kept_p, "poles"), self.dt, self.method, self.prewarp)
+        return TransferFunction(
+            num, _real_poly(kept_p, "poles"), self.dt, self.method, self.prewarp
+        )
 
     # -- conversion -----------------------------------------------------
     def to_ss(self) -> StateSpace:
@@ -439,7 +439,9 @@ class TransferFunction:
         numq, denq = _z_to_q(self.num, self.den)
         nz = np.flatnonzero(numq)
         nk = int(nz[0]) if nz.size else 0
-        b = numq[nk:] if nz.size else np.zeros(1)
+        # trailing zeros in q⁻¹ form only pad the orders (poles/zeros at the origin)
+        b = np.trim_zeros(numq[nk:], "b") if nz.size else np.zeros(1)
+        denq = np.trim_zeros(denq, "b")
         if structure == "arx":
             return PolynomialModel(denq, (b,), (nk,), self.dt, noise_variance=noise_variance)
         return PolynomialModel(
