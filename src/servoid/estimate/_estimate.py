@@ -1,0 +1,147 @@
+"""The :class:`Estimate`: what every estimator returns."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import stats
+
+__all__ = ["Estimate", "ParameterRow"]
+
+
+@dataclass(frozen=True)
+class ParameterRow:
+    """One estimated parameter with its uncertainty."""
+
+    name: str
+    value: float
+    std: float
+    ci_low: float
+    ci_high: float
+    unit: str = ""
+
+
+@dataclass(frozen=True, eq=False)
+class Estimate:
+    """A fitted model with parameter covariance, residuals and diagnostics.
+
+    Attributes
+    ----------
+    model : object
+        The identified model (e.g. a :class:`~servoid.models.PolynomialModel`).
+    parameters : ndarray, shape (n,)
+        Estimated parameter vector θ̂.
+    names : tuple of str
+        A name per parameter.
+    covariance : ndarray, shape (n, n)
+        Covariance of θ̂.
+    noise_variance : float
+        Estimated variance of the equation error / residual σ̂².
+    n_samples : int
+        Number of equations (residuals) the fit used.
+    method : str
+        Estimator, e.g. ``"arx"``.
+    status : str
+        Solver status: ``"ok"`` or a description of what happened.
+    options : mapping
+        The settings used (orders, solver route, ...), JSON-friendly.
+    units : tuple of str
+        A unit per parameter ('' when dimensionless or unknown).
+    """
+
+    model: Any
+    parameters: NDArray[np.float64]
+    names: tuple[str, ...]
+    covariance: NDArray[np.float64]
+    noise_variance: float
+    n_samples: int
+    method: str
+    status: str = "ok"
+    options: Mapping[str, Any] = field(default_factory=dict)
+    units: tuple[str, ...] = ()
+    residual_function: Callable[[], NDArray[np.float64]] | None = field(
+        default=None, repr=False
+    )
+
+    def __post_init__(self) -> None:
+        for name in ("parameters", "covariance"):
+            arr = np.array(getattr(self, name), dtype=float)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        if not self.units:
+            object.__setattr__(self, "units", ("",) * self.parameters.size)
+        object.__setattr__(self, "names", tuple(self.names))
+        object.__setattr__(self, "options", dict(self.options))
+
+    @property
+    def std(self) -> NDArray[np.float64]:
+        """Standard deviation of each parameter."""
+        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+
+    @property
+    def dof(self) -> int:
+        """Residual degrees of freedom N − n."""
+        return max(self.n_samples - self.parameters.size, 1)
+
+    def confidence_intervals(self, level: float = 0.95) -> NDArray[np.float64]:
+        """Two-sided intervals θ̂ ± t·σ, shape (n, 2).
+
+        Parameters
+        ----------
+        level : float
+            Coverage probability in (0, 1); Student-t quantile with N − n degrees of freedom.
+        """
+        if not 0 < level < 1:
+            raise ValueError(f"level must lie in (0, 1), got {level}")
+        half = stats.t.ppf(0.5 + level / 2, self.dof) * self.std
+        return np.column_stack([self.parameters - half, self.parameters + half])
+
+    def table(self, level: float = 0.95) -> list[ParameterRow]:
+        """Parameters as rows (value, std, confidence interval)."""
+        ci = self.confidence_intervals(level)
+        return [
+            ParameterRow(n, float(v), float(s), float(lo), float(hi), unit)
+            for n, v, s, (lo, hi), unit in zip(
+                self.names, self.parameters, self.std, ci, self.units, strict=True
+            )
+        ]
+
+    def __getitem__(self, name: str) -> float:
+        try:
+            return float(self.parameters[self.names.index(name)])
+        except ValueError:
+            raise KeyError(f"no parameter {name!r}; parameters are {', '.join(self.names)}") from None
+
+    @cached_property
+    def residuals(self) -> NDArray[np.float64]:
+        """Residuals of the fit (computed on first access)."""
+        if self.residual_function is None:
+            return np.empty(0)
+        return np.asarray(self.residual_function())
+
+    def to_dict(self, level: float = 0.95) -> dict[str, Any]:
+        """Plain-data summary for JSON."""
+        return {
+            "method": self.method,
+            "status": self.status,
+            "n_samples": self.n_samples,
+            "noise_variance": self.noise_variance,
+            "confidence_level": level,
+            "parameters": [row.__dict__ for row in self.table(level)],
+            "options": dict(self.options),
+        }
+
+    def __str__(self) -> str:
+        lines = [f"{self.method} estimate, {self.n_samples} samples, σ̂² = {self.noise_variance:.4g}"]
+        width = max(len(n) for n in self.names)
+        for row in self.table():
+            lines.append(
+                f"  {row.name:<{width}}  {row.value: .6g} ± {row.std:.2g}"
+                f"  [{row.ci_low:.6g}, {row.ci_high:.6g}] {row.unit}".rstrip()
+            )
+        return "\n".join(lines)

@@ -1,0 +1,197 @@
+"""Linear least squares with parameter covariance.
+
+Two routes give the same answer on well-conditioned problems:
+
+* ``"qr"`` — Householder QR of the column-scaled regressor matrix Φ, the
+  reference: its error grows with cond(Φ), not cond(Φ)².
+* ``"gram"`` — Cholesky of the column-scaled Gram matrix ΦᵀΦ, for callers that
+  can build ΦᵀΦ without forming Φ (ARX does it in one pass over the data).
+  Its error grows with cond(Φ)², so :func:`solve_gram` refuses (returns
+  None) when the scaled condition number exceeds ``GRAM_COND_LIMIT`` and the
+  caller falls back to QR.
+
+Both scale the columns to unit norm first (equilibration): it leaves the
+solution unchanged and makes the rank test independent of signal units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import linalg
+
+from .._errors import DataError, IdentifiabilityError
+
+__all__ = ["GRAM_COND_LIMIT", "LeastSquaresResult", "lstsq", "solve_gram"]
+
+LsMethod = Literal["auto", "qr", "gram"]
+
+#: Largest cond(scaled Φ) for which the Gram route is trusted: its relative
+#: error is about ε·cond², 2.2e-16·(1e3)² ≈ 2e-10, well inside 1e-8 of QR.
+GRAM_COND_LIMIT = 1e3
+#: cond(scaled Φ) above which the regressor counts as rank deficient
+#: (1/√ε: beyond it the Gram matrix is numerically singular in double precision).
+RANK_COND_LIMIT = 1.0 / np.sqrt(np.finfo(float).eps)
+
+
+@dataclass(frozen=True, eq=False)
+class LeastSquaresResult:
+    """Solution of min ‖y − Φθ‖² with its covariance.
+
+    Attributes
+    ----------
+    theta : ndarray, shape (n,)
+        Estimated parameters.
+    covariance : ndarray, shape (n, n)
+        σ̂²(ΦᵀΦ)⁻¹ with σ̂² = RSS / (N − n).
+    rss : float
+        Residual sum of squares.
+    n_rows : int
+        Number of equations N.
+    condition : float
+        Condition number of the column-scaled Φ.
+    method : str
+        Route actually used, ``"qr"`` or ``"gram"``.
+    """
+
+    theta: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    rss: float
+    n_rows: int
+    condition: float
+    method: str
+
+    @property
+    def dof(self) -> int:
+        """Degrees of freedom N − n."""
+        return self.n_rows - self.theta.size
+
+    @property
+    def noise_variance(self) -> float:
+        """Unbiased residual variance σ̂² = RSS/(N − n)."""
+        return self.rss / self.dof
+
+    @property
+    def std(self) -> NDArray[np.float64]:
+        """Standard deviations of the parameters."""
+        return np.sqrt(np.diag(self.covariance))
+
+
+def lstsq(
+    phi: NDArray[np.float64], y: NDArray[np.float64], names: tuple[str, ...] | None = None
+) -> LeastSquaresResult:
+    """Solve min ‖y − Φθ‖² by QR, with covariance.
+
+    Parameters
+    ----------
+    phi : ndarray, shape (N, n)
+        Regressor matrix.
+    y : ndarray, shape (N,)
+        Left-hand side.
+    names : tuple of str, optional
+        Column names, used in the rank-deficiency message.
+
+    Raises
+    ------
+    IdentifiabilityError
+        When Φ is rank deficient (a column is zero or a combination of others).
+    """
+    phi = np.asarray(phi, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if phi.ndim != 2 or y.ndim != 1 or phi.shape[0] != y.shape[0]:
+        raise DataError(f"need phi (N, n) and y (N,), got {phi.shape} and {y.shape}")
+    n_rows, n = phi.shape
+    _check_rows(n_rows, n)
+    scale = np.linalg.norm(phi, axis=0)
+    _check_columns(scale, names)
+    q, r = np.linalg.qr(phi / scale)
+    rdiag = np.abs(np.diag(r))
+    condition = _triangular_condition(r)
+    if condition > RANK_COND_LIMIT or rdiag.min() <= RANK_COND_LIMIT**-1 * rdiag.max():
+        raise _rank_error(condition, names)
+    theta_s = linalg.solve_triangular(r, q.T @ y)
+    resid = y - phi @ (theta_s / scale)
+    rss = float(resid @ resid)
+    rinv = linalg.solve_triangular(r, np.eye(n))
+    cov_s = rinv @ rinv.T
+    sigma2 = rss / max(n_rows - n, 1)
+    cov = sigma2 * cov_s / np.outer(scale, scale)
+    return LeastSquaresResult(theta_s / scale, cov, rss, n_rows, condition, "qr")
+
+
+def solve_gram(
+    gram: NDArray[np.float64], n_rows: int, names: tuple[str, ...] | None = None
+) -> LeastSquaresResult | None:
+    """Solve least squares from the augmented Gram matrix [Φ y]ᵀ[Φ y].
+
+    Parameters
+    ----------
+    gram : ndarray, shape (n + 1, n + 1)
+        Gram matrix of the regressors with the left-hand side as last column.
+    n_rows : int
+        Number of equations N that built it.
+    names : tuple of str, optional
+        Column names, used in the rank-deficiency message.
+
+    Returns
+    -------
+    LeastSquaresResult or None
+        None when the scaled condition number exceeds ``GRAM_COND_LIMIT``:
+        the caller must use QR instead.
+    """
+    n = gram.shape[0] - 1
+    _check_rows(n_rows, n)
+    scale = np.sqrt(np.diag(gram)[:n])
+    _check_columns(scale, names)
+    g = gram[:n, :n] / np.outer(scale, scale)
+    eig = np.linalg.eigvalsh(g)
+    condition = float(np.sqrt(eig[-1] / eig[0])) if eig[0] > 0 else np.inf
+    if condition > RANK_COND_LIMIT:
+        raise _rank_error(condition, names)
+    if condition > GRAM_COND_LIMIT:
+        return None
+    chol = linalg.cho_factor(g)
+    rhs = gram[:n, n] / scale
+    theta_s = linalg.cho_solve(chol, rhs)
+    # RSS = yᵀy − θᵀΦᵀy; cancellation limits it to about ε·yᵀy absolute, which only
+    # matters for noise-free data where σ̂² is not used.
+    rss = max(float(gram[n, n] - theta_s @ rhs), 0.0)
+    cov_s = linalg.cho_solve(chol, np.eye(n))
+    sigma2 = rss / max(n_rows - n, 1)
+    cov = sigma2 * cov_s / np.outer(scale, scale)
+    return LeastSquaresResult(theta_s / scale, cov, rss, n_rows, condition, "gram")
+
+
+def _check_rows(n_rows: int, n: int) -> None:
+    if n_rows <= n:
+        raise DataError(
+            f"least squares with {n} parameters needs more than {n} equations, got {n_rows}; "
+            "use a longer record or lower orders"
+        )
+
+
+def _check_columns(scale: NDArray[np.float64], names: tuple[str, ...] | None) -> None:
+    zero = np.flatnonzero(~(scale > 0))
+    if zero.size:
+        which = ", ".join(names[k] if names else f"column {k}" for k in zero)
+        raise IdentifiabilityError(
+            f"regressor {which} is identically zero: the signal is not exciting the model "
+            "at all; check the channel mapping and the excitation"
+        )
+
+
+def _triangular_condition(r: NDArray[np.float64]) -> float:
+    s = np.linalg.svd(r, compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0 else np.inf
+
+
+def _rank_error(condition: float, names: tuple[str, ...] | None) -> IdentifiabilityError:
+    cols = f" (columns: {', '.join(names)})" if names else ""
+    return IdentifiabilityError(
+        f"the regressor matrix is rank deficient (scaled condition number {condition:.3g}"
+        f"{cols}): the input is not persistently exciting for these orders. Use a richer "
+        "input (PRBS, multisine) or lower orders"
+    )
