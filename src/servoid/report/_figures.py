@@ -7,11 +7,11 @@ import os
 import matplotlib
 
 matplotlib.use("Agg")  # files only: never open a window, works without a display
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from .._atomic import atomic_path  # noqa: E402
-from ..validate import ValidationReport  # noqa: E402
+from .._atomic import atomic_path
+from ..validate import ValidationReport
 
 __all__ = ["plot_residuals", "plot_validation"]
 

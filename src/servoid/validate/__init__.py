@@ -13,6 +13,6 @@ __all__ = [
     "residual_analysis",
     "rmse",
     "simulate_from_data",
-    "validate",
     "vaf",
+    "validate",
 ]
