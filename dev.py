@@ -1,0 +1,58 @@
+#!/usr/bin/env python3
+"""Set up servoid in a local virtual environment and run the demo or the tests.
+
+    python3 dev.py demo      # create .venv, install servoid, run `servoid demo`
+    python3 dev.py test      # create .venv, install servoid with test extras, run pytest
+
+Needs only Python >= 3.11 with the standard venv module. Extra arguments
+after the command go to `servoid demo` or to pytest. The install is redone
+when pyproject.toml changes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent
+VENV = ROOT / ".venv"
+BIN = VENV / ("Scripts" if os.name == "nt" else "bin")
+PYTHON = BIN / ("python.exe" if os.name == "nt" else "python")
+
+
+def main(argv: list[str]) -> int:
+    if sys.version_info < (3, 11):
+        print(f"servoid needs Python >= 3.11, this is {sys.version.split()[0]}", file=sys.stderr)
+        return 2
+    if not argv or argv[0] not in ("demo", "test"):
+        print(__doc__, file=sys.stderr)
+        return 2
+    command, rest = argv[0], argv[1:]
+    ensure_environment()
+    if command == "demo":
+        return subprocess.call([str(BIN / "servoid"), "demo", *rest], cwd=ROOT)
+    return subprocess.call([str(PYTHON), "-m", "pytest", *rest], cwd=ROOT)
+
+
+def ensure_environment() -> None:
+    """Create .venv and (re)install servoid[test] when pyproject.toml changed."""
+    if not PYTHON.exists():
+        print("servoid: creating .venv", flush=True)
+        venv.EnvBuilder(with_pip=True, clear=True).create(VENV)
+    stamp = VENV / ".servoid-installed"
+    wanted = hashlib.sha256((ROOT / "pyproject.toml").read_bytes()).hexdigest()
+    if stamp.exists() and stamp.read_text().strip() == wanted:
+        return
+    print("servoid: installing servoid and its dependencies into .venv", flush=True)
+    pip = [str(PYTHON), "-m", "pip", "--disable-pip-version-check", "install", "--quiet"]
+    subprocess.check_call([*pip, "--upgrade", "pip"])
+    subprocess.check_call([*pip, "-e", f"{ROOT}[test]"])
+    stamp.write_text(wanted + "\n")
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

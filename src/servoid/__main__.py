@@ -1,0 +1,7 @@
+"""``python -m servoid``."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())

@@ -1,0 +1,122 @@
+"""``servoid excite``: design an input and write it for the DAQ to play."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_excite"]
+
+_KINDS = ("prbs", "multisine", "chirp")
+
+
+def add_excite(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> None:
+    """Add ``excite prbs|multisine|chirp`` to the sub-command set."""
+    excite = commands.add_parser(
+        "excite", help="design an excitation and write it as CSV or TDMS",
+        description="Design a persistently exciting input and write it for the DAQ to play. "
+        "Prints its length, clock and excited band.",
+    )
+    kinds = excite.add_subparsers(title="signals", metavar="SIGNAL", required=True)
+
+    prbs = kinds.add_parser("prbs", help="maximum-length PRBS from an LFSR",
+                            description="Maximum-length pseudo-random binary sequence.")
+    prbs.add_argument("--register", "-n", type=int, required=True,
+                      help="register length n (2..31): period 2^n - 1 bits")
+    prbs.add_argument("--clock", type=int, default=1, help="samples per bit (default: 1)")
+    prbs.add_argument("--periods", type=int, default=1, help="whole periods (default: 1)")
+    _common(prbs, json_flag)
+    prbs.set_defaults(run=_run_prbs)
+
+    ms = kinds.add_parser("multisine", help="multisine with Schroeder phases",
+                          description="Periodic multisine over a frequency band.")
+    ms.add_argument("--period", type=int, required=True, help="samples per period")
+    ms.add_argument("--f-min", type=float, required=True, help="lowest frequency [Hz]")
+    ms.add_argument("--f-max", type=float, required=True, help="highest frequency [Hz]")
+    ms.add_argument("--periods", type=int, default=1, help="whole periods (default: 1)")
+    ms.add_argument("--phases", choices=("schroeder", "random", "zero"), default="schroeder",
+                    help="phase rule (default: schroeder)")
+    ms.add_argument("--seed", type=int, default=0, help="seed for random phases (default: 0)")
+    _common(ms, json_flag)
+    ms.set_defaults(run=_run_multisine)
+
+    ch = kinds.add_parser("chirp", help="swept sine", description="Swept sine from f0 to f1.")
+    ch.add_argument("--duration", type=float, required=True, help="length [s]")
+    ch.add_argument("--f0", type=float, required=True, help="start frequency [Hz]")
+    ch.add_argument("--f1", type=float, required=True, help="end frequency [Hz]")
+    ch.add_argument("--method", choices=("linear", "logarithmic"), default="linear",
+                    help="sweep law (default: linear)")
+    _common(ch, json_flag)
+    ch.set_defaults(run=_run_chirp)
+
+
+def _common(p: argparse.ArgumentParser, json_flag: Callable[[argparse.ArgumentParser], None]) -> None:
+    p.add_argument("--dt", type=float, required=True, help="sample period of the DAQ output [s]")
+    p.add_argument("--amplitude", type=float, default=1.0, help="peak amplitude (default: 1)")
+    p.add_argument("--offset", type=float, default=0.0, help="operating point (default: 0)")
+    p.add_argument("--channel", default="r", help="channel name in the file (default: r)")
+    p.add_argument("--unit", default="V", help="unit of the channel (default: V)")
+    p.add_argument("--out", type=Path, required=True, help="output file, .csv or .tdms")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    json_flag(p)
+
+
+def _run_prbs(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from ..signals import prbs
+
+    ex = prbs(args.register, clock=args.clock, amplitude=args.amplitude, offset=args.offset,
+              periods=args.periods, dt=args.dt)
+    return _write(ex, args)
+
+
+def _run_multisine(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from ..signals import multisine
+
+    rng = args.seed if args.phases == "random" else None
+    ex = multisine(args.period, args.dt, args.f_min, args.f_max, amplitude=args.amplitude,
+                   offset=args.offset, periods=args.periods, phases=args.phases, rng=rng)
+    return _write(ex, args)
+
+
+def _run_chirp(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from ..signals import chirp
+
+    ex = chirp(dt=args.dt, f0=args.f0, f1=args.f1, duration=args.duration,
+               amplitude=args.amplitude, offset=args.offset, method=args.method)
+    return _write(ex, args)
+
+
+def _write(ex: Any, args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from .._errors import check_option
+    from ..data import write_csv, write_tdms
+    from ..signals import crest_factor
+
+    suffix = args.out.suffix.lower().lstrip(".")
+    check_option("output file type (from the extension)", suffix, ("csv", "tdms"))
+    exp = ex.to_experiment(name=args.channel, role="r", unit=args.unit)
+    writer = write_csv if suffix == "csv" else write_tdms
+    writer(exp, args.out, overwrite=args.overwrite)
+    info = {
+        "kind": ex.kind,
+        "file": str(args.out),
+        "n_samples": ex.n_samples,
+        "dt": ex.dt,
+        "duration_s": ex.duration,
+        "period_samples": ex.period,
+        "clock_samples": ex.clock,
+        "band_hz": list(ex.band),
+        "amplitude": ex.amplitude,
+        "offset": ex.offset,
+        "crest_factor": float(crest_factor(ex.values)),
+    }
+    clock = f", clock {ex.clock} samples/bit ({ex.clock * ex.dt:g} s)" if ex.clock else ""
+    period = f", period {ex.period} samples" if ex.period else ""
+    text = (
+        f"{ex.kind}: {ex.n_samples} samples at {1 / ex.dt:g} Hz ({ex.duration:g} s){clock}{period}\n"
+        f"excited band {ex.band[0]:.4g}–{ex.band[1]:.4g} Hz, amplitude ±{ex.amplitude:g} about "
+        f"{ex.offset:g}, crest factor {info['crest_factor']:.3g}\n"
+        f"written to {args.out}"
+    )
+    return info, text

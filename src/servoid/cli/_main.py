@@ -1,0 +1,106 @@
+"""The ``servoid`` command: a thin shell over the public API.
+
+Exit codes: 0 success, 1 a servoid or file error (the message says what
+and how to fix it), 2 a usage error (from the argument parser).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from .. import __version__
+from .._errors import ServoidError
+from ..report import to_jsonable
+
+__all__ = ["main"]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``servoid`` command with ``argv``; return the exit code."""
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # argparse exits on --help/--version (0) or usage errors (2)
+        return int(stop.code or 0)
+    try:
+        payload, text = args.run(args)
+    except (ServoidError, OSError) as exc:
+        message = str(exc) or type(exc).__name__
+        if getattr(args, "json", False):
+            print(json.dumps({"ok": False, "error": message, "type": type(exc).__name__}))
+        print(f"servoid: error: {message}", file=sys.stderr)
+        return 1
+    if getattr(args, "json", False):
+        print(json.dumps({"ok": True, **to_jsonable(payload)}, indent=2))
+    else:
+        print(text)
+    return 0
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="servoid",
+        description="Identify servo actuators from test-bench data.",
+        epilog="Run 'servoid COMMAND --help' for the options of a command.",
+    )
+    parser.add_argument("--version", action="version", version=f"servoid {__version__}")
+    commands = parser.add_subparsers(title="commands", metavar="COMMAND", required=True)
+
+    demo = commands.add_parser(
+        "demo", help="run the demo end to end",
+        description="Design a PRBS, rehearse the test on a servo with known dynamics, write the "
+        "rig file and experiment TOML, identify, validate, and print truth vs estimate.",
+    )
+    demo.add_argument("--out", default="servoid-demo", help="folder for the demo's files "
+                      "(default: %(default)s; files of an earlier demo there are replaced)")
+    demo.add_argument("--seed", type=int, default=2026, help="noise seed (default: %(default)s)")
+    _json_flag(demo)
+    demo.set_defaults(run=_run_demo)
+
+    identify = commands.add_parser(
+        "identify", help="identify a model from an experiment file",
+        description="Load the rig file an experiment TOML names, preprocess and split it, fit "
+        "the model of its [identify] table, validate on the held-back part, and write "
+        "results.json with figures.",
+    )
+    identify.add_argument("experiment", type=Path, help="experiment file (.toml)")
+    identify.add_argument("--out", type=Path, help="results folder (default: [report] folder, "
+                          "else <experiment>-results beside the TOML)")
+    identify.add_argument("--overwrite", action="store_true",
+                          help="replace results of an earlier run (inputs are never overwritten)")
+    _json_flag(identify)
+    identify.set_defaults(run=_run_identify)
+
+    from ._excite import add_excite
+
+    add_excite(commands, _json_flag)
+    return parser
+
+
+def _json_flag(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--json", action="store_true", help="print machine-readable JSON")
+
+
+def _run_demo(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from ..workflows import run_demo
+
+    result = run_demo(args.out, seed=args.seed)
+    return result.to_dict(), str(result)
+
+
+def _run_identify(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from ..workflows import identify
+
+    result = identify(args.experiment, args.out, overwrite=args.overwrite)
+    est, val = result.estimate, result.validation
+    text = "\n".join([
+        str(est),
+        str(val),
+        f"results written to {result.folder}",
+    ])
+    return result.to_dict() | {"files": [str(f) for f in result.files]}, text
