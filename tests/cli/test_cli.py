@@ -1,0 +1,127 @@
+"""The servoid command, run in process through main(argv)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import servoid
+from servoid.cli import main
+from servoid.data import read_csv, read_tdms
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_version(capsys):
+    code, out, _ = run(capsys, "--version")
+    assert code == 0
+    assert out.strip() == f"servoid {servoid.__version__}"
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [[], ["demo"], ["identify"], ["excite"], ["excite", "prbs"], ["excite", "multisine"],
+     ["excite", "chirp"]],
+)
+def test_help_on_every_command(capsys, argv):
+    code, out, _ = run(capsys, *argv, "--help")
+    assert code == 0
+    assert "usage: servoid" in out
+
+
+def test_usage_error_exits_2(capsys):
+    code, _, err = run(capsys, "excite", "prbs", "--dt", "0.001")
+    assert code == 2
+    assert "required" in err
+
+
+def test_unknown_option_value_lists_valid_ones(capsys, tmp_path):
+    code, _, err = run(capsys, "excite", "multisine", "--period", "100", "--f-min", "1",
+                       "--f-max", "10", "--dt", "0.001", "--phases", "golden",
+                       "--out", str(tmp_path / "m.csv"))
+    assert code == 2
+    assert "schroeder" in err and "random" in err
+
+
+def test_excite_prbs_writes_csv_and_reports(capsys, tmp_path):
+    out_file = tmp_path / "prbs.csv"
+    code, out, _ = run(capsys, "excite", "prbs", "-n", "7", "--clock", "4", "--dt", "0.001",
+                       "--amplitude", "0.5", "--periods", "2", "--out", str(out_file))
+    assert code == 0
+    assert "1016 samples" in out  # (2^7 − 1)·4·2
+    exp = read_csv(out_file)
+    values = exp["r"]
+    assert values.size == 1016
+    assert set(np.unique(values)) == {-0.5, 0.5}
+    assert exp.dt == pytest.approx(0.001, rel=1e-9)  # time column printed at full precision
+
+
+def test_excite_json_and_tdms(capsys, tmp_path):
+    out_file = tmp_path / "ms.tdms"
+    code, out, _ = run(capsys, "excite", "multisine", "--period", "1000", "--f-min", "2",
+                       "--f-max", "40", "--dt", "0.001", "--out", str(out_file), "--json")
+    assert code == 0
+    info = json.loads(out)
+    assert info["ok"] is True
+    assert info["n_samples"] == 1000
+    assert info["band_hz"] == [2.0, 40.0]
+    assert read_tdms(out_file)["r"].size == 1000
+
+
+def test_excite_refuses_existing_file(capsys, tmp_path):
+    out_file = tmp_path / "c.csv"
+    out_file.write_text("keep me\n")
+    code, _, err = run(capsys, "excite", "chirp", "--duration", "1", "--f0", "1", "--f1", "5",
+                       "--dt", "0.01", "--out", str(out_file))
+    assert code == 1
+    assert "already exists" in err and "--overwrite" in err
+    assert out_file.read_text() == "keep me\n"
+
+
+def test_excite_unknown_extension(capsys, tmp_path):
+    code, _, err = run(capsys, "excite", "chirp", "--duration", "1", "--f0", "1", "--f1", "5",
+                       "--dt", "0.01", "--out", str(tmp_path / "c.xlsx"))
+    assert code == 1
+    assert "'csv', 'tdms'" in err and "'xlsx'" in err
+
+
+def test_excite_bad_value_is_error_not_traceback(capsys, tmp_path):
+    code, _, err = run(capsys, "excite", "prbs", "-n", "40", "--dt", "0.001",
+                       "--out", str(tmp_path / "p.csv"))
+    assert code == 1
+    assert err.startswith("servoid: error:")
+
+
+def test_demo_and_identify_round_trip(capsys, tmp_path):
+    folder = tmp_path / "demo"
+    code, out, _ = run(capsys, "demo", "--out", str(folder), "--json")
+    assert code == 0
+    demo = json.loads(out)
+    rows = {r["name"]: r for r in demo["parameters"]}
+    assert set(rows) == {"a1", "a2", "b0", "b1"}
+    assert demo["validation"]["fit_percent"] > 90  # 30 dB SNR: noise is ~3 % of the signal
+    results = json.loads((folder / "results" / "results.json").read_text())
+    assert results["estimate"]["parameters"][0]["value"] == pytest.approx(rows["a1"]["estimate"])
+
+    # identify the demo's files again: refuses to overwrite, then writes elsewhere
+    code, _, err = run(capsys, "identify", str(folder / "demo.toml"))
+    assert code == 1 and "exists from an earlier run" in err
+    code, out, _ = run(capsys, "identify", str(folder / "demo.toml"), "--out",
+                       str(tmp_path / "again"), "--json")
+    assert code == 0
+    again = json.loads(out)
+    assert again["estimate"]["parameters"] == results["estimate"]["parameters"]
+    assert (tmp_path / "again" / "validation.png").stat().st_size > 0
+
+
+def test_identify_missing_file(capsys, tmp_path):
+    code, out, err = run(capsys, "identify", str(tmp_path / "nope.toml"), "--json")
+    assert code == 1
+    assert json.loads(out)["ok"] is False
+    assert "nope.toml" in err
