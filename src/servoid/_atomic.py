@@ -39,9 +39,16 @@ def atomic_path(path: str | os.PathLike[str], overwrite: bool = False) -> Iterat
     tmp = Path(tmp_name)
     try:
         yield tmp
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual file mode
         if target.exists() and not overwrite:  # appeared while we were writing
             raise OutputExistsError(f"{target} appeared while writing; not overwritten")
         os.replace(tmp, target)
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask

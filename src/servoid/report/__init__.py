@@ -1,6 +1,18 @@
-"""Reports: figures, JSON results."""
+"""Reports: figures, a single-file HTML page, JSON results."""
 
 from ._figures import plot_residuals, plot_validation
+from ._html import Figure, Page, Section, Table, render_html, write_html
 from ._json import to_jsonable, write_json
 
-__all__ = ["plot_residuals", "plot_validation", "to_jsonable", "write_json"]
+__all__ = [
+    "Figure",
+    "Page",
+    "Section",
+    "Table",
+    "plot_residuals",
+    "plot_validation",
+    "render_html",
+    "to_jsonable",
+    "write_html",
+    "write_json",
+]

@@ -15,7 +15,16 @@ from .. import __version__
 from .._errors import DataError, OptionError, OutputExistsError, check_option
 from ..data import ExperimentSpec, load_experiment_spec
 from ..estimate import Estimate, fit_arx, select_arx_order
-from ..report import plot_residuals, plot_validation, write_json
+from ..report import (
+    Figure,
+    Page,
+    Section,
+    Table,
+    plot_residuals,
+    plot_validation,
+    write_html,
+    write_json,
+)
 from ..validate import ValidationReport, validate
 
 __all__ = ["IdentificationResult", "identify"]
@@ -157,7 +166,8 @@ def _folder(spec: ExperimentSpec, out: str | os.PathLike[str] | None) -> Path:
 def _write(
     result: IdentificationResult, folder: Path, overwrite: bool, unit: str
 ) -> list[Path]:
-    targets = [folder / "results.json", folder / "validation.png", folder / "residuals.png"]
+    targets = [folder / "results.json", folder / "validation.png", folder / "residuals.png",
+               folder / "report.html"]
     inputs = {result.spec.data_path.resolve()}
     if result.spec.source:
         inputs.add(Path(result.spec.source).resolve())
@@ -172,8 +182,87 @@ def _write(
     folder.mkdir(parents=True, exist_ok=True)
     plot_validation(result.validation, targets[1], unit=unit, overwrite=overwrite)
     plot_residuals(result.validation, targets[2], overwrite=overwrite)
+    write_html(_page(result, targets[1], targets[2]), targets[3], overwrite=overwrite)
     write_json(result.to_dict(), targets[0], overwrite=overwrite)  # last: marks a complete run
     return targets
+
+
+def parameter_table(estimate: Estimate, caption: str = "") -> Table:
+    """Parameters with standard deviation and 95 % interval as a report table."""
+    rows = tuple(
+        (r.name, f"{r.value:.6g}", f"{r.std:.3g}", f"[{r.ci_low:.6g}, {r.ci_high:.6g}]", r.unit)
+        for r in estimate.table(0.95)
+    )
+    return Table(("parameter", "estimate", "std", "95 % CI", "unit"), rows, caption)
+
+
+def validation_section(report: ValidationReport, fig_sim: Path, fig_res: Path) -> Section:
+    """Metrics, verdicts and figures of a validation as a report section."""
+    res = report.residuals
+    metrics = Table(
+        ("metric", "value"),
+        (
+            ("samples", str(report.measured.size - report.first)),
+            ("simulation fit", f"{report.fit_percent:.2f} %"),
+            (f"{report.horizon}-step prediction fit", f"{report.prediction_fit_percent:.2f} %"),
+            ("NRMSE", f"{report.nrmse:.4g}"),
+            ("RMSE", f"{report.rmse:.4g}"),
+            ("VAF", f"{report.vaf:.2f} %"),
+            ("relative error", f"{report.relative_error:.3g} %"),
+            ("residual whiteness (Ljung–Box p)",
+             f"{res.whiteness_pvalue:.3g} → {'white' if res.is_white else 'not white'}"),
+            ("input–residual independence (p)",
+             "n/a" if res.independence_pvalue != res.independence_pvalue else
+             f"{res.independence_pvalue:.3g} → "
+             f"{'independent' if res.is_independent else 'correlated'}"),
+        ),
+        caption="On data not used for fitting",
+    )
+    return Section(
+        "Validation",
+        paragraphs=(
+            "The model is simulated from the input alone on the held-back data (the first "
+            f"{report.first} samples set the initial conditions) and compared with the "
+            f"measurement. Residual correlations are tested at {100 * res.confidence:.0f} % "
+            "confidence.",
+        ),
+        tables=(metrics,),
+        figures=(
+            Figure.from_file(fig_sim, "Measured vs simulated and predicted output"),
+            Figure.from_file(fig_res, "Residual autocorrelation and input–residual "
+                             "cross-correlation with confidence band"),
+        ),
+    )
+
+
+def _page(result: IdentificationResult, fig_sim: Path, fig_res: Path) -> Page:
+    spec, est = result.spec, result.estimate
+    o = est.options
+    orders = f"na = {o['na']}, nb = {o['nb']}, nk = {o['nk']}"
+    data = Section(
+        "Experiment",
+        paragraphs=(
+            f"Data file {spec.data_path.name} (sha256 {_sha256(spec.data_path)[:16]}…), "
+            f"input {', '.join(o['inputs'])} ({o['input']}), output {o['output']}.",
+        ),
+    )
+    model = Section(
+        "Model",
+        paragraphs=(
+            f"ARX ({orders}) by least squares ({o['solver']} route, scaled condition number "
+            f"{o['condition']:.3g}) on {est.n_samples} equations; residual variance "
+            f"{est.noise_variance:.4g}.",
+        ),
+        tables=(parameter_table(est),),
+    )
+    name = spec.source.name if spec.source else "experiment"
+    return Page(
+        title=f"Identification report: {name}",
+        subtitle="ARX model with parameter uncertainty and validation on held-back data",
+        sections=(data, model, validation_section(result.validation, fig_sim, fig_res)),
+        meta=(("servoid", __version__), ("experiment file", str(spec.source or "")),
+              ("data file", str(spec.data_path))),
+    )
 
 
 def _sha256(path: Path) -> str:
