@@ -21,15 +21,15 @@ from ._ehsa_sim import STATE_NAMES, EhsaResponse, default_dt_int, simulate_ehsa
 from ._paper import SET_A, PaperConsistency, PaperSetA, paper_consistency
 
 __all__ = [
+    "SET_A",
+    "SET_B",
+    "SET_C",
+    "STATE_NAMES",
     "EhsaParameters",
     "EhsaResponse",
     "PaperConsistency",
     "PaperSetA",
     "ReducedEhsa",
-    "SET_A",
-    "SET_B",
-    "SET_C",
-    "STATE_NAMES",
     "StabilityMargins",
     "closed_loop_bandwidth",
     "default_dt_int",

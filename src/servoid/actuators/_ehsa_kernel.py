@@ -193,10 +193,14 @@ def integrate(
             elif y < -stroke:
                 y = -stroke
                 vy = max(vy, 0.0)
-            if friction and (abs(vy) <= p[_EPS] or vy * vy_start < 0.0):
-                # stop exactly if the force at rest cannot break away
-                if abs(p[_AP] * pl - p[_KL] * y - p[_FEXT]) <= p[_FS]:
-                    vy = 0.0
+            # stop exactly if the piston came to rest (or reversed) and the
+            # force at rest cannot break away
+            if (
+                friction
+                and (abs(vy) <= p[_EPS] or vy * vy_start < 0.0)
+                and abs(p[_AP] * pl - p[_KL] * y - p[_FEXT]) <= p[_FS]
+            ):
+                vy = 0.0
     final = np.empty(8)
     final[0] = xf
     final[1] = vf

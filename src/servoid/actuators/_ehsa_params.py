@@ -25,7 +25,7 @@ from typing import Any
 
 from .._errors import ModelError
 
-__all__ = ["EhsaParameters", "SET_B", "SET_C"]
+__all__ = ["SET_B", "SET_C", "EhsaParameters"]
 
 # Printed driver gain [S1]: 0.050 A for 0.023 m of command.
 _K_DRIVER = 0.050 / 0.023

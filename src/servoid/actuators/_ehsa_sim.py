@@ -41,7 +41,7 @@ from .._errors import DataError
 from ._ehsa_kernel import integrate, pack
 from ._ehsa_params import EhsaParameters
 
-__all__ = ["EhsaResponse", "STATE_NAMES", "default_dt_int", "simulate_ehsa"]
+__all__ = ["STATE_NAMES", "EhsaResponse", "default_dt_int", "simulate_ehsa"]
 
 #: Names of the simulator's states, in the order of ``x0``.
 STATE_NAMES = ("x_f", "x_f_dot", "z", "z_dot", "x_s", "P_L", "y", "y_dot")

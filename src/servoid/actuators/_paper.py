@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 
 from ._ehsa_linear import ReducedEhsa
 
-__all__ = ["PaperConsistency", "PaperSetA", "SET_A", "paper_consistency"]
+__all__ = ["SET_A", "PaperConsistency", "PaperSetA", "paper_consistency"]
 
 # Tolerance of E5 [rad/s]: the printed Eq. 14 roots carry two significant
 # digits in 60 and 1224 (±0.5 in the last digit moves the pair by < 0.5).
