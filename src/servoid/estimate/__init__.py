@@ -4,6 +4,7 @@ from ._arx import ArxOrders, fit_arx
 from ._estimate import Estimate, ParameterRow
 from ._ls import LeastSquaresResult, lstsq, solve_gram
 from ._order import OrderCandidate, OrderSelection, select_arx_order
+from ._tf_greybox import fit_tf_greybox
 
 __all__ = [
     "ArxOrders",
@@ -13,6 +14,7 @@ __all__ = [
     "OrderSelection",
     "ParameterRow",
     "fit_arx",
+    "fit_tf_greybox",
     "lstsq",
     "select_arx_order",
     "solve_gram",

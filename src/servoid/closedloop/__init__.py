@@ -1,0 +1,33 @@
+"""Closed-loop identification: indirect, one-step and direct approaches.
+
+The plant G0 runs in a known loop ``H = c·G0/(1 + F·G0)``
+(:class:`FeedbackLoop`). Every approach returns a
+:class:`ClosedLoopResult` with the physical parameters of the reduced
+EHSA model ``K/(s(s²/ω_hp² + 2δ_hp·s/ω_hp + 1))``, their covariance, the
+discrete and continuous models and a pole report that flags what cannot
+be physical::
+
+    identify_closed_loop(data, loop, approach=...)
+    ├── "indirect"  fit_indirect   ARX on (r, y), G0 = B/(c·A − F·B), d2c
+    ├── "one-step"  fit_one_step   OE on Gcl(q, θ), θ = (K, ω_hp, δ_hp)
+    └── "direct"    fit_direct     ARX/OE on (u, y), u measured or c·r − F·y
+"""
+
+from ._api import APPROACHES, identify_closed_loop, simulate_closed_loop
+from ._loop import FeedbackLoop, reduced_plant
+from ._onestep import fit_one_step
+from ._result import ClosedLoopResult, PoleInfo
+from ._twostep import fit_direct, fit_indirect
+
+__all__ = [
+    "APPROACHES",
+    "ClosedLoopResult",
+    "FeedbackLoop",
+    "PoleInfo",
+    "fit_direct",
+    "fit_indirect",
+    "fit_one_step",
+    "identify_closed_loop",
+    "reduced_plant",
+    "simulate_closed_loop",
+]
