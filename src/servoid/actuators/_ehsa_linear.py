@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
 from .._errors import ModelError, check_option
@@ -137,7 +137,7 @@ class ReducedEhsa:
             Continuous (``dt=None``), from valve command to position.
         """
         w, d = self.omega_hp, self.delta_hp
-        return TransferFunction([self.K], [1.0 / w**2, 2.0 * d / w, 1.0, 0.0])
+        return _tf([self.K], [1.0 / w**2, 2.0 * d / w, 1.0, 0.0])
 
     def closed_loop(self, c: float, F: float) -> TransferFunction:
         """Return ``cK/(s³/ω² + 2δs²/ω + s + FK)`` ([S1] Eq. 11).
@@ -156,7 +156,7 @@ class ReducedEhsa:
         """
         c, F = _gain("c", c), _gain("F", F)
         w, d = self.omega_hp, self.delta_hp
-        return TransferFunction([c * self.K], [1.0 / w**2, 2.0 * d / w, 1.0, F * self.K])
+        return _tf([c * self.K], [1.0 / w**2, 2.0 * d / w, 1.0, F * self.K])
 
     def is_stable(self, F: float) -> bool:
         """Return True if the loop closed with gain F is stable (Routh).
@@ -218,7 +218,7 @@ def full_order_plant(params: EhsaParameters, *, exact: bool = False) -> Transfer
     """
     p = _params(params)
     g_f = _second_order(p.omega_f, p.delta_f)
-    g_s2 = TransferFunction([p.K_s2 * p.omega_s1], [1.0, p.omega_s1]) * _second_order(
+    g_s2 = _tf([p.K_s2 * p.omega_s1], [1.0, p.omega_s1]) * _second_order(
         p.omega_sp, p.delta_sp
     )
     if exact:
@@ -226,10 +226,10 @@ def full_order_plant(params: EhsaParameters, *, exact: bool = False) -> Transfer
             np.polymul([p.V_t / (4.0 * p.beta_e), p.K_ce], [p.M_t, p.B_p, p.K_l]),
             [p.A_p**2, 0.0],
         )
-        g_h = TransferFunction([p.K_qs * p.A_p], den)
+        g_h = _tf([p.K_qs * p.A_p], den)
     else:
         w, d = p.omega_hp, p.delta_hp
-        g_h = TransferFunction([p.K_qs / p.A_p], [1.0 / w**2, 2.0 * d / w, 1.0, 0.0])
+        g_h = _tf([p.K_qs / p.A_p], [1.0 / w**2, 2.0 * d / w, 1.0, 0.0])
     return g_f * g_s2 * g_h
 
 
@@ -320,8 +320,13 @@ def _gain(name: str, value: object) -> float:
     return v
 
 
+def _tf(num: ArrayLike, den: ArrayLike) -> TransferFunction:
+    """Continuous transfer function from coefficient lists."""
+    return TransferFunction(np.asarray(num, dtype=np.float64), np.asarray(den, dtype=np.float64))
+
+
 def _second_order(omega: float, delta: float) -> TransferFunction:
-    return TransferFunction([1.0], [1.0 / omega**2, 2.0 * delta / omega, 1.0])
+    return _tf([1.0], [1.0 / omega**2, 2.0 * delta / omega, 1.0])
 
 
 def _grid(g: TransferFunction) -> NDArray[np.float64]:
