@@ -29,6 +29,7 @@ from _harness import Result, format_markdown, format_table, machine_info
 #: suite name → module in benchmarks/ exposing ``run(quick) -> list[Result]``.
 SUITES: dict[str, str] = {
     "arx": "bench_arx",
+    "ehsa": "bench_ehsa",
 }
 
 
