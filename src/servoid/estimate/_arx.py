@@ -143,7 +143,11 @@ def fit_arx(
     if method in ("auto", "gram"):
         target_sig = np.append(sig, 0)
         target_lag = np.append(lag, 0)
-        gram = sum(lagged_gram(z, target_sig, target_lag, start) for z in signals)
+        # A segment with no more than `start` samples gives no equation; the kernel's
+        # end corrections assume at least one (they would index past its end).
+        gram = sum(
+            lagged_gram(z, target_sig, target_lag, start) for z in signals if z.shape[1] > start
+        )
         result = solve_gram(gram, n_rows, names)
         if result is None and method == "gram":
             warnings.warn(

@@ -24,7 +24,9 @@ class ValidationReport:
     Simulation metrics compare the measured output with the model simulated
     from the input alone (from sample ``first`` on, with the samples before
     it used as initial conditions); prediction metrics use the k-step-ahead
-    predictor; residual tests use one-step prediction errors.
+    predictor from sample ``prediction_first`` on (for an ARX model
+    ``first + horizon − 1``, where its FIR predictor needs no sample before
+    the record); residual tests use one-step prediction errors.
     """
 
     output: str
@@ -42,6 +44,7 @@ class ValidationReport:
     prediction_fit_percent: float
     residuals: ResidualAnalysis
     experiment: str = ""
+    prediction_first: int = 0
 
     def summary(self) -> dict[str, Any]:
         """Scalars and residual tests as plain data (no time series)."""
@@ -56,6 +59,7 @@ class ValidationReport:
             "relative_error_percent": self.relative_error,
             "prediction_horizon": self.horizon,
             "prediction_fit_percent": self.prediction_fit_percent,
+            "prediction_first": self.prediction_first,
             "residuals": self.residuals.to_dict(),
         }
 
@@ -104,7 +108,7 @@ def validate(
     if horizon < 1:
         raise DataError(f"horizon must be >= 1 sample, got {horizon}")
     dt = getattr(model, "dt", None)
-    if dt is not None and not np.isclose(dt, experiment.dt, rtol=1e-9):
+    if dt is not None and not np.isclose(dt, experiment.dt, rtol=1e-9, atol=0.0):
         raise DataError(
             f"the model has dt = {dt} s but the experiment {experiment.dt} s; "
             "resample the data or discretise the model at the data rate"
@@ -119,6 +123,10 @@ def validate(
     y_pred = np.asarray(model.predict(y, u, horizon=horizon), dtype=float)
     eps = np.asarray(model.residuals(y, u), dtype=float)
     ys, ss = y[first:], y_sim[first:]
+    # The k-step predictor takes unknown samples before the record as zero. For an ARX
+    # model it is an FIR in y and u reaching back k − 1 + first samples, so from there on
+    # it is exact, as the simulation is from `first` on (measured initial conditions).
+    p0 = min(first + horizon - 1, len(y) - 2) if first > 0 else 0
     return ValidationReport(
         output=outputs[0],
         time=experiment.time,
@@ -132,9 +140,10 @@ def validate(
         vaf=float(vaf(ys, ss)),
         relative_error=float(relative_error(ys, ss)),
         horizon=horizon,
-        prediction_fit_percent=float(fit_percent(ys, y_pred[first:])),
+        prediction_fit_percent=float(fit_percent(y[p0:], y_pred[p0:])),
         residuals=residual_analysis(eps[first:], u[first:], max_lag, confidence),
         experiment=experiment.name,
+        prediction_first=p0,
     )
 
 
