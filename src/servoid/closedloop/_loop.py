@@ -197,7 +197,7 @@ class FeedbackLoop:
 
 
 def reduced_plant(theta: Sequence[float] | NDArray[np.float64]) -> TransferFunction:
-    """Return the reduced EHSA plant G_simple(s) for θ = (K, ω_hp, δ_hp).
+    """Return the reduced EHSA plant G_simple(s) for θ = (K, ω, δ).
 
     ``G_simple = K/(s·(s²/ω_hp² + 2δ_hp·s/ω_hp + 1))`` (spec §1.1, Eq. 6).
 
@@ -254,6 +254,37 @@ def _tustin_basis(n: int, dt: float) -> NDArray[np.float64]:
             p = np.polymul(p, [k, -k])
         for _ in range(j):
             p = np.polymul(p, [1.0, 1.0])
+        rows.append(p)
+    basis = np.array(rows)
+    basis.setflags(write=False)
+    return basis
+
+
+def tustin_inverse(model: TransferFunction) -> TransferFunction:
+    """Return the Tustin d2c of a discrete model, fast.
+
+    The same substitution as ``d2c(model, "tustin")`` (``z = (k + s)/(k − s)``)
+    as one matrix product; unlike :func:`~servoid.models.d2c` it does not
+    zero coefficients at rounding level, which the delta method does not need.
+    """
+    assert model.dt is not None
+    n = model.order
+    basis = _tustin_inverse_basis(n, float(model.dt))
+    num = np.concatenate([np.zeros(n + 1 - model.num.size), model.num]) @ basis
+    return TransferFunction(num, model.den @ basis, None)
+
+
+@lru_cache(maxsize=32)
+def _tustin_inverse_basis(n: int, dt: float) -> NDArray[np.float64]:
+    # row j: z^(n−j) -> (s + k)^(n−j)·(k − s)^j, descending powers of s
+    k = 2.0 / dt
+    rows = []
+    for j in range(n + 1):
+        p = np.ones(1)
+        for _ in range(n - j):
+            p = np.polymul(p, [1.0, k])
+        for _ in range(j):
+            p = np.polymul(p, [-1.0, k])
         rows.append(p)
     basis = np.array(rows)
     basis.setflags(write=False)

@@ -129,10 +129,8 @@ def greybox_result(
 def _start_from_indirect(
     data: Experiment | ExperimentSet, loop: FeedbackLoop, output: str | None
 ) -> NDArray[np.float64]:
-    import warnings
-
     from ._api import simulate_closed_loop
-    from ._twostep import fit_indirect
+    from ._twostep import indirect_theta
 
     segments = as_segments(data)
     fs = 1.0 / segments[0].dt
@@ -140,14 +138,10 @@ def _start_from_indirect(
     # ARX is biased by output noise far above the loop's band (spec §3.4), so also try
     # low-passed data (fs/20, fs/10) and keep the start the OE criterion likes best.
     for cutoff in (None, fs / 20.0, fs / 10.0):
-        with warnings.catch_warnings():
-            # the flags of a rough start do not concern the user of the refined fit
-            warnings.simplefilter("ignore")
-            try:
-                two = fit_indirect(data, loop, output=output, prefilter=cutoff)
-            except (DataError, IdentifiabilityError, ModelError):
-                continue
-        theta = np.asarray(two.estimate.parameters, dtype=float)
+        try:
+            theta = indirect_theta(data, loop, output, cutoff)
+        except (DataError, IdentifiabilityError, ModelError):
+            continue
         if not (np.all(np.isfinite(theta)) and theta[0] > 0 and theta[1] > 0):
             continue
         with np.errstate(all="ignore"):

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from .._errors import ModelError, ServoidWarning
 from ..estimate import Estimate
 from ..models import TransferFunction, d2c
-from ._loop import PARAMETER_NAMES, PARAMETER_UNITS, FeedbackLoop
+from ._loop import PARAMETER_NAMES, PARAMETER_UNITS, FeedbackLoop, tustin_inverse
 from ._result import ClosedLoopResult, PoleInfo
 
 __all__: list[str] = []
@@ -218,7 +218,7 @@ def two_step_result(
     anchors = anchors_of(plant_c, cancel_tol)
 
     def fun(t: NDArray[np.float64]) -> NDArray[np.float64]:
-        return values_of(to_continuous(plant_of(t)), anchors)
+        return values_of(tustin_inverse(plant_of(t)), anchors)
 
     values = values_of(plant_c, anchors)
     cov4 = delta_method(fun, theta, np.asarray(source.covariance), step)

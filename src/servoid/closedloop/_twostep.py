@@ -16,7 +16,7 @@ from ..estimate import fit_arx, fit_tf_greybox
 from ..models import TransferFunction
 from ._loop import PARAMETER_NAMES, PARAMETER_UNITS, FeedbackLoop, reduced_plant, tustin
 from ._onestep import _check_loop, _check_theta0, _require_reference, greybox_result
-from ._physical import two_step_result
+from ._physical import anchors_of, to_continuous, two_step_result, values_of
 from ._result import ClosedLoopResult
 
 __all__ = ["fit_direct", "fit_indirect"]
@@ -38,7 +38,7 @@ def fit_indirect(
     cancel_tol: float | None = None,
     step: float = 0.01,
 ) -> ClosedLoopResult:
-    """Identify the plant inside its loop by the two-step indirect method.
+    """Identify the plant in its loop by the two-step indirect method.
 
     Step 1 fits the closed loop ``H = B/A`` from (r, y) by ARX; step 2
     solves ``G0 = B/(c·A − F·B)`` (a dynamic F is Tustin-discretised at
@@ -231,6 +231,24 @@ def _plant_data(
                                    name=seg.name)
         )
     return formed[0] if isinstance(data, Experiment) else ExperimentSet(tuple(formed))
+
+
+def indirect_theta(
+    data: Experiment | ExperimentSet,
+    loop: FeedbackLoop,
+    output: str | None,
+    prefilter: float | None,
+) -> NDArray[np.float64]:
+    """Return (K, ω, δ) of ARX(3, 4, 0) + indirect, without covariance or report."""
+    if prefilter is not None:
+        data = _lowpass(data, prefilter, output)
+    dt = as_segments(data)[0].dt
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        arx = fit_arx(data, 3, 4, 0, input="r", output=output)
+    plant_c = to_continuous(loop.plant_from(_arx_tf(arx.parameters, 3, 0, dt)))
+    anchors = anchors_of(plant_c, None if loop.is_static else 1e-3)
+    return values_of(plant_c, anchors)[:3]
 
 
 def _lowpass(

@@ -5,8 +5,8 @@ from rest by :func:`scipy.signal.lfilter`; it is minimised by
 Levenberg–Marquardt (MINPACK, through :func:`scipy.optimize.least_squares`)
 or, with bounds, by a trust-region reflective method, in transformed
 coordinates (``log`` keeps a parameter positive and makes steps relative).
-The covariance is ``σ̂²·(JᵀJ)⁻¹`` from a central-difference Jacobian at
-the optimum, mapped back to θ.
+The covariance is ``σ̂²·(JᵀJ)⁻¹`` from the solver's finite-difference
+Jacobian at the optimum, mapped back to θ.
 """
 
 from __future__ import annotations
@@ -155,9 +155,9 @@ def fit_tf_greybox(
 
     def residuals(z: NDArray[np.float64]) -> NDArray[np.float64]:
         with np.errstate(all="ignore"):
-            out = np.concatenate(
-                [(y - yh)[start:] for (_, y), yh in zip(records, simulate(to_theta(z)), strict=True)]
-            )
+            parts = [(y - yh)[start:] for (_, y), yh in zip(records, simulate(to_theta(z)),
+                                                             strict=True)]
+            out = parts[0] if len(parts) == 1 else np.concatenate(parts)
         out[~np.isfinite(out)] = _PENALTY
         return out
 
@@ -177,14 +177,16 @@ def fit_tf_greybox(
             "the input excites the model, or raise max_nfev"
         )
     z = res.x
-    r = residuals(z)
+    r = np.asarray(res.fun)
     if np.any(r == _PENALTY):
         raise ConvergenceError(
             f"{method_name}: the simulation diverges at the optimum θ = {to_theta(z).tolist()}; "
             "the model is unstable there. Start from a stable model"
         )
     theta = to_theta(z)
-    jac = _central_jacobian(residuals, z, r)
+    # the solver's forward-difference Jacobian at x̂ (relative step √ε): accurate to ~1e-8,
+    # ample for a covariance, and it saves 2n simulations
+    jac = np.asarray(res.jac)
     sigma2 = float(r @ r) / max(n_res - n, 1)
     cov_z = _inverse_normal(jac, names) * sigma2
     d = np.where(is_log, theta, 1.0)  # dθ/dz
@@ -267,21 +269,6 @@ def _check_model(model: object, dt: float) -> None:
         raise ModelError(
             f"model_fn must return a discrete model at the data's dt = {dt} s, got dt = {model.dt}"
         )
-
-
-def _central_jacobian(
-    fun: Callable[[NDArray[np.float64]], NDArray[np.float64]],
-    z: NDArray[np.float64],
-    r: NDArray[np.float64],
-) -> NDArray[np.float64]:
-    # eps^(1/3) balances the O(h²) truncation against rounding in the difference
-    h = np.cbrt(np.finfo(float).eps) * np.maximum(np.abs(z), 1.0)
-    jac = np.empty((r.size, z.size))
-    for i in range(z.size):
-        e = np.zeros_like(z)
-        e[i] = h[i]
-        jac[:, i] = (fun(z + e) - fun(z - e)) / (2.0 * h[i])
-    return jac
 
 
 def _inverse_normal(jac: NDArray[np.float64], names: tuple[str, ...]) -> NDArray[np.float64]:
