@@ -30,6 +30,7 @@ from _harness import Result, format_markdown, format_table, machine_info
 SUITES: dict[str, str] = {
     "arx": "bench_arx",
     "ehsa": "bench_ehsa",
+    "closedloop": "bench_closedloop",
 }
 
 

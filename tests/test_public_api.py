@@ -8,7 +8,8 @@ import inspect
 import pytest
 
 PACKAGES = ["servoid", "servoid.data", "servoid.signals", "servoid.models", "servoid.estimate",
-            "servoid.validate", "servoid.report", "servoid.workflows", "servoid.cli"]
+            "servoid.validate", "servoid.report", "servoid.workflows", "servoid.cli",
+            "servoid.actuators", "servoid.closedloop"]
 
 
 def test_top_level_exports():

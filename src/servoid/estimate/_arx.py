@@ -134,8 +134,8 @@ def fit_arx(
             ". Use a longer record or lower orders"
         )
     signals = [_signals(seg, output_name, input_names) for seg in segments]
-    for name, k in zip(input_names, range(1, len(input_names) + 1), strict=True):
-        _check_not_constant(name, np.concatenate([z[k] for z in signals]))
+    for k, name in enumerate(input_names, start=1):
+        _check_not_constant(name, [z[k] for z in signals])
     names = _parameter_names(orders, input_names)
     sig, lag = orders.columns()
 
@@ -146,7 +146,7 @@ def fit_arx(
         # A segment with no more than `start` samples gives no equation; the kernel's
         # end corrections assume at least one (they would index past its end).
         gram = sum(
-            lagged_gram(z, target_sig, target_lag, start) for z in signals if z.shape[1] > start
+            lagged_gram(z, target_sig, target_lag, start) for z in signals if z[0].size > start
         )
         result = solve_gram(gram, n_rows, names)
         if result is None and method == "gram":
@@ -157,8 +157,8 @@ def fit_arx(
                 stacklevel=2,
             )
     if result is None:
-        phi = np.vstack([_regressor(z, sig, lag, start) for z in signals])
-        target = np.concatenate([z[0, start:] for z in signals])
+        phi = _regressor(signals, sig, lag, start, n_rows)
+        target = np.concatenate([z[0][start:] for z in signals])
         result = lstsq(phi, target, names)
 
     theta = result.theta
@@ -217,19 +217,35 @@ def _output_name(exp: Experiment, output: str | None) -> str:
     return outputs[0]
 
 
-def _signals(seg: Experiment, output: str, inputs: Sequence[str]) -> NDArray[np.float64]:
-    return np.vstack([seg[output], *(seg[name] for name in inputs)])
+def _signals(
+    seg: Experiment, output: str, inputs: Sequence[str]
+) -> tuple[NDArray[np.float64], ...]:
+    # The channels themselves (read-only views), not a stacked copy: ARX reads them once.
+    return (seg[output], *(seg[name] for name in inputs))
 
 
 def _regressor(
-    z: NDArray[np.float64], sig: NDArray[np.int64], lag: NDArray[np.int64], start: int
+    signals: Sequence[tuple[NDArray[np.float64], ...]],
+    sig: NDArray[np.int64],
+    lag: NDArray[np.int64],
+    start: int,
+    n_rows: int,
 ) -> NDArray[np.float64]:
-    n = z.shape[1]
-    return np.column_stack([z[s, start - l_ : n - l_] for s, l_ in zip(sig, lag, strict=True)])
+    # Column-major, so the QR factorisation works on it without another copy.
+    phi = np.empty((n_rows, sig.size), order="F")
+    row = 0
+    for z in signals:
+        n = z[0].size
+        if n <= start:
+            continue
+        for col, (s, l_) in enumerate(zip(sig, lag, strict=True)):
+            phi[row : row + n - start, col] = z[s][start - l_ : n - l_]
+        row += n - start
+    return phi
 
 
 def _equation_error(
-    z: NDArray[np.float64], a: NDArray[np.float64], b_list: list[NDArray[np.float64]],
+    z: tuple[NDArray[np.float64], ...], a: NDArray[np.float64], b_list: list[NDArray[np.float64]],
     nk: Sequence[int],
 ) -> NDArray[np.float64]:
     e = sps.lfilter(a, [1.0], z[0])
@@ -238,11 +254,13 @@ def _equation_error(
     return e
 
 
-def _check_not_constant(name: str, values: NDArray[np.float64]) -> None:
-    spread = float(np.ptp(values))
-    if spread <= 1e-12 * max(float(np.abs(values).max()), 1e-300):
+def _check_not_constant(name: str, pieces: Sequence[NDArray[np.float64]]) -> None:
+    low = min(float(p.min()) for p in pieces)
+    high = max(float(p.max()) for p in pieces)
+    if high - low <= 1e-12 * max(abs(low), abs(high), 1e-300):
+        count = sum(p.size for p in pieces)
         raise IdentifiabilityError(
-            f"input {name!r} is constant ({values[0]:.6g} for all {values.size} samples): it "
+            f"input {name!r} is constant ({low:.6g} for all {count} samples): it "
             "is not persistently exciting, so no dynamics can be identified. Excite the "
             "system with a PRBS, multisine or chirp (servoid excite)"
         )

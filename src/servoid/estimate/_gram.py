@@ -13,6 +13,8 @@ contiguous dot product the compiler vectorises.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numba
 import numpy as np
 from numpy.typing import NDArray
@@ -23,20 +25,23 @@ _BLOCK = 4096  # samples per block: a few signals × 32 KB stay in the L1/L2 cac
 
 
 def lagged_gram(
-    z: NDArray[np.float64], signal: NDArray[np.int64], lag: NDArray[np.int64], start: int
+    z: Sequence[NDArray[np.float64]],
+    signal: NDArray[np.int64],
+    lag: NDArray[np.int64],
+    start: int,
 ) -> NDArray[np.float64]:
     """Σ_{t=start}^{N−1} z_{s_p}(t − l_p)·z_{s_q}(t − l_q) for every column pair.
 
     Parameters
     ----------
-    z : ndarray, shape (m, N)
-        The signals.
+    z : sequence of ndarray, each shape (N,)
+        The signals (used in place, not copied).
     signal, lag : ndarray of int, shape (n,)
         Signal index and delay [samples] of each column.
     start : int
         First time index; must be ≥ max(lag).
     """
-    z = np.ascontiguousarray(z, dtype=np.float64)
+    z = tuple(np.ascontiguousarray(x, dtype=np.float64) for x in z)
     signal = np.asarray(signal, dtype=np.int64)
     lag = np.asarray(lag, dtype=np.int64)
     n = signal.size
@@ -59,15 +64,15 @@ def lagged_gram(
 @numba.njit(cache=True, fastmath=True, nogil=True)
 def _full_sums(z, keys, out):  # type: ignore[no-untyped-def]  # pragma: no cover
     # out[k] = Σ_{s=0}^{N−1−d} z_a(s)·z_b(s + d) for key k = (a, b, d), d ≥ 0.
-    n_total = z.shape[1]
+    n_total = z[0].shape[0]
     for lo in range(0, n_total, _BLOCK):
         for k in range(keys.shape[0]):
             a, b, d = keys[k, 0], keys[k, 1], keys[k, 2]
             hi = min(lo + _BLOCK, n_total - d)
             if hi <= lo:
                 continue
-            xa = z[a, lo:hi]
-            xb = z[b, lo + d : hi + d]
+            xa = z[a][lo:hi]
+            xb = z[b][lo + d : hi + d]
             acc = 0.0
             for i in range(hi - lo):
                 acc += xa[i] * xb[i]
@@ -78,7 +83,7 @@ def _full_sums(z, keys, out):  # type: ignore[no-untyped-def]  # pragma: no cove
 def _assemble(z, signal, lag, start, pair_key, full, gram):  # type: ignore[no-untyped-def]  # pragma: no cover
     # Pair (p, q) sums s = t − l_p over [start − l_p, N − 1 − l_p]; the full sum runs
     # over [max(0, −d), min(N − 1, N − 1 − d)]. Subtract the terms outside the pair's range.
-    n_total = z.shape[1]
+    n_total = z[0].shape[0]
     n = signal.size
     for p in range(n):
         for q in range(p, n):
@@ -86,8 +91,8 @@ def _assemble(z, signal, lag, start, pair_key, full, gram):  # type: ignore[no-u
             d = lag[p] - lag[q]
             s = full[pair_key[p, q]]
             for i in range(max(0, -d), start - lag[p]):
-                s -= z[a, i] * z[b, i + d]
+                s -= z[a][i] * z[b][i + d]
             for i in range(n_total - lag[p], min(n_total - 1, n_total - 1 - d) + 1):
-                s -= z[a, i] * z[b, i + d]
+                s -= z[a][i] * z[b][i + d]
             gram[p, q] = s
             gram[q, p] = s

@@ -105,16 +105,21 @@ def lstsq(
         raise DataError(f"need phi (N, n) and y (N,), got {phi.shape} and {y.shape}")
     n_rows, n = phi.shape
     _check_rows(n_rows, n)
-    scale = np.linalg.norm(phi, axis=0)
+    scale = np.sqrt(np.einsum("ij,ij->j", phi, phi))
     _check_columns(scale, names)
-    q, r = np.linalg.qr(phi / scale)
-    rdiag = np.abs(np.diag(r))
+    # Factor [Φ/scale | y] once, keeping only R: Q is never formed, and the last
+    # diagonal element of R is ±‖residual‖, so RSS needs no second pass over Φ.
+    aug = np.empty((n_rows, n + 1), order="F")
+    np.divide(phi, scale, out=aug[:, :n])
+    aug[:, n] = y
+    r_full = linalg.qr(aug, mode="r", overwrite_a=True, check_finite=False)[0]
+    r = np.triu(r_full[:n, :n])
     condition = _triangular_condition(r)
+    rdiag = np.abs(np.diag(r))
     if condition > RANK_COND_LIMIT or rdiag.min() <= RANK_COND_LIMIT**-1 * rdiag.max():
         raise _rank_error(condition, names)
-    theta_s = linalg.solve_triangular(r, q.T @ y)
-    resid = y - phi @ (theta_s / scale)
-    rss = float(resid @ resid)
+    theta_s = linalg.solve_triangular(r, r_full[:n, n])
+    rss = float(r_full[n, n] ** 2) if n_rows > n else 0.0
     rinv = linalg.solve_triangular(r, np.eye(n))
     cov_s = rinv @ rinv.T
     sigma2 = rss / max(n_rows - n, 1)
