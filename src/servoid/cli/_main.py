@@ -97,10 +97,4 @@ def _run_identify(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..workflows import identify
 
     result = identify(args.experiment, args.out, overwrite=args.overwrite)
-    est, val = result.estimate, result.validation
-    text = "\n".join([
-        str(est),
-        str(val),
-        f"results written to {result.folder}",
-    ])
-    return result.to_dict() | {"files": [str(f) for f in result.files]}, text
+    return result.to_dict() | {"files": [str(f) for f in result.files]}, str(result)

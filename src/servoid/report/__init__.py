@@ -3,12 +3,15 @@
 from ._figures import plot_residuals, plot_validation
 from ._html import Figure, Page, Section, Table, render_html, write_html
 from ._json import to_jsonable, write_json
+from ._lti_figures import plot_bode, plot_poles
 
 __all__ = [
     "Figure",
     "Page",
     "Section",
     "Table",
+    "plot_bode",
+    "plot_poles",
     "plot_residuals",
     "plot_validation",
     "render_html",

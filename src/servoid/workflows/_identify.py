@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -12,26 +11,26 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from .._errors import DataError, OptionError, OutputExistsError, check_option
+from .._errors import DataError, OptionError, check_option
 from ..data import ExperimentSpec, load_experiment_spec
 from ..estimate import Estimate, fit_arx, select_arx_order
 from ..report import (
-    Figure,
     Page,
     Section,
-    Table,
     plot_residuals,
     plot_validation,
     write_html,
     write_json,
 )
 from ..validate import ValidationReport, validate
+from ._closedloop import ClosedLoopIdentification, identify_closed_loop_spec
+from ._common import check_outputs, parameter_table, sha256, validation_section
 
 __all__ = ["IdentificationResult", "identify"]
 
-METHODS = ("arx",)
+METHODS = ("arx", "closedloop")
 _IDENTIFY_KEYS = ("method", "input", "output", "na", "nb", "nk", "criterion", "horizon")
-_REPORT_KEYS = ("folder",)
+_REPORT_KEYS = ("folder", "truth")
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +43,12 @@ class IdentificationResult:
     folder: Path | None
     files: tuple[Path, ...]
 
+    def __str__(self) -> str:
+        lines = [str(self.estimate), str(self.validation)]
+        if self.folder:
+            lines.append(f"report: {self.folder / 'report.html'}")
+        return "\n".join(lines)
+
     def to_dict(self) -> dict[str, Any]:
         """Everything in ``results.json``."""
         model = self.estimate.model
@@ -52,7 +57,7 @@ class IdentificationResult:
             "servoid_version": __version__,
             "experiment_file": str(self.spec.source) if self.spec.source else None,
             "data_file": str(self.spec.data_path),
-            "data_sha256": _sha256(self.spec.data_path),
+            "data_sha256": sha256(self.spec.data_path),
             "estimate": self.estimate.to_dict(),
             "model": {
                 "structure": "arx",
@@ -72,7 +77,8 @@ def identify(
     *,
     overwrite: bool = False,
     write: bool = True,
-) -> IdentificationResult:
+    truth: Mapping[str, float] | None = None,
+) -> IdentificationResult | ClosedLoopIdentification:
     """Run the identification an experiment file describes.
 
     Loads and preprocesses the data, splits it into estimation and validation
@@ -90,16 +96,30 @@ def identify(
         Replace files of an earlier run in the folder.
     write : bool
         Write the folder (False: only compute).
+    truth : mapping, optional
+        Known physical parameters (K, omega_hp, delta_hp) to compare with,
+        for rehearsals on a virtual bench; default ``[report] truth`` (a JSON file).
+
+    Returns
+    -------
+    IdentificationResult or ClosedLoopIdentification
+        By ``[identify] method``: ``"arx"`` or ``"closedloop"`` (see
+        :func:`~servoid.workflows.identify_closed_loop_spec` for its keys).
 
     Notes
     -----
-    ``[identify]`` keys: ``method`` (``"arx"``), ``input`` (``"u"`` or ``"r"``),
+    ``[identify]`` keys for ``method = "arx"``: ``input`` (``"u"`` or ``"r"``),
     ``output``, ``na``, ``nb``, ``nk`` (integers, or lists to search a grid),
     ``criterion`` (``"aic"``, ``"fpe"``, ``"mdl"``, ``"fit"``) and ``horizon``
     (k of the k-step prediction fit).
     """
     if not isinstance(spec, ExperimentSpec):
         spec = load_experiment_spec(spec)
+    method = spec.identify.get("method", "arx")
+    check_option("[identify] method", method, METHODS)
+    if method == "closedloop":
+        folder = _folder(spec, out) if write else None
+        return identify_closed_loop_spec(spec, folder, overwrite=overwrite, truth=truth)
     options = _identify_options(spec.identify)
     estimation, validation_data = spec.split_data()
     orders = {k: options[k] for k in ("na", "nb", "nk")}
@@ -139,7 +159,6 @@ def _identify_options(table: Mapping[str, Any]) -> dict[str, Any]:
     options = {"method": "arx", "input": "u", "output": None, "na": 2, "nb": 2, "nk": 1,
                "criterion": "aic", "horizon": 5}
     options.update({k: (list(v) if isinstance(v, (list, tuple)) else v) for k, v in table.items()})
-    check_option("[identify] method", options["method"], METHODS)
     check_option("[identify] input", options["input"], ("u", "r"))
     check_option("[identify] criterion", options["criterion"], ("aic", "fpe", "mdl", "fit"))
     for key in ("na", "nb", "nk"):
@@ -155,7 +174,9 @@ def _folder(spec: ExperimentSpec, out: str | os.PathLike[str] | None) -> Path:
     report = dict(spec.report)
     unknown = sorted(set(report) - set(_REPORT_KEYS))
     if unknown:
-        raise OptionError(f"unknown key(s) in [report]: {', '.join(unknown)}; valid: folder")
+        raise OptionError(
+            f"unknown key(s) in [report]: {', '.join(unknown)}; valid: {', '.join(_REPORT_KEYS)}"
+        )
     base = spec.source.parent if spec.source else Path.cwd()
     if "folder" in report:
         return base / str(report["folder"])
@@ -168,71 +189,14 @@ def _write(
 ) -> list[Path]:
     targets = [folder / "results.json", folder / "validation.png", folder / "residuals.png",
                folder / "report.html"]
-    inputs = {result.spec.data_path.resolve()}
-    if result.spec.source:
-        inputs.add(Path(result.spec.source).resolve())
-    for path in targets:
-        if path.resolve() in inputs:
-            raise OutputExistsError(f"refusing to write {path}: it is an input of this run")
-        if path.exists() and not overwrite:
-            raise OutputExistsError(
-                f"{path} exists from an earlier run; pass --overwrite (overwrite=True) or "
-                "choose another folder"
-            )
+    inputs = [result.spec.data_path] + ([Path(result.spec.source)] if result.spec.source else [])
+    check_outputs(targets, inputs, overwrite)
     folder.mkdir(parents=True, exist_ok=True)
     plot_validation(result.validation, targets[1], unit=unit, overwrite=overwrite)
     plot_residuals(result.validation, targets[2], overwrite=overwrite)
     write_html(_page(result, targets[1], targets[2]), targets[3], overwrite=overwrite)
     write_json(result.to_dict(), targets[0], overwrite=overwrite)  # last: marks a complete run
     return targets
-
-
-def parameter_table(estimate: Estimate, caption: str = "") -> Table:
-    """Parameters with standard deviation and 95 % interval as a report table."""
-    rows = tuple(
-        (r.name, f"{r.value:.6g}", f"{r.std:.3g}", f"[{r.ci_low:.6g}, {r.ci_high:.6g}]", r.unit)
-        for r in estimate.table(0.95)
-    )
-    return Table(("parameter", "estimate", "std", "95 % CI", "unit"), rows, caption)
-
-
-def validation_section(report: ValidationReport, fig_sim: Path, fig_res: Path) -> Section:
-    """Metrics, verdicts and figures of a validation as a report section."""
-    res = report.residuals
-    metrics = Table(
-        ("metric", "value"),
-        (
-            ("samples", str(report.measured.size - report.first)),
-            ("simulation fit", f"{report.fit_percent:.2f} %"),
-            (f"{report.horizon}-step prediction fit", f"{report.prediction_fit_percent:.2f} %"),
-            ("NRMSE", f"{report.nrmse:.4g}"),
-            ("RMSE", f"{report.rmse:.4g}"),
-            ("VAF", f"{report.vaf:.2f} %"),
-            ("relative error", f"{report.relative_error:.3g} %"),
-            ("residual whiteness (Ljung–Box p)",
-             f"{res.whiteness_pvalue:.3g} → {'white' if res.is_white else 'not white'}"),
-            ("input–residual independence (p)",
-             "n/a" if res.independence_pvalue != res.independence_pvalue else
-             f"{res.independence_pvalue:.3g} → "
-             f"{'independent' if res.is_independent else 'correlated'}"),
-        ),
-        caption="On data not used for fitting",
-    )
-    return Section(
-        "Validation",
-        paragraphs=(
-            "The model is simulated from the input alone on the held-back data (the first "
-            f"{report.first} samples set the initial conditions) and compared with the "
-            f"measurement. Residual correlations are tested at {100 * res.confidence:.0f} % "
-            "confidence.",
-        ),
-        tables=(metrics,),
-        figures=(
-            Figure.from_file(fig_sim, "Measured vs simulated and predicted output"),
-            Figure.from_file(fig_res, "Residual autocorrelation and input–residual "
-                             "cross-correlation with confidence band"),
-        ),
-    )
 
 
 def _page(result: IdentificationResult, fig_sim: Path, fig_res: Path) -> Page:
@@ -242,7 +206,7 @@ def _page(result: IdentificationResult, fig_sim: Path, fig_res: Path) -> Page:
     data = Section(
         "Experiment",
         paragraphs=(
-            f"Data file {spec.data_path.name} (sha256 {_sha256(spec.data_path)[:16]}…), "
+            f"Data file {spec.data_path.name} (sha256 {sha256(spec.data_path)[:16]}…), "
             f"input {', '.join(o['inputs'])} ({o['input']}), output {o['output']}.",
         ),
     )
@@ -265,9 +229,3 @@ def _page(result: IdentificationResult, fig_sim: Path, fig_res: Path) -> Page:
     )
 
 
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()

@@ -1,0 +1,310 @@
+"""Study-1 workflow: a closed-loop record → physical plant parameters and a report."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .. import __version__
+from .._errors import DataError, OptionError, ServoidWarning, check_option
+from ..closedloop import (
+    APPROACHES,
+    ClosedLoopResult,
+    FeedbackLoop,
+    identify_closed_loop,
+    reduced_plant,
+)
+from ..data import ExperimentSpec
+from ..models import TransferFunction
+from ..report import (
+    Figure,
+    Page,
+    Section,
+    Table,
+    plot_bode,
+    plot_poles,
+    plot_residuals,
+    plot_validation,
+    write_html,
+    write_json,
+)
+from ..validate import ValidationReport, validate
+from ._common import check_outputs, parameter_table, sha256, validation_section
+
+__all__ = ["ClosedLoopIdentification", "identify_closed_loop_spec", "loop_from_table"]
+
+_KEYS = ("method", "approach", "na", "nb", "nk", "horizon", "prefilter")
+_NAMES = ("K", "omega_hp", "delta_hp")
+_LABEL = {"indirect": "two-step", "one-step": "one-step", "direct": "direct"}
+
+
+@dataclass(frozen=True, eq=False)
+class ClosedLoopIdentification:
+    """Every requested closed-loop approach, validated, with the truth if known."""
+
+    spec: ExperimentSpec
+    loop: FeedbackLoop
+    results: Mapping[str, ClosedLoopResult]
+    validations: Mapping[str, ValidationReport]
+    primary: str
+    truth: Mapping[str, float] | None = None
+    folder: Path | None = None
+    files: tuple[Path, ...] = ()
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def estimate(self) -> Any:
+        """Physical estimate of the primary approach."""
+        return self.results[self.primary].estimate
+
+    @property
+    def validation(self) -> ValidationReport:
+        """Validation of the primary approach."""
+        return self.validations[self.primary]
+
+    def table(self) -> list[dict[str, Any]]:
+        """Per parameter: truth and each approach's value, std and 95 % CI."""
+        rows = []
+        for name in _NAMES:
+            row: dict[str, Any] = {"name": name, "truth": (self.truth or {}).get(name)}
+            for approach, result in self.results.items():
+                est = result.estimate
+                k = est.names.index(name)
+                lo, hi = est.confidence_intervals(0.95)[k]
+                row[approach] = {"value": float(est.parameters[k]), "std": float(est.std[k]),
+                                 "ci95": [float(lo), float(hi)], "unit": est.units[k]}
+            rows.append(row)
+        return rows
+
+    def to_dict(self) -> dict[str, Any]:
+        """Everything in ``results.json``."""
+        return {
+            "servoid_version": __version__,
+            "experiment_file": str(self.spec.source) if self.spec.source else None,
+            "data_file": str(self.spec.data_path),
+            "data_sha256": sha256(self.spec.data_path),
+            "loop": self.loop.to_dict(),
+            "primary_approach": self.primary,
+            "truth": dict(self.truth) if self.truth else None,
+            "parameters": self.table(),
+            "approaches": {
+                a: {**r.to_dict(), "validation": self.validations[a].summary()}
+                for a, r in self.results.items()
+            },
+            "notes": list(self.notes),
+        }
+
+    def __str__(self) -> str:
+        approaches = list(self.results)
+        head = f"  {'param':<9} {'truth':>10}" + "".join(
+            f" {_LABEL[a]:>22}" for a in approaches) + "   95 % CI (" + _LABEL[self.primary] + ")"
+        lines = [f"closed-loop identification ({', '.join(_LABEL[a] for a in approaches)}), "
+                 f"loop c = {self.loop.c:g}, F = {_f_text(self.loop)}", head]
+        for row in self.table():
+            truth = "—" if row["truth"] is None else f"{row['truth']:.5g}"
+            cells = "".join(
+                f" {row[a]['value']:>11.5g} ± {row[a]['std']:<8.2g}" for a in approaches)
+            lo, hi = row[self.primary]["ci95"]
+            lines.append(f"  {row['name']:<9} {truth:>10}{cells}   [{lo:.5g}, {hi:.5g}]")
+        fits = ", ".join(f"{_LABEL[a]} {v.fit_percent:.2f} %" for a, v in self.validations.items())
+        lines.append(f"  validation fit (closed loop, held-back data): {fits}")
+        for note in self.notes:
+            lines.append(f"  note: {note}")
+        if self.folder:
+            lines.append(f"  report: {self.folder / 'report.html'}")
+        return "\n".join(lines)
+
+
+def loop_from_table(table: Mapping[str, Any]) -> FeedbackLoop:
+    """Build the known loop from the ``[loop]`` table of an experiment file.
+
+    ``c`` is the forward gain; ``F`` the feedback, a number or a table
+    ``{num = [...], den = [...]}`` (continuous, or discrete with ``dt``).
+    """
+    unknown = sorted(set(table) - {"c", "F"})
+    if unknown:
+        raise OptionError(f"unknown key(s) in [loop]: {', '.join(unknown)}; valid keys are c, F")
+    if "c" not in table or "F" not in table:
+        raise DataError(
+            "the closed-loop approaches need the known loop: add [loop] with c = <forward gain> "
+            "and F = <feedback gain> to the experiment file"
+        )
+    feedback = table["F"]
+    if isinstance(feedback, Mapping):
+        feedback = TransferFunction(feedback["num"], feedback["den"], dt=feedback.get("dt"))
+    return FeedbackLoop(float(table["c"]), feedback)
+
+
+def identify_closed_loop_spec(
+    spec: ExperimentSpec,
+    folder: Path | None,
+    *,
+    overwrite: bool = False,
+    truth: Mapping[str, float] | None = None,
+) -> ClosedLoopIdentification:
+    """Run the closed-loop approaches an experiment file asks for.
+
+    ``[identify]`` keys: ``method = "closedloop"``, ``approach`` (one of
+    ``"indirect"``, ``"one-step"``, ``"direct"`` or a list; default both
+    indirect and one-step, the last being the primary result), ``na``,
+    ``nb``, ``nk`` (the ARX stage, default 3, 4, 0), ``prefilter`` [Hz]
+    (zero-phase low-pass for the two-step ARX) and ``horizon``.
+    """
+    options = _options(spec.identify)
+    loop = loop_from_table(spec.loop)
+    estimation, validation_data = spec.split_data()
+    if truth is None:
+        truth = _truth_from_spec(spec)
+    results: dict[str, ClosedLoopResult] = {}
+    notes: list[str] = []
+    for approach in options["approach"]:
+        kwargs: dict[str, Any] = {}
+        if approach in ("indirect", "direct"):
+            kwargs = {"na": options["na"], "nb": options["nb"], "nk": options["nk"]}
+        if approach == "indirect" and options["prefilter"] is not None:
+            kwargs["prefilter"] = options["prefilter"]
+        with warnings.catch_warnings():
+            # Pole flags become notes of the result and of the report, printed once there.
+            warnings.simplefilter("ignore", ServoidWarning)
+            result = identify_closed_loop(estimation, loop, approach=approach, **kwargs)
+        results[approach] = result
+        notes += [f"{_LABEL[approach]}: {n}" for n in result.notes()]
+    validations = {a: _validate(r, validation_data, options["horizon"]) for a, r in results.items()}
+    primary = options["approach"][-1]
+    ident = ClosedLoopIdentification(spec, loop, results, validations, primary, truth,
+                                     notes=tuple(notes))
+    if folder is None:
+        return ident
+    files = _write(ident, folder, overwrite)
+    return ClosedLoopIdentification(spec, loop, results, validations, primary, truth, folder,
+                                    tuple(files), tuple(notes))
+
+
+def _options(table: Mapping[str, Any]) -> dict[str, Any]:
+    unknown = sorted(set(table) - set(_KEYS))
+    if unknown:
+        raise OptionError(f"unknown key(s) in [identify]: {', '.join(unknown)}; valid keys for "
+                          f"method = \"closedloop\" are {', '.join(_KEYS)}")
+    options = {"approach": ["indirect", "one-step"], "na": 3, "nb": 4, "nk": 0, "horizon": 5,
+               "prefilter": None}
+    options.update(table)
+    approach = options["approach"]
+    approaches = [approach] if isinstance(approach, str) else list(approach)
+    if not approaches:
+        raise OptionError(f"[identify] approach is empty; choose from {', '.join(APPROACHES)}")
+    for a in approaches:
+        check_option("[identify] approach", a, APPROACHES)
+    options["approach"] = approaches
+    return options
+
+
+def _validate(result: ClosedLoopResult, data: Any, horizon: int) -> ValidationReport:
+    if result.closed_loop is not None:
+        return validate(result.closed_loop.to_polynomial("oe"), data, input="r", horizon=horizon)
+    return validate(result.plant.to_polynomial("oe"), data, input="u", horizon=horizon)
+
+
+def _truth_from_spec(spec: ExperimentSpec) -> dict[str, float] | None:
+    name = dict(spec.report).get("truth")
+    if name is None:
+        return None
+    base = spec.source.parent if spec.source else Path.cwd()
+    data = json.loads((base / str(name)).read_text(encoding="utf-8"))
+    table = data.get("parameters", data)
+    return {k: float(table[k]) for k in _NAMES if k in table}
+
+
+def _f_text(loop: FeedbackLoop) -> str:
+    return f"{loop.F:g}" if isinstance(loop.F, (int, float)) else "a transfer function"
+
+
+def _write(ident: ClosedLoopIdentification, folder: Path, overwrite: bool) -> list[Path]:
+    names = ("results.json", "report.html", "validation.png", "residuals.png", "bode.png",
+             "poles.png")
+    targets = {n: folder / n for n in names}
+    inputs = [ident.spec.data_path] + ([Path(ident.spec.source)] if ident.spec.source else [])
+    check_outputs(list(targets.values()), inputs, overwrite)
+    folder.mkdir(parents=True, exist_ok=True)
+    primary = ident.validation
+    val_data_unit = ""
+    plot_validation(primary, targets["validation.png"], unit=val_data_unit, overwrite=overwrite)
+    plot_residuals(primary, targets["residuals.png"], overwrite=overwrite)
+    plants: dict[str, TransferFunction] = {}
+    if ident.truth and all(k in ident.truth for k in _NAMES):
+        plants["truth"] = reduced_plant(tuple(ident.truth[k] for k in _NAMES))
+    for approach, result in ident.results.items():
+        plants[_LABEL[approach]] = result.plant_continuous
+    dt = next(iter(ident.results.values())).dt
+    plot_bode(plants, targets["bode.png"], f_min=0.1, f_max=0.5 / dt,
+              title="identified plant G0(s)", overwrite=overwrite)
+    closed = {_LABEL[a]: r.closed_loop for a, r in ident.results.items() if r.closed_loop is not None}
+    plot_poles(plants, closed, targets["poles.png"], overwrite=overwrite)
+    write_html(_page(ident, targets), targets["report.html"], overwrite=overwrite)
+    write_json(ident.to_dict(), targets["results.json"], overwrite=overwrite)
+    return list(targets.values())
+
+
+def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
+    spec = ident.spec
+    approaches = list(ident.results)
+    columns = ("parameter", "truth", *(f"{_LABEL[a]} (± std)" for a in approaches),
+               f"95 % CI ({_LABEL[ident.primary]})", "unit")
+    rows = []
+    for row in ident.table():
+        truth = "—" if row["truth"] is None else f"{row['truth']:.6g}"
+        cells = [f"{row[a]['value']:.6g} ± {row[a]['std']:.2g}" for a in approaches]
+        lo, hi = row[ident.primary]["ci95"]
+        rows.append((row["name"], truth, *cells, f"[{lo:.6g}, {hi:.6g}]",
+                     row[ident.primary]["unit"]))
+    fits = tuple(
+        (_LABEL[a], f"{v.fit_percent:.2f} %", f"{v.residuals.whiteness_pvalue:.3g}")
+        for a, v in ident.validations.items()
+    )
+    summary = Section(
+        "Physical parameters",
+        paragraphs=(
+            "Reduced EHSA plant G0(s) = K / (s (s²/ω_hp² + 2 δ_hp s/ω_hp + 1)) identified inside "
+            f"its known loop H = c·G0/(1 + F·G0), c = {ident.loop.c:g}, F = {_f_text(ident.loop)}. "
+            "Two-step: ARX of the closed loop from (r, y), G0 = B/(c·A − F·B), Tustin d2c; "
+            "standard deviations by the delta method from the ARX covariance. One-step: output-"
+            "error fit of the parameterised closed loop (Levenberg–Marquardt), covariance "
+            "σ̂²(JᵀJ)⁻¹.",
+        ),
+        tables=(
+            Table(columns, tuple(rows), "Estimates on the estimation half"),
+            Table(("approach", "validation fit", "whiteness p"), fits,
+                  "Closed-loop simulation on the held-back half"),
+        ),
+    )
+    for approach, result in ident.results.items():
+        summary = Section(summary.title, summary.paragraphs,
+                          (*summary.tables, parameter_table(result.estimate, _LABEL[approach])))
+    notes = Section("Pole checks", paragraphs=ident.notes or ("No pole was flagged non-physical.",))
+    model_figs = Section(
+        "Models",
+        figures=(
+            Figure.from_file(files["bode.png"], "Bode diagram of the identified plant"
+                             + (" against the truth" if ident.truth else "")),
+            Figure.from_file(files["poles.png"], "Plant poles (s-plane) and closed-loop poles "
+                             "and zeros (z-plane)"),
+        ),
+    )
+    data = Section(
+        "Experiment",
+        paragraphs=(f"Data file {spec.data_path.name} (sha256 {sha256(spec.data_path)[:16]}…).",),
+    )
+    return Page(
+        title=f"Closed-loop identification: {spec.source.name if spec.source else 'experiment'}",
+        subtitle="Physical plant parameters with confidence intervals, validated on held-back data",
+        sections=(data, summary, model_figs,
+                  validation_section(ident.validation, files["validation.png"],
+                                     files["residuals.png"]), notes),
+        meta=(("servoid", __version__), ("experiment file", str(spec.source or "")),
+              ("data file", str(spec.data_path))),
+    )
+
+
