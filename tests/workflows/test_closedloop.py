@@ -1,0 +1,99 @@
+"""identify() with method = "closedloop": experiment file → K, ω_hp, δ_hp and a report."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from servoid import DataError, OptionError
+from servoid.closedloop import FeedbackLoop, simulate_closed_loop
+from servoid.data import Experiment, write_csv, write_experiment_spec
+from servoid.models import TransferFunction
+from servoid.signals import prbs
+from servoid.workflows import ClosedLoopIdentification, identify, loop_from_table
+
+TRUTH = {"K": 3451.7, "omega_hp": 163.3, "delta_hp": 0.249}  # spec §4, Set B reduced
+DT = 1e-3
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("ehsa")
+    ex = prbs(11, clock=10, amplitude=1e-3, dt=DT)
+    y = simulate_closed_loop(tuple(TRUTH.values()), ex.values, DT, FeedbackLoop(0.01, 0.01))
+    rng = np.random.default_rng(11)
+    y = y + np.std(y) / 10 ** (34 / 20) * rng.standard_normal(y.size)  # 34 dB output noise
+    exp = Experiment.from_arrays(DT, r=ex.values, y=y, names={"r": "y_r", "y": "y"},
+                                 units={"y_r": "m", "y": "m"})
+    write_csv(exp, folder / "run.csv")
+    (folder / "truth.json").write_text(json.dumps(TRUTH))
+    return folder
+
+
+def write_spec(folder, identify_table, loop=None, report=None):
+    table = {
+        "data": {"file": "run.csv", "time": "time"},
+        "channels": {"y_r": {"role": "r", "unit": "m"}, "y": {"role": "y", "unit": "m"}},
+        "preprocess": {"detrend": "mean"},
+        "loop": {"c": 0.01, "F": 0.01} if loop is None else loop,
+        "identify": identify_table,
+        "report": {"truth": "truth.json"} if report is None else report,
+    }
+    path = folder / "run.toml"
+    write_experiment_spec(table, path, overwrite=True)
+    return path
+
+
+def test_closed_loop_workflow_recovers_truth_and_writes_report(rig, tmp_path):
+    result = identify(write_spec(rig, {"method": "closedloop"}), tmp_path / "out")
+    assert isinstance(result, ClosedLoopIdentification)
+    assert list(result.results) == ["indirect", "one-step"]
+    est = result.estimate
+    for name, true in TRUTH.items():
+        k = est.names.index(name)
+        # one-step OE is consistent under white output noise: error within 4σ of its covariance
+        assert abs(est.parameters[k] - true) < 4 * est.std[k], name
+    assert result.validation.fit_percent > 95  # 34 dB: noise ≈ 2 % of the signal
+    assert result.truth == TRUTH
+    names = {p.name for p in result.files}
+    assert {"results.json", "report.html", "bode.png", "poles.png"} <= names
+    data = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert data["primary_approach"] == "one-step"
+    assert {r["name"] for r in data["parameters"]} == set(TRUTH)
+    html = (tmp_path / "out" / "report.html").read_text()
+    assert "data:image/png;base64," in html and "omega_hp" in html
+    assert "one-step" in str(result)
+
+
+def test_single_approach(rig):
+    result = identify(write_spec(rig, {"method": "closedloop", "approach": "one-step"}),
+                      write=False)
+    assert list(result.results) == ["one-step"]
+
+
+def test_unknown_approach_lists_valid(rig):
+    with pytest.raises(OptionError, match=r"approach must be one of 'indirect', 'one-step', "
+                                          r"'direct'; got 'two-step'"):
+        identify(write_spec(rig, {"method": "closedloop", "approach": "two-step"}), write=False)
+
+
+def test_missing_loop_says_what_to_add(rig):
+    with pytest.raises(DataError, match=r"add \[loop\] with c = <forward gain>"):
+        identify(write_spec(rig, {"method": "closedloop"}, loop={}), write=False)
+
+
+def test_unknown_identify_key(rig):
+    with pytest.raises(OptionError, match="unknown key.*theta"):
+        identify(write_spec(rig, {"method": "closedloop", "theta": 1}), write=False)
+
+
+def test_loop_table_with_dynamic_feedback():
+    loop = loop_from_table({"c": 1.0, "F": {"num": [0.9], "den": [1 / 300, 1.0]}})
+    assert isinstance(loop.F, TransferFunction) and loop.F.dt is None
+
+
+def test_loop_table_unknown_key():
+    with pytest.raises(OptionError, match="valid keys are c, F"):
+        loop_from_table({"c": 1.0, "F": 1.0, "gain": 2})
