@@ -1,0 +1,39 @@
+"""Virtual test benches: an actuator in its loop, sensors and a DAQ.
+
+Rehearse a test before running it: :class:`EhsaBench` describes the rig
+(EHSA parameters and model fidelity, acquisition rate, analog anti-alias
+filter, converter bits and range, transducers, sensor noise as an SNR of
+the data identification sees), :func:`run` plays a designed excitation on
+it and returns the raw record in volts with the truth
+(:class:`BenchRun`, :class:`EhsaTruth`), and :func:`write_bench_files`
+writes what a real rig writes: the TDMS or CSV file, the experiment TOML
+that calibrates and decimates it, and ``truth.json``.
+
+Example::
+
+    from servoid.bench import EhsaBench, run, write_bench_files
+    from servoid.signals import prbs
+
+    ex = prbs(11, clock=10, amplitude=1e-3, dt=1e-3)
+    rec = run(EhsaBench(fidelity="nonlinear", snr_db=30.0), ex, rng=7)
+    write_bench_files(rec, "rehearsal")
+"""
+
+from ._config import FIDELITIES, EhsaBench, Fidelity
+from ._files import RigFormat, experiment_document, truth_document, write_bench_files
+from ._run import CHANNELS, BenchRun, EhsaTruth, digitize, run
+
+__all__ = [
+    "CHANNELS",
+    "FIDELITIES",
+    "BenchRun",
+    "EhsaBench",
+    "EhsaTruth",
+    "Fidelity",
+    "RigFormat",
+    "digitize",
+    "experiment_document",
+    "run",
+    "truth_document",
+    "write_bench_files",
+]
