@@ -28,7 +28,7 @@ Hold = Literal["zoh", "foh"]
 
 
 def butterworth(order: int, cutoff: float) -> TransferFunction:
-    """Return the analog Butterworth low-pass of `order` at `cutoff` [Hz].
+    """Return an analog Butterworth low-pass filter.
 
     Parameters
     ----------
@@ -94,7 +94,7 @@ def realise(model: TransferFunction) -> StateSpace:
 
 
 def discretise(model: StateSpace, dt: float, hold: Hold) -> StateSpace:
-    """Return the exact discrete equivalent for a zero- or first-order hold.
+    """Return the exact discrete equivalent for a ZOH or FOH input.
 
     Parameters
     ----------

@@ -134,7 +134,7 @@ class EhsaBench:
         f_s = _positive("f_s", self.f_s, "Hz")
         ratio = f_acq / f_s
         if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
-            hint = max(1, round(ratio)) * f_s
+            hint = max(1, math.ceil(ratio)) * f_s
             raise DataError(
                 f"f_acq = {f_acq:g} Hz must be an integer multiple of f_s = {f_s:g} Hz (the "
                 f"decimation factor); try f_acq = {hint:g} Hz"
@@ -245,6 +245,7 @@ def _positive(name: str, value: object, unit: str) -> float:
 def _integer(name: str, value: object, low: int, high: int) -> int:
     if isinstance(value, bool) or not isinstance(value, Integral):
         raise TypeError(f"{name} must be an integer in {low}..{high}, got {value!r}")
-    if not low <= value <= high:
-        raise DataError(f"{name} must lie in {low}..{high}, got {value}")
-    return int(value)
+    v = int(value)
+    if not low <= v <= high:
+        raise DataError(f"{name} must lie in {low}..{high}, got {v}")
+    return v

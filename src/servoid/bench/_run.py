@@ -33,8 +33,10 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from numbers import Integral
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -51,14 +53,14 @@ from ._config import EhsaBench, Fidelity
 
 __all__ = ["CHANNELS", "BenchRun", "EhsaTruth", "digitize", "run"]
 
-#: Channels of the rig file: name → (role, SI unit after calibration).
-CHANNELS: dict[str, tuple[str, str]] = {
+#: Channels of the rig file: name → (role, SI unit after calibration), read-only.
+CHANNELS: Mapping[str, tuple[str, str]] = MappingProxyType({
     "yr_cmd": ("r", "m"),
     "y_pos": ("y", "m"),
     "p_supply": ("side", "Pa"),
     "p_return": ("side", "Pa"),
     "t_oil": ("side", "°C"),
-}
+})
 
 # Side-channel realism [A]: 0.1 % of a 35 MPa transducer as white noise, a
 # 9-piston pump at 1500 rpm (225 Hz ripple of 0.1 MPa), oil warming 0.5 °C/min.
@@ -109,7 +111,9 @@ class EhsaTruth:
         return self.fidelity == "reduced"
 
     def closed_loop(self) -> TransferFunction:
-        """Return the reduced closed loop ``cK/(s³/ω² + 2δs²/ω + s + FK)``.
+        """Return the reduced closed loop, the identification's model.
+
+        ``cK/(s³/ω² + 2δs²/ω + s + FK)``.
 
         Returns
         -------
@@ -198,7 +202,7 @@ class BenchRun:
         return 20.0 * math.log10(self.signal_rms / self.noise_std)
 
     def calibration(self) -> dict[str, float]:
-        """Return the gain volts → SI unit per channel of :data:`CHANNELS`."""
+        """Return the calibration gain volts → SI per channel."""
         b = self.bench
         assert b.position_sensitivity and b.command_sensitivity  # resolved
         assert b.p_supply_sensitivity and b.p_return_sensitivity
@@ -334,8 +338,7 @@ def _run(bench: EhsaBench, ex: Excitation, gen: np.random.Generator,
 
     t_an = np.arange(n_an) * dt_an
     amp, f_rip = _RIPPLE
-    sens = {"p_supply": bench.p_supply_sensitivity, "p_return": bench.p_return_sensitivity,
-            "t_oil": bench.temperature_sensitivity}
+    sens = _side_sensitivities(bench)
     analog = np.column_stack([
         y_an * s_pos,
         (p.P_s + amp * np.sin(2 * np.pi * f_rip * t_an)) * sens["p_supply"],
@@ -433,6 +436,12 @@ def _quantise(v: NDArray[np.float64], bench: EhsaBench) -> tuple[NDArray[np.floa
     codes = np.rint(v / bench.lsb)
     clipped = int(np.count_nonzero((codes < -top) | (codes > top - 1)))
     return np.clip(codes, -top, top - 1) * bench.lsb, clipped
+
+
+def _side_sensitivities(bench: EhsaBench) -> dict[str, float]:
+    assert bench.p_supply_sensitivity is not None and bench.p_return_sensitivity is not None
+    return {"p_supply": bench.p_supply_sensitivity, "p_return": bench.p_return_sensitivity,
+            "t_oil": bench.temperature_sensitivity}
 
 
 def _rms_at_fs(bench: EhsaBench, x: NDArray[np.float64]) -> float:
