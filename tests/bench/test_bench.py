@@ -69,8 +69,9 @@ def test_toml_loads_back_in_si_at_fs(spec_run, spec_files):
     assert spec.preprocess.decimate == 5 and spec.preprocess.detrend == "mean"
     assert spec.split.fraction == 0.5 and spec.split.period is None  # one period: halves
     assert dict(spec.loop) == {"c": pytest.approx(0.01), "F": pytest.approx(0.01)}
-    assert dict(spec.identify) == {"method": "closedloop", "approach": "one-step",
-                                   "na": 3, "nb": 4, "nk": 0}
+    assert dict(spec.identify) == {"method": "closedloop", "approach": ("indirect", "one-step"),
+                                   "na": 3, "nb": 4, "nk": 0, "discretization": "prewarp"}
+    assert dict(spec.report) == {"truth": "truth.json"}
     est, val = spec.split_data(exp)
     assert est.n_samples == val.n_samples == SPEC_PERIOD // 2
 

@@ -32,7 +32,9 @@ _FORMATS: tuple[RigFormat, ...] = ("tdms", "csv")
 
 #: What the experiment file asks the identification for ([S1] ARX(3, 4, 0) start).
 IDENTIFY: dict[str, Any] = {
-    "method": "closedloop", "approach": "one-step", "na": 3, "nb": 4, "nk": 0,
+    "method": "closedloop", "approach": ["indirect", "one-step"], "na": 3, "nb": 4, "nk": 0,
+    # The bench's plant is continuous: Tustin prewarped at ω_hp removes the (ωT)²/12 warp.
+    "discretization": "prewarp",
 }
 
 
@@ -134,6 +136,7 @@ def experiment_document(run: BenchRun, file: str) -> dict[str, Any]:
         "split": split,
         "loop": {"c": run.truth.c, "F": run.truth.F},
         "identify": dict(IDENTIFY),
+        "report": {"truth": "truth.json"},  # a rehearsal: compare with what the bench knows
     }
 
 

@@ -76,9 +76,11 @@ def _parser() -> argparse.ArgumentParser:
     _json_flag(identify)
     identify.set_defaults(run=_run_identify)
 
+    from ._bench import add_bench
     from ._excite import add_excite
 
     add_excite(commands, _json_flag)
+    add_bench(commands, _json_flag)
     return parser
 
 

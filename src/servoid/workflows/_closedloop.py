@@ -37,7 +37,7 @@ from ._common import check_outputs, parameter_table, sha256, validation_section
 
 __all__ = ["ClosedLoopIdentification", "identify_closed_loop_spec", "loop_from_table"]
 
-_KEYS = ("method", "approach", "na", "nb", "nk", "horizon", "prefilter")
+_KEYS = ("method", "approach", "na", "nb", "nk", "horizon", "prefilter", "discretization")
 _NAMES = ("K", "omega_hp", "delta_hp")
 _LABEL = {"indirect": "two-step", "one-step": "one-step", "direct": "direct"}
 
@@ -152,7 +152,8 @@ def identify_closed_loop_spec(
     ``"indirect"``, ``"one-step"``, ``"direct"`` or a list; default both
     indirect and one-step, the last being the primary result), ``na``,
     ``nb``, ``nk`` (the ARX stage, default 3, 4, 0), ``prefilter`` [Hz]
-    (zero-phase low-pass for the two-step ARX) and ``horizon``.
+    (zero-phase low-pass for the two-step ARX), ``discretization`` of the
+    one-step model (``"tustin"``, ``"prewarp"``, ``"zoh"``) and ``horizon``.
     """
     options = _options(spec.identify)
     loop = loop_from_table(spec.loop)
@@ -167,6 +168,8 @@ def identify_closed_loop_spec(
             kwargs = {"na": options["na"], "nb": options["nb"], "nk": options["nk"]}
         if approach == "indirect" and options["prefilter"] is not None:
             kwargs["prefilter"] = options["prefilter"]
+        if approach == "one-step":
+            kwargs["discretization"] = options["discretization"]
         with warnings.catch_warnings():
             # Pole flags become notes of the result and of the report, printed once there.
             warnings.simplefilter("ignore", ServoidWarning)
@@ -190,7 +193,7 @@ def _options(table: Mapping[str, Any]) -> dict[str, Any]:
         raise OptionError(f"unknown key(s) in [identify]: {', '.join(unknown)}; valid keys for "
                           f"method = \"closedloop\" are {', '.join(_KEYS)}")
     options = {"approach": ["indirect", "one-step"], "na": 3, "nb": 4, "nk": 0, "horizon": 5,
-               "prefilter": None}
+               "prefilter": None, "discretization": "tustin"}
     options.update(table)
     approach = options["approach"]
     approaches = [approach] if isinstance(approach, str) else list(approach)
@@ -214,8 +217,9 @@ def _truth_from_spec(spec: ExperimentSpec) -> dict[str, float] | None:
         return None
     base = spec.source.parent if spec.source else Path.cwd()
     data = json.loads((base / str(name)).read_text(encoding="utf-8"))
-    table = data.get("parameters", data)
-    return {k: float(table[k]) for k in _NAMES if k in table}
+    if not all(k in data for k in _NAMES) and isinstance(data.get("parameters"), dict):
+        data = data["parameters"]
+    return {k: float(data[k]) for k in _NAMES if k in data}
 
 
 def _f_text(loop: FeedbackLoop) -> str:
