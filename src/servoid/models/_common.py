@@ -19,6 +19,7 @@ __all__ = [
     "Method",
     "as_coefficients",
     "as_input_matrix",
+    "at_sample_time",
     "check_dt",
     "check_method",
     "common_dt",
@@ -118,3 +119,18 @@ def common_dt(dt1: float | None, dt2: float | None, *, what: str) -> float | Non
     if not math.isclose(dt1, dt2, rel_tol=1e-12, abs_tol=0.0):
         raise ModelError(f"cannot {what} models with different dt ({dt1} s and {dt2} s)")
     return dt1
+
+
+def at_sample_time(model, dt: float | None, owner: str):  # type: ignore[no-untyped-def]
+    """The discrete model to simulate at ``dt``: ZOH of a continuous one, else itself."""
+    if model.dt is None:
+        if dt is None:
+            raise ModelError(
+                f"{owner}.simulate of a continuous model needs dt [s] (ZOH discretisation)"
+            )
+        from ._discretize import c2d
+
+        return c2d(model, dt, "zoh")
+    if dt is not None and not math.isclose(dt, model.dt, rel_tol=1e-9):
+        raise ModelError(f"dt = {dt} s differs from the model's dt = {model.dt} s")
+    return model

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -12,7 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
 from .._errors import DataError, ModelError
-from ._common import Method, as_input_matrix, check_dt, check_method, readonly
+from ._common import Method, as_input_matrix, at_sample_time, check_dt, check_method, readonly
 
 if TYPE_CHECKING:
     from ._transfer import TransferFunction
@@ -301,17 +300,7 @@ class StateSpace:
 
     # -- private ----------------------------------------------------------
     def _at_dt(self, dt: float | None) -> StateSpace:
-        if self.dt is None:
-            if dt is None:
-                raise ModelError(
-                    f"{_OWNER}.simulate of a continuous model needs dt [s] (ZOH discretisation)"
-                )
-            from ._discretize import c2d
-
-            return c2d(self, dt, "zoh")
-        if dt is not None and not math.isclose(dt, self.dt, rel_tol=1e-9):
-            raise ModelError(f"dt = {dt} s differs from the model's dt = {self.dt} s")
-        return self
+        return at_sample_time(self, dt, _OWNER)  # type: ignore[no-any-return]
 
 
 def _matrix(name: str, value: ArrayLike, column: bool = False, row: bool = False) -> NDArray:

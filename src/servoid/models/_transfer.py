@@ -15,6 +15,7 @@ from ._common import (
     Method,
     as_coefficients,
     as_input_matrix,
+    at_sample_time,
     check_dt,
     check_method,
     common_dt,
@@ -457,17 +458,7 @@ class TransferFunction:
         return None
 
     def _at_dt(self, dt: float | None) -> TransferFunction:
-        if self.dt is None:
-            if dt is None:
-                raise ModelError(
-                    f"{_OWNER}.simulate of a continuous model needs dt [s] (ZOH discretisation)"
-                )
-            from ._discretize import c2d
-
-            return c2d(self, dt, "zoh")
-        if dt is not None and not math.isclose(dt, self.dt, rel_tol=1e-9):
-            raise ModelError(f"dt = {dt} s differs from the model's dt = {self.dt} s")
-        return self
+        return at_sample_time(self, dt, _OWNER)  # type: ignore[no-any-return]
 
 
 def _with_memory(
