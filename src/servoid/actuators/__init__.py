@@ -18,9 +18,35 @@ from ._ehsa_linear import (
 )
 from ._ehsa_params import SET_B, SET_C, EhsaParameters
 from ._ehsa_sim import STATE_NAMES, EhsaResponse, default_dt_int, simulate_ehsa
+from ._flow import (
+    chamber_pressure_rate,
+    critical_pressure_ratio,
+    orifice_mass_flow,
+    psi_ellipse,
+    psi_max,
+    psi_saint_venant,
+)
+from ._friction import (
+    coulomb_friction,
+    karnopp_friction,
+    stribeck_friction,
+    three_regime_friction,
+    viscous_friction,
+)
 from ._paper import SET_A, PaperConsistency, PaperSetA, paper_consistency
+from ._pneumatic_params import PNEUMATIC_NOMINAL, PneumaticParameters
+from ._pneumatic_sim import (
+    PNEUMATIC_STATE_NAMES,
+    PneumaticResponse,
+    PositionController,
+    pneumatic_dt_int,
+    pneumatic_rest_state,
+    simulate_pneumatic,
+)
 
 __all__ = [
+    "PNEUMATIC_NOMINAL",
+    "PNEUMATIC_STATE_NAMES",
     "SET_A",
     "SET_B",
     "SET_C",
@@ -29,13 +55,30 @@ __all__ = [
     "EhsaResponse",
     "PaperConsistency",
     "PaperSetA",
+    "PneumaticParameters",
+    "PneumaticResponse",
+    "PositionController",
     "ReducedEhsa",
     "StabilityMargins",
+    "chamber_pressure_rate",
     "closed_loop_bandwidth",
+    "coulomb_friction",
+    "critical_pressure_ratio",
     "default_dt_int",
     "full_order_closed_loop",
     "full_order_plant",
+    "karnopp_friction",
     "loop_margins",
+    "orifice_mass_flow",
     "paper_consistency",
+    "pneumatic_dt_int",
+    "pneumatic_rest_state",
+    "psi_ellipse",
+    "psi_max",
+    "psi_saint_venant",
     "simulate_ehsa",
+    "simulate_pneumatic",
+    "stribeck_friction",
+    "three_regime_friction",
+    "viscous_friction",
 ]
