@@ -43,6 +43,7 @@ from ._pneumatic_sim import (
     pneumatic_rest_state,
     simulate_pneumatic,
 )
+from ._rigid import CascadeController, RigidAxis, RigidLoopResponse, simulate_rigid_loop
 
 __all__ = [
     "PNEUMATIC_NOMINAL",
@@ -51,6 +52,7 @@ __all__ = [
     "SET_B",
     "SET_C",
     "STATE_NAMES",
+    "CascadeController",
     "EhsaParameters",
     "EhsaResponse",
     "PaperConsistency",
@@ -59,6 +61,8 @@ __all__ = [
     "PneumaticResponse",
     "PositionController",
     "ReducedEhsa",
+    "RigidAxis",
+    "RigidLoopResponse",
     "StabilityMargins",
     "chamber_pressure_rate",
     "closed_loop_bandwidth",
@@ -78,6 +82,7 @@ __all__ = [
     "psi_saint_venant",
     "simulate_ehsa",
     "simulate_pneumatic",
+    "simulate_rigid_loop",
     "stribeck_friction",
     "three_regime_friction",
     "viscous_friction",

@@ -226,7 +226,8 @@ def simulate_rigid_loop(
         Controller sample period [s], > 0.
     q0 : float, optional
         Initial position [m]; default ``r[0]``. The controller's memory
-        starts at q0 (as if at rest there).
+        (q at the two previous samples) is filled as if the axis had been
+        moving at ``v0`` before.
     v0 : float
         Initial velocity [m/s].
     integration : {"exact", "sign"}
@@ -245,9 +246,8 @@ def simulate_rigid_loop(
     >>> import numpy as np
     >>> axis = RigidAxis(95.0, 203.0, 20.0, -3.0)
     >>> ctrl = CascadeController(kp=160.18, kv=243.45, gtau=35.15)
-    >>> r = np.full(200, 0.01)
-    >>> out = simulate_rigid_loop(axis, ctrl, r, 1e-3, q0=0.0)
-    >>> bool(abs(out.position[-1] - 0.01) < 1e-4)
+    >>> out = simulate_rigid_loop(axis, ctrl, np.full(500, 1e-3), 1e-3, q0=0.0)
+    >>> bool(abs(out.position[-1] - 1e-3) < 2e-5)  # stuck within Fc/(kp·kv·gtau)
     True
     """
     if not isinstance(axis, RigidAxis):
@@ -295,7 +295,8 @@ def _loop_kernel(p, gains, r, q0, v0, exact, substeps):  # type: ignore[no-untyp
     n = r.size
     out = np.empty((3, n))
     q, v = q0, v0
-    q1, q2 = q0, q0  # q(k−1), q(k−2)
+    # q(k−1), q(k−2): the controller's memory, as if the axis had been moving at v0
+    q1, q2 = q0 - v0 * dt, q0 - 2.0 * v0 * dt
     state = np.empty(2)
     for k in range(n):
         # q̇f(k) = (qf(k) − qf(k−1))/dt with qf(k) = (q(k) + q(k−1))/2 = (q(k) − q(k−2))/(2 dt)

@@ -2,6 +2,13 @@
 
 from ._arx import ArxOrders, fit_arx
 from ._estimate import Estimate, ParameterRow
+from ._inverse import (
+    FRICTION_MODELS,
+    InverseDynamicsRegression,
+    fit_closed_loop_oe,
+    fit_inverse_dynamics,
+    inverse_dynamics_regression,
+)
 from ._ls import LeastSquaresResult, lstsq, solve_gram
 from ._order import OrderCandidate, OrderSelection, select_arx_order
 from ._rls import RecursiveLeastSquaresResult, fit_rls
@@ -9,9 +16,11 @@ from ._svf import FilteredSignal, filter_product, state_variable_filter
 from ._tf_greybox import fit_tf_greybox
 
 __all__ = [
+    "FRICTION_MODELS",
     "ArxOrders",
     "Estimate",
     "FilteredSignal",
+    "InverseDynamicsRegression",
     "LeastSquaresResult",
     "OrderCandidate",
     "OrderSelection",
@@ -19,8 +28,11 @@ __all__ = [
     "RecursiveLeastSquaresResult",
     "filter_product",
     "fit_arx",
+    "fit_closed_loop_oe",
+    "fit_inverse_dynamics",
     "fit_rls",
     "fit_tf_greybox",
+    "inverse_dynamics_regression",
     "lstsq",
     "select_arx_order",
     "solve_gram",

@@ -262,7 +262,7 @@ def fit_inverse_dynamics(
     --------
     >>> from servoid.datasets import load_emps
     >>> est = fit_inverse_dynamics(load_emps())
-    >>> round(est["M"], 1), round(est.options["relative_error"], 2)
+    >>> round(est["M"], 1), round(float(est.options["relative_error"]), 2)
     (95.0, 4.08)
     """
     reg = inverse_dynamics_regression(

@@ -1,0 +1,58 @@
+"""EMPS servo axis: mass and friction from closed-loop data, through the API.
+
+The same steps as ``servoid identify examples/emps/emps.toml`` (which also
+writes the HTML report): inverse-model least squares, the identified axis
+simulated in its known loop, a closed-loop output-error refinement.
+Data and reference: Janot, Gautier, Brunot, *Data Set and Reference Models
+of EMPS*, 2019. Writes ``emps-api/`` (a figure and results.json) in the
+current folder.
+"""
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+from servoid.actuators import CascadeController, simulate_rigid_loop
+from servoid.datasets import load_emps
+from servoid.estimate import fit_closed_loop_oe, fit_inverse_dynamics
+from servoid.report import write_json
+from servoid.validate import relative_error
+
+PUBLISHED = {"M": 95.1089, "Fv": 203.5034, "Fc": 20.3935, "offset": -3.1648}
+
+exp = load_emps()
+controller = CascadeController(exp.notes["kp"], exp.notes["kv"], exp.notes["gtau"], 10.0)
+
+ls = fit_inverse_dynamics(exp, model="symmetric", cutoff=100.0, decimation=10)
+print(ls)
+print(f"relative error {ls.options['relative_error']:.4f} % (published 4.0834 %)")
+for name, value in PUBLISHED.items():
+    print(f"  {name:<7} servoid {ls[name]:9.4f}   published {value:9.4f}")
+
+sim = simulate_rigid_loop(ls.model, controller, exp["qg"], exp.dt)
+print(f"closed loop: position {relative_error(exp['qm'], sim.position):.4f} % "
+      f"(published 0.0138 %), force {relative_error(exp['force'], sim.force):.2f} % "
+      "(published 5.85 %)")
+
+oe = fit_closed_loop_oe(exp, controller, ls, output="both")
+print(oe)
+print("closed-loop OE relative errors [%]:", oe.options["relative_error"])
+
+out = Path("emps-api")
+out.mkdir(exist_ok=True)
+fig, ax = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+ax[0].plot(exp.time, exp["force"], color="0.2", lw=0.8, label="measured")
+ax[0].plot(exp.time, sim.force, color="C1", lw=0.6, label="IDIM-LS axis in its loop")
+ax[0].set_ylabel("force [N]")
+ax[0].legend(fontsize=8)
+ax[1].plot(exp.time, 1e6 * (exp["qm"] - sim.position), color="C1", lw=0.6)
+ax[1].set_ylabel("position error [µm]")
+ax[1].set_xlabel("time [s]")
+fig.tight_layout()
+fig.savefig(out / "closed_loop.png", dpi=100)
+write_json({"idim_ls": ls.to_dict(), "closed_loop_oe": oe.to_dict()}, out / "results.json",
+           overwrite=True)
+print(f"wrote {out.resolve()}")

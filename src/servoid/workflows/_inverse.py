@@ -1,0 +1,610 @@
+"""Rigid axis with friction: a closed-loop record → M, Fv, Fc and a report.
+
+The workflow of ``[identify] method = "inverse-dynamics"``: inverse-model
+least squares (IDIM-LS, symmetric and asymmetric friction), the identified
+axis simulated in its known cascaded loop, an optional closed-loop
+output-error refinement, an optional linear model from the plant input to
+the position for comparison, and a cross-check that fits on the
+estimation part of ``[split]`` and simulates the held-back part.
+Reference for the method and the EMPS data: Janot, Gautier, Brunot,
+*Data Set and Reference Models of EMPS*, 2019.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only, never a window
+import matplotlib.pyplot as plt
+import numpy as np
+
+from .. import __version__
+from .._atomic import atomic_path
+from .._errors import DataError, OptionError, ServoidWarning, check_option
+from ..actuators import CascadeController, RigidAxis, simulate_rigid_loop
+from ..data import Experiment, ExperimentSpec
+from ..estimate import (
+    FRICTION_MODELS,
+    Estimate,
+    fit_arx,
+    fit_closed_loop_oe,
+    fit_inverse_dynamics,
+    inverse_dynamics_regression,
+)
+from ..report import Figure, Page, Section, Table, write_html, write_json
+from ..validate import relative_error, simulate_from_data
+from ._common import check_outputs, parameter_table, sha256
+
+__all__ = ["InverseDynamicsIdentification", "controller_from_table",
+           "identify_inverse_dynamics_spec"]
+
+_KEYS = ("method", "model", "position", "force", "reference", "cutoff", "order", "decimation",
+         "decimation_filter", "differentiation", "trim", "refine", "refine_output", "integration",
+         "linear", "linear_orders", "holdout")
+_LOOP_KEYS = ("kp", "kv", "gtau", "saturation")
+_DEFAULTS: dict[str, Any] = {
+    "model": ["symmetric", "asymmetric"], "position": None, "force": None, "reference": None,
+    "cutoff": 100.0, "order": 4, "decimation": 10, "decimation_filter": "fir",
+    "differentiation": "central", "trim": 1, "refine": True, "refine_output": "both",
+    "integration": "exact", "linear": True, "linear_orders": [2, 2, 1], "holdout": True,
+}
+
+
+@dataclass(frozen=True, eq=False)
+class InverseDynamicsIdentification:
+    """IDIM-LS, closed-loop checks and refinement of a rigid axis.
+
+    Attributes
+    ----------
+    spec : ExperimentSpec
+        The experiment file.
+    controller : CascadeController
+        The known loop.
+    estimates : mapping of str to Estimate
+        ``"idim-ls <model>"`` per friction model, ``"closed-loop-oe <model>"`` if refined.
+    loop_errors : mapping of str to mapping
+        Per estimate: relative errors [%] of the simulated position and force.
+    linear : mapping or None
+        Linear model from plant input to position: orders and relative errors.
+    holdout : mapping or None
+        Per method: closed-loop relative errors on the held-back part of a fit on the rest.
+    published : mapping or None
+        Reference values to compare with (``[report] truth``).
+    folder : pathlib.Path or None
+        The results folder, if written.
+    files : tuple of pathlib.Path
+        The files written.
+    notes : tuple of str
+        Remarks for the reader.
+    """
+
+    spec: ExperimentSpec
+    controller: CascadeController
+    estimates: Mapping[str, Estimate]
+    loop_errors: Mapping[str, Mapping[str, float]]
+    linear: Mapping[str, Any] | None = None
+    holdout: Mapping[str, Mapping[str, float]] | None = None
+    published: Mapping[str, Any] | None = None
+    folder: Path | None = None
+    files: tuple[Path, ...] = ()
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def estimate(self) -> Estimate:
+        """The primary IDIM-LS estimate (first friction model)."""
+        return next(iter(self.estimates.values()))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Everything in ``results.json``."""
+        out: dict[str, Any] = {
+            "servoid_version": __version__,
+            "experiment_file": str(self.spec.source) if self.spec.source else None,
+            "data_file": str(self.spec.data_path),
+            "data_sha256": sha256(self.spec.data_path),
+            "controller": {"kp": self.controller.kp, "kv": self.controller.kv,
+                           "gtau": self.controller.gtau,
+                           "saturation": self.controller.saturation},
+            "estimates": {},
+            "linear": dict(self.linear) if self.linear else None,
+            "holdout": {k: dict(v) for k, v in self.holdout.items()} if self.holdout else None,
+            "published": dict(self.published) if self.published else None,
+            "notes": list(self.notes),
+        }
+        for key, est in self.estimates.items():
+            entry = est.to_dict()
+            entry["loop_relative_error"] = dict(self.loop_errors[key])
+            entry["comparison"] = self._compare(key, est)
+            out["estimates"][key] = entry
+        return out
+
+    def _compare(self, key: str, est: Estimate) -> dict[str, Any] | None:
+        ref = (self.published or {}).get(key.split(" ")[-1])
+        if not isinstance(ref, Mapping):
+            return None
+        rows: dict[str, Any] = {}
+        for name, value, std in zip(est.names, est.parameters, est.std, strict=True):
+            if name in ref.get("parameters", {}):
+                pub = ref["parameters"][name]
+                rows[name] = {"value": float(value), "std": float(std),
+                              "published": pub.get("value"), "published_std": pub.get("std"),
+                              "difference_percent": 100.0 * (value / pub["value"] - 1.0)}
+        return {"parameters": rows, "relative_error": est.options.get("relative_error"),
+                "published_relative_error": ref.get("relative_error")}
+
+    def __str__(self) -> str:
+        lines = [f"inverse-dynamics identification of {self.spec.source or self.spec.file}"]
+        for key, est in self.estimates.items():
+            errs = self.loop_errors[key]
+            extra = (f", IDIM relative error {est.options['relative_error']:.4g} %"
+                     if "relative_error" in est.options and est.method == "idim-ls" else "")
+            lines.append(f"  {key}{extra}; closed loop: position {errs['position']:.4g} %, "
+                         f"force {errs['force']:.4g} %")
+            comparison = self._compare(key, est) or {"parameters": {}}
+            for row in est.table():
+                pub = comparison["parameters"].get(row.name)
+                ref = "" if pub is None else (f"   published {pub['published']:.6g}"
+                                              f" ({pub['difference_percent']:+.2f} %)")
+                lines.append(f"    {row.name:<7} {row.value:>10.6g} ± {row.std:<8.2g} "
+                             f"[{row.ci_low:.6g}, {row.ci_high:.6g}] {row.unit}{ref}")
+        if self.linear:
+            lines.append(f"  linear {self.linear['structure']}: simulation relative error "
+                         f"{self.linear['relative_error']:.3g} % (position)")
+        if self.holdout:
+            for key, errs in self.holdout.items():
+                lines.append(f"  held-back closed loop, {key}: position {errs['position']:.4g} %,"
+                             f" force {errs['force']:.4g} %")
+        lines += [f"  note: {n}" for n in self.notes]
+        if self.folder:
+            lines.append(f"  report: {self.folder / 'report.html'}")
+        return "\n".join(lines)
+
+
+def controller_from_table(
+    table: Mapping[str, Any], notes: Mapping[str, Any] | None = None
+) -> CascadeController:
+    """Build the EMPS-type cascade controller from ``[loop]``.
+
+    Keys: ``kp`` [1/s], ``kv`` [V/(m/s)], ``gtau`` [N/V], ``saturation`` [V]
+    (default 10). A missing gain is taken from the data file's scalars
+    (``notes``) of the same name, if there.
+
+    Parameters
+    ----------
+    table : mapping
+        The ``[loop]`` table.
+    notes : mapping, optional
+        Scalars read from the data file.
+
+    Returns
+    -------
+    CascadeController
+        The known loop.
+    """
+    unknown = sorted(set(table) - set(_LOOP_KEYS))
+    if unknown:
+        raise OptionError(f"unknown key(s) in [loop]: {', '.join(unknown)}; valid keys for "
+                          f"method = \"inverse-dynamics\" are {', '.join(_LOOP_KEYS)}")
+    notes = notes or {}
+    values: dict[str, float] = {"saturation": 10.0}
+    for key in _LOOP_KEYS:
+        value = table.get(key, notes.get(key, values.get(key)))
+        if value is None:
+            raise DataError(
+                f"[loop] {key} is needed for the closed-loop simulation and is neither in the "
+                "experiment file nor a scalar of the data file; add it under [loop]"
+            )
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise DataError(f"[loop] {key} must be a number, got {value!r}")
+        values[key] = float(value)
+    return CascadeController(values["kp"], values["kv"], values["gtau"], values["saturation"])
+
+
+def identify_inverse_dynamics_spec(
+    spec: ExperimentSpec,
+    folder: Path | None,
+    *,
+    overwrite: bool = False,
+    published: Mapping[str, Any] | None = None,
+) -> InverseDynamicsIdentification:
+    """Run the rigid-axis identification an experiment file asks for.
+
+    ``[identify]`` keys (``method = "inverse-dynamics"``): ``model``
+    (``"symmetric"``, ``"asymmetric"`` or a list, default both, the first
+    primary), ``position``, ``force``, ``reference`` (channel names),
+    ``cutoff`` [Hz], ``order``, ``decimation``, ``decimation_filter``,
+    ``differentiation``, ``trim`` (see
+    :func:`~servoid.estimate.fit_inverse_dynamics`), ``refine`` (closed-loop
+    OE, default true), ``refine_output`` (``"position"``, ``"force"``,
+    ``"both"``), ``integration`` (``"exact"`` or ``"sign"``), ``linear``
+    (a linear ARX model from u to the position, default true) with
+    ``linear_orders = [na, nb, nk]``, and ``holdout`` (fit on the estimation
+    part of ``[split]``, simulate the rest; default true). ``[loop]``: see
+    :func:`controller_from_table`.
+
+    Parameters
+    ----------
+    spec : ExperimentSpec
+        The experiment file.
+    folder : pathlib.Path or None
+        Results folder (None: compute only).
+    overwrite : bool
+        Replace the files of an earlier run.
+    published : mapping, optional
+        Reference results to compare with; default ``[report] truth`` (a JSON file).
+
+    Returns
+    -------
+    InverseDynamicsIdentification
+        Estimates, closed-loop errors, and the files written.
+    """
+    options = _options(spec.identify)
+    data = spec.load()
+    controller = controller_from_table(spec.loop, data.notes)
+    if published is None:
+        published = _published_from_spec(spec)
+    channels = {k: options[k] for k in ("position", "force")}
+    idim = {k: options[k] for k in ("cutoff", "order", "decimation", "decimation_filter",
+                                    "differentiation", "trim")}
+    estimates: dict[str, Estimate] = {}
+    for model in options["model"]:
+        estimates[f"idim-ls {model}"] = fit_inverse_dynamics(data, model=model, **channels, **idim)
+    notes: list[str] = []
+    if options["refine"]:
+        for model in options["model"]:
+            start = estimates[f"idim-ls {model}"]
+            estimates[f"closed-loop-oe {model}"] = fit_closed_loop_oe(
+                data, controller, start, output=options["refine_output"],
+                reference=options["reference"], integration=options["integration"], **channels)
+    loop_errors = {key: _loop_errors(data, controller, est.model, options)
+                   for key, est in estimates.items()}
+    linear = _linear(data, options) if options["linear"] else None
+    holdout = _holdout(spec, data, controller, options, channels, idim) \
+        if options["holdout"] else None
+    notes += _notes(estimates, loop_errors)
+    ident = InverseDynamicsIdentification(spec, controller, estimates, loop_errors, linear,
+                                          holdout, published, notes=tuple(notes))
+    if folder is None:
+        return ident
+    files = _write(ident, data, folder, overwrite, options)
+    return InverseDynamicsIdentification(spec, controller, estimates, loop_errors, linear,
+                                         holdout, published, folder, tuple(files), tuple(notes))
+
+
+# -- steps ------------------------------------------------------------------------------------
+
+
+def _options(table: Mapping[str, Any]) -> dict[str, Any]:
+    unknown = sorted(set(table) - set(_KEYS))
+    if unknown:
+        raise OptionError(f"unknown key(s) in [identify]: {', '.join(unknown)}; valid keys for "
+                          f"method = \"inverse-dynamics\" are {', '.join(_KEYS)}")
+    options = dict(_DEFAULTS)
+    options.update({k: v for k, v in table.items() if k != "method"})
+    models = options["model"]
+    models = [models] if isinstance(models, str) else list(models)
+    if not models:
+        raise OptionError(f"[identify] model is empty; choose from {', '.join(FRICTION_MODELS)}")
+    for m in models:
+        check_option("[identify] model", m, FRICTION_MODELS)
+    options["model"] = list(dict.fromkeys(models))
+    check_option("[identify] refine_output", options["refine_output"],
+                 ("position", "force", "both"))
+    check_option("[identify] integration", options["integration"], ("exact", "sign"))
+    for key in ("refine", "linear", "holdout"):
+        if not isinstance(options[key], bool):
+            raise DataError(f"[identify] {key} must be true or false, got {options[key]!r}")
+    orders = list(options["linear_orders"])
+    if len(orders) != 3 or any(isinstance(v, bool) or not isinstance(v, int) for v in orders):
+        raise DataError(f"[identify] linear_orders must be [na, nb, nk], got {orders!r}")
+    options["linear_orders"] = orders
+    return options
+
+
+def _simulate(data: Experiment, controller: CascadeController, axis: RigidAxis,
+              options: Mapping[str, Any], from_rest: bool = False) -> tuple[Any, str, str, str]:
+    r_name = options["reference"] or _only(data, "r")
+    q_name = options["position"] or _only(data, "y")
+    f_name = options["force"] or ("force" if "force" in data.names else _only(data, "u"))
+    q = data[q_name]
+    # from the measured state, or (as the reference seems to) at rest on the reference
+    q0, v0 = (None, 0.0) if from_rest else (float(q[0]), float((q[1] - q[0]) / data.dt))
+    sim = simulate_rigid_loop(axis, controller, data[r_name], data.dt, q0=q0, v0=v0,
+                              integration=options["integration"])
+    return sim, r_name, q_name, f_name
+
+
+def _loop_errors(data: Experiment, controller: CascadeController, axis: RigidAxis,
+                 options: Mapping[str, Any]) -> dict[str, float]:
+    sim, _, q_name, f_name = _simulate(data, controller, axis, options)
+    rest = _simulate(data, controller, axis, options, from_rest=True)[0]
+    q, f = data[q_name], data[f_name]
+    return {"position": float(relative_error(q, sim.position)),
+            "force": float(relative_error(f, sim.force)),
+            "position_from_rest": float(relative_error(q, rest.position)),
+            "force_from_rest": float(relative_error(f, rest.force)),
+            "saturated_fraction": sim.saturated}
+
+
+def _linear(data: Experiment, options: Mapping[str, Any]) -> dict[str, Any]:
+    na, nb, nk = options["linear_orders"]
+    q_name = options["position"] or _only(data, "y")
+    u_name = _only(data, "u")
+    with warnings.catch_warnings():
+        # an integrating plant gives an ARX pole at 1: expected here, not suspicious
+        warnings.simplefilter("ignore", ServoidWarning)
+        est = fit_arx(data.select(u_name, q_name), na, nb, nk)
+    y_sim, first = simulate_from_data(est.model, data[q_name], data[u_name])
+    poles = np.roots(est.model.a)
+    return {"structure": f"ARX({na},{nb},{nk})", "input": u_name, "output": q_name,
+            "relative_error": float(relative_error(data[q_name][first:], y_sim[first:])),
+            "poles": [{"re": float(p.real), "im": float(p.imag)} for p in poles],
+            "parameters": dict(zip(est.names, est.parameters.tolist(), strict=True)),
+            "simulated": y_sim}
+
+
+def _holdout(spec: ExperimentSpec, data: Experiment, controller: CascadeController,
+             options: Mapping[str, Any], channels: Mapping[str, Any],
+             idim: Mapping[str, Any]) -> dict[str, dict[str, float]]:
+    estimation, validation = spec.split_data(data)
+    model = options["model"][0]
+    out: dict[str, dict[str, float]] = {}
+    est = fit_inverse_dynamics(estimation, model=model, **channels, **idim)
+    out[f"idim-ls {model}"] = _loop_errors(validation, controller, est.model, options)
+    if options["refine"]:
+        oe = fit_closed_loop_oe(estimation, controller, est, output=options["refine_output"],
+                                reference=options["reference"],
+                                integration=options["integration"], **channels)
+        out[f"closed-loop-oe {model}"] = _loop_errors(validation, controller, oe.model, options)
+    return out
+
+
+def _notes(estimates: Mapping[str, Estimate], loop: Mapping[str, Mapping[str, float]]
+           ) -> list[str]:
+    notes = []
+    for model in FRICTION_MODELS:
+        ls, oe = f"idim-ls {model}", f"closed-loop-oe {model}"
+        if ls in estimates and oe in estimates:
+            gain = loop[ls]["force"] - loop[oe]["force"]
+            notes.append(
+                f"{model}: closed-loop OE changes the simulated force error by {-gain:+.3g} "
+                f"percentage points ({loop[ls]['force']:.4g} → {loop[oe]['force']:.4g} %) and "
+                f"the position error from {loop[ls]['position']:.3g} to "
+                f"{loop[oe]['position']:.3g} %; its standard deviations assume white output "
+                "errors, which closed-loop simulation errors are not: read them as lower bounds")
+    return notes
+
+
+def _only(data: Experiment, role: Any) -> str:
+    names = data.names_of(role)
+    if len(names) != 1:
+        data.signal(role)
+        raise DataError(f"the experiment has {len(names)} {role!r} channels; name one in "
+                        "[identify]")
+    return names[0]
+
+
+def _published_from_spec(spec: ExperimentSpec) -> dict[str, Any] | None:
+    name = dict(spec.report).get("truth")
+    if name is None:
+        return None
+    return json.loads((spec.base_dir / str(name)).read_text(encoding="utf-8"))
+
+
+# -- output -----------------------------------------------------------------------------------
+
+
+def _write(ident: InverseDynamicsIdentification, data: Experiment, folder: Path,
+           overwrite: bool, options: Mapping[str, Any]) -> list[Path]:
+    names = ("results.json", "report.html", "force_fit.png", "friction.png", "closed_loop.png")
+    if ident.linear:
+        names += ("linear.png",)
+    targets = {n: folder / n for n in names}
+    inputs = [ident.spec.data_path] + ([Path(ident.spec.source)] if ident.spec.source else [])
+    check_outputs(list(targets.values()), inputs, overwrite)
+    folder.mkdir(parents=True, exist_ok=True)
+    idim = {k: v for k, v in ident.estimates.items() if v.method == "idim-ls"}
+    regressions = {
+        key: inverse_dynamics_regression(
+            data, **{k: est.options[k] for k in ("position", "force", "model", "cutoff", "order",
+                                                 "decimation", "decimation_filter",
+                                                 "differentiation", "trim")})
+        for key, est in idim.items()
+    }
+    plot_force_fit(regressions, idim, targets["force_fit.png"], overwrite)
+    plot_friction(regressions, idim, targets["friction.png"], overwrite)
+    sims = {key: _simulate(data, ident.controller, est.model, options)[0]
+            for key, est in ident.estimates.items()}
+    _, _, q_name, f_name = _simulate(data, ident.controller, ident.estimate.model, options)
+    plot_loop(data.time, data[q_name], data[f_name], sims, targets["closed_loop.png"], overwrite)
+    if ident.linear:
+        plot_linear(data.time, data[q_name], ident.linear["simulated"], ident.linear["structure"],
+                    targets["linear.png"], overwrite)
+    write_html(_page(ident, targets), targets["report.html"], overwrite=overwrite)
+    payload = ident.to_dict()
+    if payload["linear"]:
+        payload["linear"].pop("simulated", None)
+    write_json(payload, targets["results.json"], overwrite=overwrite)  # last: a complete run
+    return list(targets.values())
+
+
+def _fmt(x: float | None, digits: int = 6) -> str:
+    return "—" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}g}"
+
+
+def _page(ident: InverseDynamicsIdentification, files: Mapping[str, Path]) -> Page:
+    spec = ident.spec
+    tables: list[Table] = []
+    for key, est in ident.estimates.items():
+        tables.append(parameter_table(est, key))
+        comparison = ident._compare(key, est)
+        if comparison and comparison["parameters"]:
+            rows = tuple(
+                (name, _fmt(c["value"]), _fmt(c["std"], 3), _fmt(c["published"]),
+                 _fmt(c["published_std"], 3), f"{c['difference_percent']:+.3f} %")
+                for name, c in comparison["parameters"].items())
+            if comparison.get("published_relative_error") is not None \
+                    and est.method == "idim-ls":
+                rows += (("relative error [%]", _fmt(comparison["relative_error"], 5), "",
+                          _fmt(comparison["published_relative_error"], 5), "",
+                          f"{comparison['relative_error'] - comparison['published_relative_error']:+.3f} pp"),)
+            tables.append(Table(("parameter", "servoid", "std", "published", "published std",
+                                 "difference"), rows, f"{key} against the reference"))
+    loop_rows = []
+    for key, errs in ident.loop_errors.items():
+        pub = ((ident.published or {}).get("closed_loop") or {}) if "symmetric" in key else {}
+        loop_rows.append((key, f"{errs['position']:.4g} %", f"{errs['force']:.4g} %",
+                          f"{errs['position_from_rest']:.4g} %", f"{errs['force_from_rest']:.4g} %",
+                          _fmt(pub.get("position")), _fmt(pub.get("force"))))
+    tables.append(Table(
+        ("estimate", "position", "force", "position (from rest)", "force (from rest)",
+         "published position", "published force"),
+        tuple(loop_rows), "Closed-loop simulation from the reference position, relative error "
+        "100·‖y − ŷ‖/‖y‖ [%]: from the measured initial state, and at rest on r(0)"))
+    if ident.holdout:
+        tables.append(Table(
+            ("fitted on the estimation part", "position error", "force error"),
+            tuple((k, f"{v['position']:.4g} %", f"{v['force']:.4g} %")
+                  for k, v in ident.holdout.items()),
+            "Closed-loop simulation of the held-back part ([split])"))
+    ctrl = ident.controller
+    method = Section(
+        "Method",
+        paragraphs=(
+            ("Inverse dynamic model τ = M q̈ + Fv q̇ + Fc sign(q̇) + offset (asymmetric: Fv±, Fc± "
+            "per direction). IDIM-LS: zero-phase Butterworth low-pass of the position, central "
+            "differences, parallel decimation of force and regressors through one anti-alias "
+            "filter, least squares by QR with covariance σ̂²(ΦᵀΦ)⁻¹ (Janot, Gautier, Brunot, "
+            "Data Set and Reference Models of EMPS, 2019)."),
+            (f"Known loop: v = kv·(kp·(r − q) − q̇f), kp = {ctrl.kp:g} 1/s, kv = {ctrl.kv:g} "
+            f"V/(m/s), ±{ctrl.saturation:g} V, τ = gtau·v with gtau = {ctrl.gtau:.6g} N/V; q̇f "
+            "from the backward difference of the two-sample mean. The direct model is simulated "
+            "exactly between samples with stick/slip events at q̇ = 0."),
+            ("Closed-loop OE refines the physical parameters so the simulated loop reproduces "
+            "the measured position and force (Levenberg–Marquardt from the IDIM-LS estimate). "
+            "Its standard deviations assume white output errors and are lower bounds."),
+        ),
+        tables=tuple(tables),
+    )
+    figs = [Figure.from_file(files["force_fit.png"], "Decimated force: measured vs IDIM-LS"),
+            Figure.from_file(files["friction.png"], "Friction: τ − M q̈ against velocity"),
+            Figure.from_file(files["closed_loop.png"],
+                             "Closed loop: measured vs simulated position and force")]
+    linear_sec = []
+    if ident.linear:
+        figs.append(Figure.from_file(files["linear.png"], "Linear model from the plant input"))
+        pub = (ident.published or {}).get("linear_relative_error")
+        linear_sec.append(Section("Linear model", paragraphs=(
+            f"Best linear {ident.linear['structure']} model from {ident.linear['input']} to "
+            f"{ident.linear['output']}, simulated from the measured input: relative error "
+            f"{ident.linear['relative_error']:.3g} %"
+            + (f" (published best linear model: {pub:g} %)" if pub is not None else "")
+            + ". It has a pole at 1 (the integrator) and a second real pole standing in for "
+            "friction; it drifts with any input offset and says nothing physical.",)))
+    data_sec = Section("Experiment", paragraphs=(
+        f"Data file {spec.data_path.name} (sha256 {sha256(spec.data_path)[:16]}…).",))
+    return Page(
+        title=f"Rigid axis with friction: {spec.source.name if spec.source else 'experiment'}",
+        subtitle="Inverse-model least squares, closed-loop simulation and output-error refinement",
+        sections=(data_sec, method, Section("Figures", figures=tuple(figs)), *linear_sec,
+                  Section("Notes", paragraphs=ident.notes or ("None.",))),
+        meta=(("servoid", __version__), ("experiment file", str(spec.source or "")),
+              ("data file", str(spec.data_path))),
+    )
+
+
+# -- figures ----------------------------------------------------------------------------------
+
+
+def plot_force_fit(regressions: Mapping[str, Any], estimates: Mapping[str, Estimate],
+                   path: Path, overwrite: bool) -> None:
+    """Decimated measured force against each IDIM-LS prediction."""
+    fig, (ax, ax_err) = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True,
+                                     gridspec_kw={"height_ratios": [3, 1]})
+    first = next(iter(regressions.values()))
+    ax.plot(first.time, first.force, color="0.2", lw=1.0, label="measured τ")
+    for k, (key, reg) in enumerate(regressions.items()):
+        est = estimates[key]
+        fitted = reg.regressors @ est.parameters
+        ax.plot(reg.time, fitted, color=f"C{k + 1}", lw=0.8,
+                label=f"{key} ({est.options['relative_error']:.3g} %)")
+        ax_err.plot(reg.time, reg.force - fitted, color=f"C{k + 1}", lw=0.6)
+    ax.set_ylabel("force [N]")
+    ax.legend(loc="upper right", fontsize=8)
+    ax_err.set_ylabel("error [N]")
+    ax_err.set_xlabel("time [s]")
+    for a in (ax, ax_err):
+        a.grid(alpha=0.3)
+    _save(fig, path, overwrite)
+
+
+def plot_friction(regressions: Mapping[str, Any], estimates: Mapping[str, Estimate],
+                  path: Path, overwrite: bool) -> None:
+    """Friction τ − M q̈ against velocity, with the fitted laws."""
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    key0 = next(iter(regressions))
+    reg = regressions[key0]
+    est = estimates[key0]
+    qd = reg.regressors[:, 1]
+    if est.options["model"] == "asymmetric":
+        qd = reg.regressors[:, 1] + reg.regressors[:, 3]
+    ax.plot(qd, reg.force - est.parameters[0] * reg.regressors[:, 0], ".", ms=2, color="0.5",
+            label="τ − M̂ q̈ (decimated)")
+    v = np.linspace(qd.min(), qd.max(), 400)
+    v = v[v != 0]
+    for k, (key, e) in enumerate(estimates.items()):
+        ax.plot(v, e.model.friction(v), color=f"C{k + 1}", lw=1.5, label=key)
+    ax.set_xlabel("velocity [m/s]")
+    ax.set_ylabel("friction + offset [N]")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    _save(fig, path, overwrite)
+
+
+def plot_loop(time: Any, position: Any, force: Any, sims: Mapping[str, Any], path: Path,
+              overwrite: bool) -> None:
+    """Measured vs simulated closed loop: position, its error, force."""
+    fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
+    axes[0].plot(time, position, color="0.2", lw=1.0, label="measured")
+    axes[2].plot(time, force, color="0.2", lw=0.8, label="measured")
+    for k, (key, sim) in enumerate(sims.items()):
+        axes[0].plot(time, sim.position, color=f"C{k + 1}", lw=0.8, ls="--", label=key)
+        axes[1].plot(time, 1e6 * (position - sim.position), color=f"C{k + 1}", lw=0.6, label=key)
+        axes[2].plot(time, sim.force, color=f"C{k + 1}", lw=0.6, label=key)
+    axes[0].set_ylabel("position [m]")
+    axes[1].set_ylabel("position error [µm]")
+    axes[2].set_ylabel("force [N]")
+    axes[2].set_xlabel("time [s]")
+    for a in axes:
+        a.grid(alpha=0.3)
+        a.legend(loc="upper right", fontsize=7)
+    _save(fig, path, overwrite)
+
+
+def plot_linear(time: Any, position: Any, simulated: Any, label: str, path: Path,
+                overwrite: bool) -> None:
+    """Measured position against the linear model's simulation."""
+    fig, ax = plt.subplots(figsize=(9, 4))
+    ax.plot(time, position, color="0.2", lw=1.0, label="measured")
+    ax.plot(time, simulated, color="C3", lw=0.8, label=f"{label} simulated from the input")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("position [m]")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    _save(fig, path, overwrite)
+
+
+def _save(fig: Any, path: Path, overwrite: bool) -> None:
+    try:
+        fig.tight_layout()
+        with atomic_path(path, overwrite) as tmp:
+            fig.savefig(tmp, format="png", dpi=110)
+    finally:
+        plt.close(fig)
