@@ -161,7 +161,7 @@ def three_regime_friction(
     eps: float = 1e-4,
     blend: bool = False,
 ) -> NDArray[np.float64]:
-    """Return the paper's three-regime friction (spec eq. 4.1/4.2) [N].
+    """Return the paper's three-regime friction (eq. 4.1/4.2) [N].
 
     Parameters
     ----------
