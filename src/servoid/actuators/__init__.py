@@ -1,11 +1,18 @@
-"""Physics of servo actuators: the electro-hydraulic servo actuator.
+"""Physics of servo actuators: hydraulic, pneumatic and electromechanical.
 
-The EHSA of models-spec §1 ([S1]): physical parameters with units and
-sources (:class:`EhsaParameters`, sets :data:`SET_B` and :data:`SET_C`),
-the reduced third-order and full eighth-order linear models, the
-paper's identified model decoded and checked (:data:`SET_A`,
-:func:`paper_consistency`), and a compiled nonlinear simulator
-(:func:`simulate_ehsa`).
+* The electro-hydraulic servo actuator (EHSA) of models-spec §1: physical
+  parameters with units and sources (:class:`EhsaParameters`, sets
+  :data:`SET_B`, :data:`SET_C`), reduced and full-order linear models,
+  the source study's model decoded (:data:`SET_A`, :func:`paper_consistency`),
+  and a compiled nonlinear simulator (:func:`simulate_ehsa`).
+* The servopneumatic actuator of models-spec §2
+  (:class:`PneumaticParameters`, :func:`simulate_pneumatic`) with reusable
+  flow functions (:func:`psi_ellipse`, :func:`psi_saint_venant`,
+  :func:`orifice_mass_flow`, :func:`chamber_pressure_rate`).
+* Friction models usable by any actuator (Coulomb, viscous, Stribeck,
+  Karnopp, the three-regime law).
+* A rigid axis with friction in a cascaded position loop (the EMPS axis:
+  :class:`RigidAxis`, :class:`CascadeController`, :func:`simulate_rigid_loop`).
 """
 
 from ._ehsa_linear import (

@@ -3,13 +3,21 @@
 from ._closedloop import ClosedLoopIdentification, identify_closed_loop_spec, loop_from_table
 from ._demo import DemoResult, run_demo
 from ._identify import IdentificationResult, identify
+from ._inverse import (
+    InverseDynamicsIdentification,
+    controller_from_table,
+    identify_inverse_dynamics_spec,
+)
 
 __all__ = [
     "ClosedLoopIdentification",
     "DemoResult",
     "IdentificationResult",
+    "InverseDynamicsIdentification",
+    "controller_from_table",
     "identify",
     "identify_closed_loop_spec",
+    "identify_inverse_dynamics_spec",
     "loop_from_table",
     "run_demo",
 ]

@@ -25,10 +25,11 @@ from ..report import (
 from ..validate import ValidationReport, validate
 from ._closedloop import ClosedLoopIdentification, identify_closed_loop_spec
 from ._common import check_outputs, parameter_table, sha256, validation_section
+from ._inverse import InverseDynamicsIdentification, identify_inverse_dynamics_spec
 
 __all__ = ["IdentificationResult", "identify"]
 
-METHODS = ("arx", "closedloop")
+METHODS = ("arx", "closedloop", "inverse-dynamics")
 _IDENTIFY_KEYS = ("method", "input", "output", "na", "nb", "nk", "criterion", "horizon")
 _REPORT_KEYS = ("folder", "truth")
 
@@ -78,7 +79,7 @@ def identify(
     overwrite: bool = False,
     write: bool = True,
     truth: Mapping[str, float] | None = None,
-) -> IdentificationResult | ClosedLoopIdentification:
+) -> IdentificationResult | ClosedLoopIdentification | InverseDynamicsIdentification:
     """Run the identification an experiment file describes.
 
     Loads and preprocesses the data, splits it into estimation and validation
@@ -102,9 +103,11 @@ def identify(
 
     Returns
     -------
-    IdentificationResult or ClosedLoopIdentification
-        By ``[identify] method``: ``"arx"`` or ``"closedloop"`` (see
-        :func:`~servoid.workflows.identify_closed_loop_spec` for its keys).
+    IdentificationResult, ClosedLoopIdentification or InverseDynamicsIdentification
+        By ``[identify] method``: ``"arx"``, ``"closedloop"`` (see
+        :func:`~servoid.workflows.identify_closed_loop_spec` for its keys) or
+        ``"inverse-dynamics"`` (see
+        :func:`~servoid.workflows.identify_inverse_dynamics_spec`).
 
     Notes
     -----
@@ -120,6 +123,9 @@ def identify(
     if method == "closedloop":
         folder = _folder(spec, out) if write else None
         return identify_closed_loop_spec(spec, folder, overwrite=overwrite, truth=truth)
+    if method == "inverse-dynamics":
+        folder = _folder(spec, out) if write else None
+        return identify_inverse_dynamics_spec(spec, folder, overwrite=overwrite)
     options = _identify_options(spec.identify)
     estimation, validation_data = spec.split_data()
     orders = {k: options[k] for k in ("na", "nb", "nk")}
