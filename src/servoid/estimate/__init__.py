@@ -2,6 +2,7 @@
 
 from ._arx import ArxOrders, fit_arx
 from ._estimate import Estimate, ParameterRow
+from ._greybox import GreyboxModel, GreyboxParameter, fit_greybox
 from ._inverse import (
     FRICTION_MODELS,
     InverseDynamicsRegression,
@@ -12,6 +13,7 @@ from ._inverse import (
 from ._ls import LeastSquaresResult, lstsq, solve_gram
 from ._order import OrderCandidate, OrderSelection, select_arx_order
 from ._rls import RecursiveLeastSquaresResult, fit_rls
+from ._separable import fit_separable
 from ._svf import FilteredSignal, filter_product, state_variable_filter
 from ._tf_greybox import fit_tf_greybox
 
@@ -20,6 +22,8 @@ __all__ = [
     "ArxOrders",
     "Estimate",
     "FilteredSignal",
+    "GreyboxModel",
+    "GreyboxParameter",
     "InverseDynamicsRegression",
     "LeastSquaresResult",
     "OrderCandidate",
@@ -29,8 +33,10 @@ __all__ = [
     "filter_product",
     "fit_arx",
     "fit_closed_loop_oe",
+    "fit_greybox",
     "fit_inverse_dynamics",
     "fit_rls",
+    "fit_separable",
     "fit_tf_greybox",
     "inverse_dynamics_regression",
     "lstsq",

@@ -309,7 +309,7 @@ def filter_product(
 def _denominator(omega_f: float, order: int, zeta: float) -> NDArray[np.float64]:
     if order == 2:
         return np.array([1.0, 2.0 * zeta * omega_f, omega_f**2])
-    return np.poly(np.full(order, -omega_f)).real
+    return np.asarray(np.poly(np.full(order, -omega_f)).real, dtype=np.float64)
 
 
 def _scaled_state_space(

@@ -1,0 +1,520 @@
+"""Grey-box output-error fit of a nonlinear ODE model ẋ = f(t, x, u, θ).
+
+The user states the physics: a right-hand side ``rhs(t, x, u, theta)``, an
+initial state, an output map ``output(x, u, theta)`` and a parameter list
+with bounds and a fixed/free flag. The criterion is
+
+    V(θ) = Σ_j Σ_t ( w_j · (y_j(t) − ŷ_j(t, θ)) )²
+
+over the measured output channels j, with w_j = 1/σ_j when the channel
+noise levels are given. It follows :func:`~servoid.estimate.fit_tf_greybox`:
+bounded trust-region reflective least squares (:func:`scipy.optimize.
+least_squares`) in transformed coordinates (``"log"``: θ > 0, relative
+steps), a finite, huge residual for a trial point whose simulation diverges
+(so the step is rejected instead of crashing the solver), and the
+covariance σ̂²(JᵀJ)⁻¹ from the solver's Jacobian at the optimum (free
+parameters only), with σ̂² = V/(N·p − n_free). With w_j = 1/σ_j the
+expected σ̂² is 1, so its value checks the stated noise levels.
+
+Simulation: fixed-step RK4 on the data's time grid with ``substeps`` steps
+per sample, the input held (``"zoh"``) or interpolated linearly
+(``"foh"``) between samples; or :func:`scipy.integrate.solve_ivp`; or a
+user ``simulate(theta) -> (N, p)`` callable (a compiled simulator).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import integrate, optimize
+
+from .._errors import ConvergenceError, DataError, ServoidWarning, check_option
+from ..data import Experiment
+from ._estimate import Estimate
+from ._tf_greybox import _inverse_normal
+
+__all__ = ["GreyboxModel", "GreyboxParameter", "fit_greybox"]
+
+Rhs = Callable[[float, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]], ArrayLike]
+OutputMap = Callable[[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]], ArrayLike]
+Simulator = Callable[[NDArray[np.float64]], ArrayLike]
+Transform = Literal["none", "log"]
+Integrator = Literal["rk4", "solve_ivp"]
+Hold = Literal["zoh", "foh"]
+Solver = Literal["trf", "dogbox", "lm"]
+
+#: residual for a diverged trial simulation: finite, so the solver rejects the step
+_PENALTY = 1e50
+
+
+@dataclass(frozen=True)
+class GreyboxParameter:
+    """One physical parameter of a grey-box model.
+
+    Attributes
+    ----------
+    name : str
+        Parameter name.
+    value : float
+        Start value (or the value used when ``fixed``).
+    lower, upper : float
+        Bounds (±inf for none); the start must lie inside.
+    unit : str
+        Unit, e.g. "kg".
+    fixed : bool
+        Keep the value; do not estimate.
+    transform : {"none", "log"}
+        Optimise θ or log θ (θ > 0, relative steps).
+    """
+
+    name: str
+    value: float
+    lower: float = -np.inf
+    upper: float = np.inf
+    unit: str = ""
+    fixed: bool = False
+    transform: Transform = "none"
+
+
+@dataclass(frozen=True, eq=False)
+class GreyboxModel:
+    """A grey-box ODE model with all its parameter values.
+
+    Attributes
+    ----------
+    names : tuple of str
+        All parameter names, free and fixed, in the order ``rhs`` sees them.
+    theta : ndarray
+        All parameter values.
+    free : tuple of bool
+        Which parameters were estimated.
+    simulate_theta : callable
+        ``simulate_theta(theta) -> (N, p)`` on the estimation record.
+    """
+
+    names: tuple[str, ...]
+    theta: NDArray[np.float64]
+    free: tuple[bool, ...]
+    simulate_theta: Callable[[NDArray[np.float64]], NDArray[np.float64]]
+
+    def simulate(self) -> NDArray[np.float64]:
+        """Outputs at the fitted θ on the estimation record, (N, p)."""
+        return self.simulate_theta(self.theta)
+
+    def __getitem__(self, name: str) -> float:
+        return float(self.theta[self.names.index(name)])
+
+
+def fit_greybox(
+    data: Experiment | tuple[ArrayLike, ArrayLike, ArrayLike],
+    rhs: Rhs | None,
+    x0: ArrayLike | Callable[[NDArray[np.float64]], ArrayLike] | None,
+    parameters: Sequence[GreyboxParameter | tuple[Any, ...]],
+    *,
+    output: OutputMap | Sequence[int] | None = None,
+    simulate: Simulator | None = None,
+    outputs: Sequence[str] | None = None,
+    noise_std: ArrayLike | None = None,
+    weights: ArrayLike | None = None,
+    integrator: Integrator = "rk4",
+    substeps: int = 1,
+    hold: Hold = "zoh",
+    ivp_options: Mapping[str, Any] | None = None,
+    start: int = 0,
+    method: Solver = "trf",
+    max_nfev: int | None = None,
+    tol: float = 1e-10,
+    diff_step: float | None = None,
+) -> Estimate:
+    """Fit physical parameters of an ODE model by output error.
+
+    Parameters
+    ----------
+    data : Experiment or (t, u, y)
+        The record: an Experiment (inputs = its "u" channels, none allowed;
+        outputs = ``outputs`` or its "y" channels), or arrays t (N,) [s],
+        u (N,) / (N, m) and y (N,) / (N, p).
+    rhs : callable or None
+        ``rhs(t, x, u, theta) -> dx/dt`` with x (nx,), u (m,) and theta all
+        parameters in list order. None when ``simulate`` is given.
+    x0 : array_like, callable or None
+        Initial state (nx,), or ``x0(theta)`` to let it depend on the
+        parameters (e.g. estimate an initial condition as a parameter).
+    parameters : sequence of GreyboxParameter or tuples
+        Tuples read ``(name, value, lower, upper, unit, fixed)``, trailing
+        fields optional.
+    output : callable or sequence of int, optional
+        ``output(x, u, theta) -> y`` vectorised over samples (x (N, nx),
+        u (N, m), returns (N, p)), or the indices of the measured states.
+        Default: every state is measured.
+    simulate : callable, optional
+        ``simulate(theta) -> (N, p)`` outputs on the record's grid, replacing
+        rhs/x0/output (for a compiled simulator).
+    outputs : sequence of str, optional
+        Experiment channels to fit (any role), default its "y" channels.
+    noise_std : array_like, optional
+        Noise std per output channel; sets the weights to 1/σ_j.
+    weights : array_like, optional
+        Weight per output channel (exclusive with ``noise_std``). Default 1
+        for one channel; with several, 1/std(y_j) so that channels in
+        different units count alike — pass noise levels when known.
+    integrator : {"rk4", "solve_ivp"}
+        Fixed-step RK4 on the sample grid, or scipy's adaptive solver.
+    substeps : int
+        RK4 steps per sample period (≥ 1).
+    hold : {"zoh", "foh"}
+        Input between samples: held, or linear to the next sample.
+    ivp_options : mapping, optional
+        Keywords for solve_ivp (default method "RK45", rtol 1e-8, atol 1e-10).
+    start : int
+        First sample in the criterion (earlier samples let transients of a
+        wrong x0 die out).
+    method : {"trf", "dogbox", "lm"}
+        least_squares method; "lm" refuses finite bounds.
+    max_nfev : int, optional
+        Limit on simulations (default 100·(n_free + 1)).
+    tol : float
+        Relative tolerance on cost, step and gradient.
+    diff_step : float, optional
+        Relative finite-difference step of the Jacobian. Default √ε for
+        RK4 and a compiled simulator (smooth in θ); √rtol for solve_ivp,
+        whose step-size control makes the output jitter at the rtol level
+        as θ moves — a √ε step would differentiate that jitter.
+
+    Returns
+    -------
+    Estimate
+        Free parameters with covariance σ̂²(JᵀJ)⁻¹; ``model`` is a
+        :class:`GreyboxModel` with all values; ``options`` hold the fixed
+        values, weights, per-channel residual RMS and the solver report.
+
+    Raises
+    ------
+    DataError
+        Start outside the bounds (naming the parameter), bad shapes or
+        settings, or no free parameter.
+    ConvergenceError
+        The simulation diverges at the start or at the optimum, or the
+        solver stops without meeting its tolerances.
+    IdentifiabilityError
+        The Jacobian at the optimum is rank deficient.
+
+    Warns
+    -----
+    ServoidWarning
+        A parameter ends on one of its bounds.
+    """
+    check_option("integrator", integrator, ("rk4", "solve_ivp"))
+    check_option("hold", hold, ("zoh", "foh"))
+    check_option("method", method, ("trf", "dogbox", "lm"))
+    params = [_as_parameter(p) for p in parameters]
+    names = tuple(p.name for p in params)
+    if len(set(names)) != len(names):
+        raise DataError(f"parameter names must be unique, got {names}")
+    theta_all = np.array([p.value for p in params], dtype=float)
+    for p in params:
+        _check_parameter(p)
+    free = np.array([not p.fixed for p in params])
+    if not free.any():
+        raise DataError("every parameter is fixed: nothing to estimate")
+    fidx = np.flatnonzero(free)
+    is_log = np.array([params[k].transform == "log" for k in fidx])
+    lo = np.array([params[k].lower for k in fidx])
+    hi = np.array([params[k].upper for k in fidx])
+    if method == "lm" and (np.isfinite(lo).any() or np.isfinite(hi).any()):
+        raise DataError("method='lm' does not take bounds; use 'trf' or drop the bounds")
+
+    t, u, y, out_names = _record(data, outputs)
+    n_samples, n_out = y.shape
+    if not isinstance(start, (int, np.integer)) or not 0 <= start < n_samples - 1:
+        raise DataError(f"start must be an integer in [0, {n_samples - 2}], got {start}")
+    w = _weights(noise_std, weights, y[start:], n_out)
+    if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
+        raise DataError(f"substeps must be an integer >= 1, got {substeps}")
+
+    if simulate is not None:
+        if rhs is not None:
+            raise DataError("give either rhs (with x0) or simulate, not both")
+        sim_fn = simulate
+    else:
+        if rhs is None or x0 is None:
+            raise DataError("rhs and x0 are needed unless simulate is given")
+        sim_fn = _make_simulator(rhs, x0, output, t, u, integrator, substeps, hold, ivp_options)
+
+    def simulate_all(theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        with np.errstate(all="ignore"):
+            out = np.asarray(sim_fn(theta), dtype=float)
+        if out.ndim == 1:
+            out = out[:, None]
+        if out.shape != (n_samples, n_out):
+            raise DataError(
+                f"the model gives outputs of shape {out.shape}; the data have {(n_samples, n_out)}"
+            )
+        return out
+
+    def to_theta(z: NDArray[np.float64]) -> NDArray[np.float64]:
+        th = theta_all.copy()
+        th[fidx] = np.where(is_log, np.exp(np.where(is_log, z, 0.0)), z)
+        return th
+
+    def residuals(z: NDArray[np.float64]) -> NDArray[np.float64]:
+        yh = simulate_all(to_theta(z))
+        r = ((y - yh)[start:] * w).ravel(order="F")
+        r[~np.isfinite(r)] = _PENALTY
+        return r
+
+    z0 = np.where(is_log, np.log(np.where(is_log, theta_all[fidx], 1.0)), theta_all[fidx])
+    zlo, zhi = lo.copy(), hi.copy()
+    with np.errstate(divide="ignore"):  # log 0 = −inf: no lower bound on log θ
+        zlo[is_log] = np.log(np.maximum(lo[is_log], 0.0))
+        zhi[is_log] = np.log(hi[is_log])
+    r0 = residuals(z0)
+    if np.any(r0 == _PENALTY):
+        raise ConvergenceError(
+            "the simulation diverges (non-finite output) at the start values "
+            f"{dict(zip(names, theta_all.tolist(), strict=True))}; start from a stable model"
+        )
+    n_free = int(fidx.size)
+    n_res = r0.size
+    if n_res <= n_free:
+        raise DataError(f"{n_free} free parameters need more than {n_free} residuals, got {n_res}")
+    if diff_step is None and integrator == "solve_ivp" and simulate is None:
+        rtol = float(dict(ivp_options or {}).get("rtol", 1e-8))
+        diff_step = max(float(np.sqrt(np.finfo(float).eps)), float(np.sqrt(rtol)))
+    inside = np.clip(z0, np.nextafter(zlo, np.inf), np.nextafter(zhi, -np.inf))
+    res = optimize.least_squares(
+        residuals,
+        inside,
+        method=method,
+        bounds=(zlo, zhi) if method != "lm" else (-np.inf, np.inf),
+        x_scale="jac",
+        diff_step=diff_step,
+        xtol=tol,
+        ftol=tol,
+        gtol=tol,
+        max_nfev=max_nfev if max_nfev is not None else 100 * (n_free + 1),
+    )
+    theta = to_theta(res.x)
+    r = np.asarray(res.fun)
+    jac = np.asarray(res.jac)
+    # a penalised residual inside the finite-difference Jacobian means a perturbation of the
+    # final point diverged: the optimum sits on the edge of the region where the model runs
+    if (
+        np.any(r == _PENALTY)
+        or not np.all(np.isfinite(jac))
+        or np.any(np.abs(jac) >= _PENALTY * 1e-10)
+    ):
+        raise ConvergenceError(
+            f"greybox: the simulation diverges at or next to the solver's final point "
+            f"{dict(zip(names, theta.tolist(), strict=True))}; the model is unstable there or "
+            "the integration is too coarse. Tighten the bounds, raise substeps or start closer"
+        )
+    if res.status <= 0:
+        raise ConvergenceError(
+            f"greybox: the fit did not converge ({res.message.strip()}; {res.nfev} simulations, "
+            f"cost {res.cost:.4g}). Start closer, check the excitation, or raise max_nfev"
+        )
+    sigma2 = float(r @ r) / (n_res - n_free)
+    cov_z = _inverse_normal(jac, tuple(names[k] for k in fidx)) * sigma2
+    d = np.where(is_log, theta[fidx], 1.0)  # dθ/dz
+    cov = cov_z * np.outer(d, d)
+    _warn_on_bounds(theta[fidx], lo, hi, [names[k] for k in fidx])
+    per_channel = r.reshape(n_out, -1)
+    channel_rms = (np.sqrt(np.mean(per_channel**2, axis=1)) / w).tolist()
+    model = GreyboxModel(names, theta, tuple(bool(f) for f in free), simulate_all)
+    return Estimate(
+        model=model,
+        parameters=theta[fidx],
+        names=tuple(names[k] for k in fidx),
+        covariance=cov,
+        noise_variance=sigma2,
+        n_samples=n_res,
+        method="greybox",
+        status="ok",
+        options={
+            "outputs": list(out_names),
+            "fixed": {names[k]: float(theta[k]) for k in np.flatnonzero(~free)},
+            "theta0": dict(zip(names, theta_all.tolist(), strict=True)),
+            "weights": w.tolist(),
+            "channel_rms": dict(zip(out_names, channel_rms, strict=True)),
+            "integrator": "simulate" if simulate is not None else integrator,
+            "substeps": int(substeps),
+            "hold": hold,
+            "start": int(start),
+            "solver": method,
+            "diff_step": diff_step,
+            "nfev": int(res.nfev),
+            "cost": float(res.cost),
+            "message": str(res.message),
+            "solver_status": int(res.status),
+        },
+        units=tuple(params[k].unit for k in fidx),
+        residual_function=lambda: r.copy(),
+    )
+
+
+def _as_parameter(p: GreyboxParameter | tuple[Any, ...]) -> GreyboxParameter:
+    if isinstance(p, GreyboxParameter):
+        return p
+    if isinstance(p, tuple) and 2 <= len(p) <= 7:
+        return GreyboxParameter(*p)
+    raise TypeError(
+        "parameters must be GreyboxParameter or (name, value, lower, upper, unit, fixed) "
+        f"tuples, got {p!r}"
+    )
+
+
+def _check_parameter(p: GreyboxParameter) -> None:
+    check_option(f"transform of {p.name}", p.transform, ("none", "log"))
+    if not np.isfinite(p.value):
+        raise DataError(f"parameter {p.name!r} needs a finite value, got {p.value}")
+    if not p.lower < p.upper:
+        raise DataError(
+            f"parameter {p.name!r}: bounds need lower < upper, got [{p.lower}, {p.upper}]"
+        )
+    if not p.lower <= p.value <= p.upper:
+        raise DataError(
+            f"parameter {p.name!r}: start value {p.value} lies outside its bounds "
+            f"[{p.lower}, {p.upper}]"
+        )
+    if p.transform == "log" and p.value <= 0:
+        raise DataError(
+            f"parameter {p.name!r} is log-transformed and needs a value > 0, got {p.value}"
+        )
+
+
+def _record(
+    data: Experiment | tuple[ArrayLike, ArrayLike, ArrayLike], outputs: Sequence[str] | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], tuple[str, ...]]:
+    if isinstance(data, Experiment):
+        t = data.time
+        u = data.u if data.u is not None else np.zeros((data.n_samples, 0))
+        names = tuple(outputs) if outputs is not None else data.names_of("y")
+        if not names:
+            data.signal("y")  # raises a DataError that lists the channels
+        y = np.column_stack([data[n] for n in names])
+        return t, np.asarray(u, dtype=float), y, names
+    if not isinstance(data, tuple) or len(data) != 3:
+        raise TypeError("data must be an Experiment or a tuple (t, u, y)")
+    t = np.asarray(data[0], dtype=float)
+    u = np.asarray(data[1], dtype=float)
+    y = np.asarray(data[2], dtype=float)
+    u = u[:, None] if u.ndim == 1 else u
+    y = y[:, None] if y.ndim == 1 else y
+    if t.ndim != 1 or t.size < 2 or u.shape[0] != t.size or y.shape[0] != t.size:
+        raise DataError(f"need t (N,), u (N, m), y (N, p); got {t.shape}, {u.shape}, {y.shape}")
+    if np.any(np.diff(t) <= 0):
+        raise DataError("t must be strictly increasing")
+    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y)) and np.all(np.isfinite(t))):
+        raise DataError("t, u and y must be finite")
+    names = tuple(outputs) if outputs is not None else tuple(f"y{k}" for k in range(y.shape[1]))
+    if len(names) != y.shape[1]:
+        raise DataError(f"outputs names {len(names)} channels, y has {y.shape[1]}")
+    return t, u, y, names
+
+
+def _weights(
+    noise_std: ArrayLike | None, weights: ArrayLike | None, y: NDArray[np.float64], p: int
+) -> NDArray[np.float64]:
+    if noise_std is not None and weights is not None:
+        raise DataError("give noise_std or weights, not both")
+    if noise_std is not None:
+        s = np.broadcast_to(np.asarray(noise_std, dtype=float), (p,))
+        if not np.all(s > 0):
+            raise DataError(f"noise_std must be > 0 per channel, got {s.tolist()}")
+        return 1.0 / s
+    if weights is not None:
+        w = np.broadcast_to(np.asarray(weights, dtype=float), (p,)).copy()
+        if not np.all((w > 0) & np.isfinite(w)):
+            raise DataError(f"weights must be finite and > 0 per channel, got {w.tolist()}")
+        return w
+    if p == 1:
+        return np.ones(1)
+    spread = np.std(y, axis=0)
+    if not np.all(spread > 0):
+        raise DataError("an output channel is constant; pass weights or noise_std explicitly")
+    return 1.0 / spread
+
+
+def _make_simulator(
+    rhs: Rhs,
+    x0: ArrayLike | Callable[[NDArray[np.float64]], ArrayLike],
+    output: OutputMap | Sequence[int] | None,
+    t: NDArray[np.float64],
+    u: NDArray[np.float64],
+    integrator: str,
+    substeps: int,
+    hold: str,
+    ivp_options: Mapping[str, Any] | None,
+) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
+    def initial(theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(x0(theta) if callable(x0) else x0, dtype=float).ravel()
+
+    def outputs_of(x: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        if output is None:
+            return x
+        if callable(output):
+            return np.asarray(output(x, u, theta), dtype=float)
+        return x[:, list(output)]
+
+    def u_at(k: int, frac: float) -> NDArray[np.float64]:
+        if hold == "zoh" or frac == 0.0 or k + 1 >= u.shape[0]:
+            return u[k]
+        return u[k] + frac * (u[k + 1] - u[k])
+
+    def run_rk4(theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        x = initial(theta)
+        xs = np.full((t.size, x.size), np.nan)
+        xs[0] = x
+        for k in range(t.size - 1):
+            h = (t[k + 1] - t[k]) / substeps
+            for j in range(substeps):
+                tk = t[k] + j * h
+                f0, fm, f1 = j / substeps, (j + 0.5) / substeps, (j + 1) / substeps
+                k1 = np.asarray(rhs(tk, x, u_at(k, f0), theta), dtype=float)
+                um = u_at(k, fm)
+                k2 = np.asarray(rhs(tk + h / 2, x + h / 2 * k1, um, theta), dtype=float)
+                k3 = np.asarray(rhs(tk + h / 2, x + h / 2 * k2, um, theta), dtype=float)
+                k4 = np.asarray(rhs(tk + h, x + h * k3, u_at(k, f1), theta), dtype=float)
+                x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            if not np.all(np.isfinite(x)):
+                return outputs_of(xs, theta)  # diverged: the rest stays NaN
+            xs[k + 1] = x
+        return outputs_of(xs, theta)
+
+    opts = {"method": "RK45", "rtol": 1e-8, "atol": 1e-10} | dict(ivp_options or {})
+
+    def run_ivp(theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        def f(tt: float, x: NDArray[np.float64]) -> NDArray[np.float64]:
+            k = int(np.clip(np.searchsorted(t, tt, side="right") - 1, 0, t.size - 1))
+            frac = 0.0 if k + 1 >= t.size else (tt - t[k]) / (t[k + 1] - t[k])
+            return np.asarray(rhs(tt, x, u_at(k, frac), theta), dtype=float)
+
+        if hold == "zoh":  # steps in u: do not let the adaptive solver step across samples
+            opts.setdefault("max_step", float(np.min(np.diff(t))))
+        sol = integrate.solve_ivp(f, (t[0], t[-1]), initial(theta), t_eval=t, **opts)
+        xs = np.full((t.size, sol.y.shape[0]), np.nan)
+        xs[: sol.y.shape[1]] = sol.y.T
+        return outputs_of(xs, theta)
+
+    return run_rk4 if integrator == "rk4" else run_ivp
+
+
+def _warn_on_bounds(
+    theta: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64], names: list[str]
+) -> None:
+    for name, v, a, b in zip(names, theta, lo, hi, strict=True):
+        for edge, label in ((a, "lower"), (b, "upper")):
+            if np.isfinite(edge) and abs(v - edge) <= 1e-6 * max(abs(edge), 1.0):
+                warnings.warn(
+                    f"{name} = {v:.6g} ends on its {label} bound {edge:.6g}: the optimum is "
+                    "constrained and its covariance (which ignores the bound) is not reliable; "
+                    "widen the bound or revisit the model",
+                    ServoidWarning,
+                    stacklevel=3,
+                )
