@@ -21,19 +21,43 @@ Example::
 
 from ._config import FIDELITIES, EhsaBench, Fidelity
 from ._files import RigFormat, experiment_document, truth_document, write_bench_files
+from ._pneumatic import (
+    PNEUMATIC_CHANNELS,
+    PNEUMATIC_TESTS,
+    PneumaticBench,
+    PneumaticRun,
+    PneumaticTest,
+    PneumaticTestName,
+    run_pneumatic,
+)
+from ._pneumatic_files import (
+    pneumatic_experiment_document,
+    pneumatic_truth_document,
+    write_pneumatic_campaign,
+)
 from ._run import CHANNELS, BenchRun, EhsaTruth, digitize, run
 
 __all__ = [
     "CHANNELS",
     "FIDELITIES",
+    "PNEUMATIC_CHANNELS",
+    "PNEUMATIC_TESTS",
     "BenchRun",
     "EhsaBench",
     "EhsaTruth",
     "Fidelity",
+    "PneumaticBench",
+    "PneumaticRun",
+    "PneumaticTest",
+    "PneumaticTestName",
     "RigFormat",
     "digitize",
     "experiment_document",
+    "pneumatic_experiment_document",
+    "pneumatic_truth_document",
     "run",
+    "run_pneumatic",
     "truth_document",
     "write_bench_files",
+    "write_pneumatic_campaign",
 ]
