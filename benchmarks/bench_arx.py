@@ -21,9 +21,10 @@ fit_arx auto / gram / qr
     (``Estimate.residuals`` is a cached property), so this is the solve plus
     model/covariance bookkeeping, not a simulation.
 kernel lagged_gram+solve_gram
-    The Gram route's numerical core on a pre-stacked (2, N) signal array: the
-    one-pass numba Gram kernel and the 7×7 scaled Cholesky solve. No
-    Experiment access, no signal stacking, no constant-input check.
+    The Gram route's numerical core on the (y, u) channel views that
+    ``_signals`` returns: the one-pass numba Gram kernel and the 7×7 scaled
+    Cholesky solve. No Experiment access, no constant-input check, no
+    model/covariance bookkeeping.
 breakdown: ...
     Pieces of ``fit_arx``'s Gram route timed alone, to show where the time goes.
 numpy column-slice Φ + lstsq
@@ -245,11 +246,9 @@ def _kernel_rows(case: str, n: int, exp, ref, quick: bool, breakdown: bool):  # 
         for label, fn in (
             ("breakdown: lagged_gram only", lambda: lagged_gram(z, tsig, tlag, start)),
             ("breakdown: solve_gram only (7x7)", lambda: solve_gram(g, n_rows, names)),
-            ("breakdown: _signals (vstack y,u)", lambda: signals_of(exp, "y", ["u"])),
-            (
-                "breakdown: constant-input check",
-                lambda: check_not_constant("u", np.concatenate([u_values])),
-            ),
+            ("breakdown: _signals (channel views)", lambda: signals_of(exp, "y", ["u"])),
+            # fit_arx passes the per-segment pieces of the input (one segment here).
+            ("breakdown: constant-input check", lambda: check_not_constant("u", [u_values])),
             # Single-threaded numpy reduction: one read of both signals (not BLAS, whose
             # threaded dot stalls when another process holds a core).
             ("floor: y.sum()+u.sum() (one read)", lambda y=exp["y"]: (y.sum(), u_values.sum())),

@@ -3,7 +3,7 @@
 Usage::
 
     python benchmarks/run.py                 # full run, writes benchmarks/results.json
-    python benchmarks/run.py --quick         # small sizes, few repeats (CI smoke, < ~20 s)
+    python benchmarks/run.py --quick         # small sizes, few repeats, no studies (CI smoke, < ~30 s)
     python benchmarks/run.py --only arx --out /tmp/r.json
 
 Adding a benchmark: write ``benchmarks/bench_<name>.py`` with a function
@@ -31,6 +31,9 @@ SUITES: dict[str, str] = {
     "arx": "bench_arx",
     "ehsa": "bench_ehsa",
     "closedloop": "bench_closedloop",
+    "pneumatic": "bench_pneumatic",
+    "demo": "bench_demo",
+    "studies": "bench_studies",  # slow pytest studies; skipped under --quick
 }
 
 
