@@ -1,0 +1,363 @@
+"""Steps S0 (ẋ_krit), S4 (d_k, c_k) and S5 (F_haft): piston friction.
+
+The piston equation of [S2] (models-spec §2) with the applied force
+``F_p = p_I A_I − p_II A_II − p_amb(A_I − A_II) − m_k g + F_ext``::
+
+    (4.1) |ẋ_k| ≥ ẋ_krit:      m_k ẍ_k = F_p − sgn(ẋ_k)(d_k + c_k|ẋ_k|)
+    (4.2) ε < |ẋ_k| < ẋ_krit:  m_k ẍ_k = F_p − sgn(ẋ_k)·F_haft
+
+(optionally the blended (4.2) of :func:`~servoid.actuators.three_regime_friction`,
+where F_haft fades linearly into d_k + c_k·ẋ_krit, so c_k and d_k enter).
+
+* **S0 ẋ_krit** — the friction–velocity map F_fr = F_p − m_k ẍ_k against
+  |ẋ_k|.  For each threshold the map is fitted by a constant below it
+  and d + c|ẋ| above it; the threshold with the smallest residual sum
+  is found *exactly* among all gaps between sorted sample speeds (cumulative
+  sums, O(N log N)), the documented alternative to a grid.  The residual
+  sum is a step function of the threshold, so there is no curvature for
+  a variance: the std reported is the width of the optimal gap over √12
+  (a uniform distribution over it).
+* **S4** — LS on (4.1) over the samples with |ẋ_k| ≥ ẋ_krit:
+  ``y = m_k ẍ_k − F_p``, ``φ = [−sgn ẋ_k, −ẋ_k]`` → (d_k, c_k).
+* **S5** — LS on (4.2) over ε < |ẋ_k| < ẋ_krit with c_k, d_k inserted.
+
+Derivatives.  ``"measured"`` takes ẋ_k, ẍ_k from the ``v_k``, ``a_k``
+channels, sample by sample.  ``"svf"`` filters x_k and every term of the
+equation by one zero-phase state-variable filter G = F(−s)F(s) (no lag),
+so ``m_k s²G x_k − G F_p = −G[friction]`` holds exactly; the regime of
+each sample comes from the filtered velocity sG x_k, and only samples
+whose whole filter window (±6/ω_f, ω_f = 2π·400 rad/s by default) lies in the regimes of the regression
+are used, where ``G[sgn ẋ·σ]`` is the friction regressor.  The price is
+fewer usable samples and a regime classification from a smoothed
+velocity; the gain is that no differentiated noise enters.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import DataError, IdentifiabilityError
+from ..data import Experiment
+from ..estimate import Estimate, lstsq
+from ._common import (
+    Derivatives,
+    KnownConstants,
+    StepResult,
+    channel,
+    check_derivatives,
+    check_known,
+    check_positive,
+    ls_estimate,
+    pressures,
+    window_all,
+)
+from ._thermo import zero_phase_derivatives
+
+__all__ = [
+    "identify_critical_velocity",
+    "identify_low_speed_friction",
+    "identify_sliding_friction",
+]
+
+_EQ_S0 = ("friction–velocity map F_fr = F_p − m_k ẍ_k against |ẋ_k|: constant below the "
+          "threshold, d + c|ẋ_k| above; exact search of the threshold over all gaps between "
+          "sorted sample speeds (least residual sum)")
+_EQ_S4 = ("(4.1) m_k ẍ_k = F_p − sgn(ẋ_k)(d_k + c_k|ẋ_k|) on |ẋ_k| ≥ ẋ_krit: LS of "
+          "y = m_k ẍ_k − F_p on φ = [−sgn ẋ_k, −ẋ_k] → d_k, c_k")
+_EQ_S5 = ("(4.2) m_k ẍ_k = F_p − sgn(ẋ_k)·F_haft on ε < |ẋ_k| < ẋ_krit with c_k, d_k "
+          "inserted: LS of y = m_k ẍ_k − F_p on φ = −sgn ẋ_k → F_haft")
+
+
+@dataclass(frozen=True)
+class _Signals:
+    """Velocity, the equation's left side y = m ẍ − F_p, and its filter."""
+
+    v: NDArray[np.float64]
+    y: NDArray[np.float64]
+    valid: NDArray[np.bool_]
+    half_window: int  # 0 for measured derivatives
+    dt: float
+    omega_f: float
+
+    def filt(self, s: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Apply the equation's filter to a regressor signal."""
+        if self.half_window == 0:
+            return s
+        return zero_phase_derivatives(s, self.dt, self.omega_f)[0]
+
+    def whole_window(self, mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """Samples whose filter window lies entirely in ``mask``."""
+        if self.half_window == 0:
+            return mask & self.valid
+        h = self.half_window
+        full = window_all(mask, 2 * h + 1)  # True at i when mask[i−2h..i] all hold
+        out = np.zeros_like(mask)
+        out[:-h] = full[h:]
+        return out & self.valid
+
+
+def identify_critical_velocity(
+    record: Experiment,
+    known: KnownConstants,
+    *,
+    derivatives: Derivatives = "measured",
+    bounds: tuple[float, float] = (0.01, 0.5),
+    omega_f: float = 2 * math.pi * 400.0,
+    min_samples: int = 20,
+    name: str = "friction",
+) -> StepResult:
+    """Find the friction threshold ẋ_krit from the F_fr–ẋ_k map (S0).
+
+    Parameters
+    ----------
+    record : Experiment
+        Friction test with ``x_k`` [m], ``p_I``, ``p_II`` [Pa], optional
+        ``f_ext`` [N], and ``v_k`` [m/s], ``a_k`` [m/s²] for
+        ``derivatives="measured"``.
+    known : KnownConstants
+        Areas, m_k, p_amb, g and the stick band ε.
+    derivatives : {"measured", "svf"}
+        Recorded velocity/acceleration, or the zero-phase SVF of x_k.
+    bounds : (float, float)
+        Search interval of the threshold [m/s].
+    omega_f : float
+        Zero-phase filter bandwidth for ``"svf"`` [rad/s].
+    min_samples : int
+        Fewest samples on each side of the threshold.
+    name : str
+        Record name for the result.
+
+    Returns
+    -------
+    StepResult
+        ``v_krit`` [m/s] with the std of the optimal gap (module notes).
+
+    Raises
+    ------
+    IdentifiabilityError
+        Too few samples on one side of every candidate threshold.
+    """
+    known = check_known(known)
+    sig = _signals(record, known, derivatives, omega_f, "S0 (ẋ_krit)")
+    # with filtered derivatives a window touching a stuck sample smears the static force
+    # into the map: keep whole windows of motion only
+    use = sig.whole_window(np.abs(sig.v) > known.eps_v)
+    speed = np.abs(sig.v[use])
+    force = -sig.y[use] * np.sign(sig.v[use])  # friction along the motion
+    order = np.argsort(speed, kind="stable")
+    s, f = speed[order], force[order]
+    lo, hi = (float(b) for b in bounds)
+    rss = _split_rss(s, f)
+    k = np.arange(1, s.size)  # split between s[k−1] and s[k]: k samples below
+    thr = 0.5 * (s[k - 1] + s[k])
+    ok = (thr >= lo) & (thr <= hi) & (k >= min_samples) & (s.size - k >= min_samples) & (
+        s[k] > s[k - 1])
+    if not ok.any():
+        raise IdentifiabilityError(
+            f"S0 (ẋ_krit): no threshold in [{lo:g}, {hi:g}] m/s has {min_samples} moving samples "
+            f"on both sides (speeds span {s.min() if s.size else 0:.3g}–"
+            f"{s.max() if s.size else 0:.3g} m/s); the friction test must pass through low and "
+            "high speeds"
+        )
+    best = int(np.flatnonzero(ok)[np.argmin(rss[ok])])
+    gap = float(s[k[best]] - s[k[best] - 1])
+    value = float(thr[best])
+    est = Estimate(
+        model=None, parameters=np.array([value]), names=("v_krit",),
+        covariance=np.array([[gap**2 / 12.0]]), noise_variance=float(rss[best]) / max(
+            s.size - 4, 1),
+        n_samples=int(s.size), method="threshold_search", units=("m/s",),
+        options={"gap": [float(s[k[best] - 1]), float(s[k[best]])], "bounds": [lo, hi],
+                 "std": "width of the optimal gap / √12 (the RSS is a step function)"},
+    )
+    stride = max(1, s.size // 2000)
+    mask = np.zeros(record.n_samples, dtype=bool)
+    mask[np.flatnonzero(use)] = True
+    return StepResult(
+        step="S0 ẋ_krit", title="friction threshold ẋ_krit", equation=_EQ_S0, record=name,
+        estimate=est, mask=mask, method="threshold_search",
+        extra={"map_speed": s[::stride], "map_force": f[::stride],
+               "derivatives": derivatives},
+    )
+
+
+def identify_sliding_friction(
+    record: Experiment,
+    known: KnownConstants,
+    *,
+    v_krit: float,
+    derivatives: Derivatives = "measured",
+    omega_f: float = 2 * math.pi * 400.0,
+    name: str = "friction",
+) -> StepResult:
+    """Identify Coulomb d_k and viscous c_k friction (step S4).
+
+    Parameters
+    ----------
+    record : Experiment
+        Friction test (see :func:`identify_critical_velocity`).
+    known : KnownConstants
+        Areas, m_k, p_amb, g.
+    v_krit : float
+        Threshold ẋ_krit from S0 [m/s].
+    derivatives : {"measured", "svf"}
+        Recorded ẋ_k, ẍ_k, or the zero-phase SVF of x_k (module notes).
+    omega_f : float
+        Zero-phase filter bandwidth for ``"svf"`` [rad/s].
+    name : str
+        Record name for the result.
+
+    Returns
+    -------
+    StepResult
+        ``d_k`` [N] and ``c_k`` [N·s/m] with LS std.
+    """
+    known = check_known(known)
+    v_krit = check_positive("v_krit", v_krit, "m/s")
+    sig = _signals(record, known, derivatives, omega_f, "S4 (sliding friction)")
+    sliding = np.abs(sig.v) >= v_krit
+    rows = sig.whole_window(sliding)
+    sgn = np.sign(sig.v) * sliding
+    phi = np.column_stack([-sig.filt(sgn), -sig.filt(sig.v * sliding)])[rows]
+    _enough(rows, "S4 (sliding friction)", f"|ẋ_k| >= ẋ_krit = {v_krit:g} m/s")
+    res = lstsq(phi, sig.y[rows], ("d_k", "c_k"))
+    est = ls_estimate(res, ("d_k", "c_k"), ("N", "N·s/m"), "ls",
+                      {"v_krit": v_krit, "derivatives": derivatives})
+    return StepResult(
+        step="S4", title="sliding friction d_k, c_k", equation=_EQ_S4, record=name,
+        estimate=est, mask=rows, method="ls", extra={"derivatives": derivatives},
+    )
+
+
+def identify_low_speed_friction(
+    record: Experiment,
+    known: KnownConstants,
+    *,
+    v_krit: float,
+    d_k: float,
+    c_k: float,
+    derivatives: Derivatives = "measured",
+    blend: bool = False,
+    omega_f: float = 2 * math.pi * 400.0,
+    name: str = "friction",
+) -> StepResult:
+    """Identify the static friction F_haft (step S5).
+
+    Parameters
+    ----------
+    record : Experiment
+        Friction test (rectangular input) as for S0.
+    known : KnownConstants
+        Areas, m_k, p_amb, g and the stick band ε.
+    v_krit : float
+        Threshold ẋ_krit from S0 [m/s].
+    d_k : float
+        Coulomb friction from S4 [N].
+    c_k : float
+        Viscous friction from S4 [N·s/m].
+    derivatives : {"measured", "svf"}
+        Recorded ẋ_k, ẍ_k, or the zero-phase SVF of x_k.
+    blend : bool
+        The blended (4.2): friction fades linearly from F_haft at ε to
+        d_k + c_k ẋ_krit at ẋ_krit (then c_k and d_k enter the regression).
+    omega_f : float
+        Zero-phase filter bandwidth for ``"svf"`` [rad/s].
+    name : str
+        Record name for the result.
+
+    Returns
+    -------
+    StepResult
+        ``F_haft`` [N] with LS std.
+    """
+    known = check_known(known)
+    v_krit = check_positive("v_krit", v_krit, "m/s")
+    sig = _signals(record, known, derivatives, omega_f, "S5 (low-speed friction)")
+    eps = known.eps_v
+    if v_krit <= eps:
+        raise DataError(f"v_krit must be > eps_v = {eps:g} m/s, got {v_krit:g} m/s")
+    speed = np.abs(sig.v)
+    sgn = np.sign(sig.v)
+    sliding = speed >= v_krit
+    low = (speed > eps) & ~sliding
+    w = np.clip((speed - eps) / (v_krit - eps), 0.0, 1.0) if blend else np.zeros_like(speed)
+    known_part = sgn * sliding * (d_k + c_k * speed) + sgn * low * w * (d_k + c_k * v_krit)
+    y = sig.y + sig.filt(known_part)
+    reg = -sig.filt(sgn * low * (1.0 - w))
+    if sig.half_window == 0:
+        rows = low & sig.valid
+    else:
+        rows = sig.whole_window(speed > eps) & (np.abs(reg) > 0.2)
+    _enough(rows, "S5 (low-speed friction)",
+            f"ε = {eps:g} < |ẋ_k| < ẋ_krit = {v_krit:g} m/s")
+    res = lstsq(reg[rows, None], y[rows], ("F_haft",))
+    est = ls_estimate(res, ("F_haft",), ("N",), "ls",
+                      {"v_krit": v_krit, "d_k": d_k, "c_k": c_k, "blend": bool(blend),
+                       "derivatives": derivatives})
+    return StepResult(
+        step="S5", title="static friction F_haft", equation=_EQ_S5, record=name,
+        estimate=est, mask=rows, method="ls", extra={"derivatives": derivatives,
+                                                     "blend": bool(blend)},
+    )
+
+
+# -- helpers --------------------------------------------------------------------------------
+
+
+def _signals(
+    record: Experiment, known: KnownConstants, derivatives: str, omega_f: float, step: str,
+) -> _Signals:
+    check_derivatives(derivatives)
+    p_1, p_2 = pressures(record, step)
+    f_ext = np.asarray(record["f_ext"], dtype=float) if "f_ext" in record.names else 0.0
+    f_p = (p_1 * known.A_I - p_2 * known.A_II - known.p_amb * (known.A_I - known.A_II)
+           - known.m_k * known.g + f_ext)
+    valid = np.ones(record.n_samples, dtype=bool)
+    if derivatives == "measured":
+        v = channel(record, "v_k", step)
+        a = channel(record, "a_k", step)
+        return _Signals(v, known.m_k * a - f_p, valid, 0, record.dt, omega_f)
+    omega_f = check_positive("omega_f", omega_f, "rad/s")
+    x_k = channel(record, "x_k", step)
+    _, v, a, margin = zero_phase_derivatives(x_k, record.dt, omega_f)
+    g_fp = zero_phase_derivatives(np.asarray(f_p, dtype=float), record.dt, omega_f)[0]
+    valid[:margin] = False
+    valid[record.n_samples - margin:] = False
+    half = int(math.ceil(6.0 / omega_f / record.dt))
+    return _Signals(v, known.m_k * a - g_fp, valid, max(half, 1), record.dt, omega_f)
+
+
+def _split_rss(s: NDArray[np.float64], f: NDArray[np.float64]) -> NDArray[np.float64]:
+    """RSS of (constant below | line above) for every split k = 1..n−1."""
+    s = s - s.mean()
+    f = f - f.mean()
+    n = s.size
+
+    def cums(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.concatenate([[0.0], np.cumsum(x)])
+
+    c1, cs, css, cf, cff, csf = (cums(x) for x in (np.ones(n), s, s * s, f, f * f, s * f))
+    k = np.arange(1, n)
+    n_lo = c1[k]
+    rss_lo = cff[k] - cf[k] ** 2 / n_lo
+    n_hi = n - n_lo
+    s1, s2 = cs[n] - cs[k], css[n] - css[k]
+    f1, f2, sf = cf[n] - cf[k], cff[n] - cff[k], csf[n] - csf[k]
+    det = n_hi * s2 - s1**2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        explained = (s2 * f1**2 - 2 * s1 * f1 * sf + n_hi * sf**2) / det
+        rss_hi = np.where(det > 1e-12 * np.maximum(n_hi * s2, 1e-300), f2 - explained,
+                          f2 - f1**2 / n_hi)
+    return np.asarray(rss_lo + rss_hi)
+
+
+def _enough(rows: NDArray[np.bool_], step: str, what: str) -> None:
+    if int(rows.sum()) < 10:
+        raise IdentifiabilityError(
+            f"{step}: only {int(rows.sum())} samples with {what}; the test must drive the "
+            "piston through that speed range"
+        )
