@@ -16,9 +16,8 @@ Method
 ``python -m pytest -m slow -q <test id>`` in a subprocess from the
 repository root; ``median_ms`` = ``best_ms`` = the subprocess's wall time
 (interpreter start-up, collection and imports included), with pytest's own
-duration, the outcome and the coverage in ``extra``. The test prints no
-coverage it prints (passing or failing); on failure also from the assertion
-message. Skipped under ``--quick`` (it takes several seconds to minutes).
+duration, the outcome and the coverage in ``extra``: the coverage the test
+prints (passing or failing), or on failure the assertion message. Skipped under ``--quick`` (it takes several seconds to minutes).
 """
 
 from __future__ import annotations
