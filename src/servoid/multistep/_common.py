@@ -315,8 +315,8 @@ class StepResult:
 
     def __str__(self) -> str:
         first, last = self.segment
-        lines = [f"{self.step}: {self.title} — {self.n_used} of {self.mask.size} samples of "
-                 f"{self.record!r} (samples {first}..{last}), {self.method}"]
+        lines = [(f"{self.step}: {self.title} — {self.n_used} of {self.mask.size} samples of "
+                 f"{self.record!r} (samples {first}..{last}), {self.method}")]
         for row in self.estimate.table():
             lines.append(f"  {row.name:<8} {row.value: .6g} ± {row.std:.2g} {row.unit}".rstrip())
         lines += [f"  note: {n}" for n in self.notes]

@@ -22,7 +22,9 @@ where F_haft fades linearly into d_k + c_k·ẋ_krit, so c_k and d_k enter).
 * **S5** — LS on (4.2) over ε < |ẋ_k| < ẋ_krit with c_k, d_k inserted.
 
 Derivatives.  ``"measured"`` takes ẋ_k, ẍ_k from the ``v_k``, ``a_k``
-channels, sample by sample.  ``"svf"`` filters x_k and every term of the
+channels, sample by sample; a sample counts as moving above max(ε, 4σ_v), σ_v the
+velocity noise from second differences, so a stuck piston's noisy velocity does
+not enter (4.2).  ``"svf"`` filters x_k and every term of the
 equation by one zero-phase state-variable filter G = F(−s)F(s) (no lag),
 so ``m_k s²G x_k − G F_p = −G[friction]`` holds exactly; the regime of
 each sample comes from the filtered velocity sG x_k, and only samples
@@ -82,6 +84,7 @@ class _Signals:
     half_window: int  # 0 for measured derivatives
     dt: float
     omega_f: float
+    floor: float  # lowest speed counted as moving: ε, or 4σ of the velocity noise
 
     def filt(self, s: NDArray[np.float64]) -> NDArray[np.float64]:
         """Apply the equation's filter to a regressor signal."""
@@ -145,7 +148,7 @@ def identify_critical_velocity(
     sig = _signals(record, known, derivatives, omega_f, "S0 (ẋ_krit)")
     # with filtered derivatives a window touching a stuck sample smears the static force
     # into the map: keep whole windows of motion only
-    use = sig.whole_window(np.abs(sig.v) > known.eps_v)
+    use = sig.whole_window(np.abs(sig.v) > sig.floor)
     speed = np.abs(sig.v[use])
     force = -sig.y[use] * np.sign(sig.v[use])  # friction along the motion
     order = np.argsort(speed, kind="stable")
@@ -277,9 +280,10 @@ def identify_low_speed_friction(
     known = check_known(known)
     v_krit = check_positive("v_krit", v_krit, "m/s")
     sig = _signals(record, known, derivatives, omega_f, "S5 (low-speed friction)")
-    eps = known.eps_v
+    eps = sig.floor
     if v_krit <= eps:
-        raise DataError(f"v_krit must be > eps_v = {eps:g} m/s, got {v_krit:g} m/s")
+        raise DataError(f"v_krit must be > the moving-speed floor {eps:g} m/s (ε or 4σ of the "
+                        f"velocity noise), got {v_krit:g} m/s")
     speed = np.abs(sig.v)
     sgn = np.sign(sig.v)
     sliding = speed >= v_krit
@@ -320,15 +324,24 @@ def _signals(
     if derivatives == "measured":
         v = channel(record, "v_k", step)
         a = channel(record, "a_k", step)
-        return _Signals(v, known.m_k * a - f_p, valid, 0, record.dt, omega_f)
+        # a stuck piston's noisy velocity must not count as motion: floor at 4σ of its noise
+        floor = max(known.eps_v, 4.0 * _noise_level(v))
+        return _Signals(v, known.m_k * a - f_p, valid, 0, record.dt, omega_f, floor)
     omega_f = check_positive("omega_f", omega_f, "rad/s")
     x_k = channel(record, "x_k", step)
     _, v, a, margin = zero_phase_derivatives(x_k, record.dt, omega_f)
     g_fp = zero_phase_derivatives(np.asarray(f_p, dtype=float), record.dt, omega_f)[0]
     valid[:margin] = False
     valid[record.n_samples - margin:] = False
-    half = int(math.ceil(6.0 / omega_f / record.dt))
-    return _Signals(v, known.m_k * a - g_fp, valid, max(half, 1), record.dt, omega_f)
+    half = math.ceil(6.0 / omega_f / record.dt)
+    return _Signals(v, known.m_k * a - g_fp, valid, max(half, 1), record.dt, omega_f,
+                    known.eps_v)
+
+
+def _noise_level(v: NDArray[np.float64]) -> float:
+    """Std of white noise on a smooth signal from its second differences (robust)."""
+    d2 = np.diff(v, 2)
+    return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / math.sqrt(6.0))
 
 
 def _split_rss(s: NDArray[np.float64], f: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -150,7 +150,7 @@ def identify_thermodynamics(
     dt = record.dt
     settle = 12.0 / omega_f if settle is None else settle
     limit = check_positive("mdot_limit", mdot_limit, "kg/s") * 0.98
-    window = int(math.ceil(12.0 / omega_f / dt))
+    window = math.ceil(12.0 / omega_f / dt)
     ys, phis, masks = [], [], []
     for vol0, area, p, m, temp in ((known.V_0I, known.A_I, p_1, m_1, t_1),
                                    (known.V_0II, -known.A_II, p_2, m_2, t_2)):

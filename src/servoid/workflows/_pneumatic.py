@@ -1,0 +1,406 @@
+"""Servopneumatic campaign → multi-step parameters, validation and a report.
+
+A campaign file (an experiment TOML whose ``[data]`` is the validation
+record) names one experiment file per test of the multi-step scheme
+(Hahn & Piepenbrink, IFAC SYSID 1994; :mod:`servoid.multistep`)::
+
+    [identify]
+    method = "pneumatic-multistep"
+    valve = "valve.toml"          # S1
+    thermo = "thermo.toml"        # S2
+    flow = "flow.toml"            # S0 p_krit, S3
+    friction = "friction.toml"    # S0 ẋ_krit, S4, S5
+    validation = "validation.toml"  # S6 (default: this file's [data])
+    known = {A_I = 1.963e-3, ...}   # or the same keys in [loop]
+    derivatives = "svf"           # or "measured"
+    refine = false                # true, or a list of parameter names
+
+    [loop]
+    K_p = 300.0                   # controller of the closed-loop tests
+    K_d = 5.0                     # (optional: reconstructed by LS if absent)
+
+    [report]
+    truth = "truth.json"
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from .. import __version__
+from .._atomic import atomic_path
+from .._errors import DataError, OptionError
+from ..actuators import PositionController
+from ..data import Experiment, ExperimentSpec, load_experiment_spec
+from ..multistep import (
+    REFINABLE,
+    KnownConstants,
+    MultistepResult,
+    RecordComparison,
+    identify_multistep,
+)
+from ..report import Figure, Page, Section, Table, write_html, write_json
+from ._common import check_outputs, sha256
+
+__all__ = ["PneumaticIdentification", "identify_pneumatic_spec"]
+
+_TESTS = ("valve", "thermo", "flow", "friction")
+_KEYS = ("method", *_TESTS, "validation", "known", "derivatives", "refine", "refine_record",
+         "p_krit", "v_krit", "blend", "mdot_limit")
+_KNOWN = tuple(f.name for f in dataclasses.fields(KnownConstants))
+_LABELS = {"p_I": ("p_I", "bar", 1e-5), "p_II": ("p_II", "bar", 1e-5),
+           "mdot_I": ("ṁ_I", "g/s", 1e3), "mdot_II": ("ṁ_II", "g/s", 1e3),
+           "x_k": ("x_k", "mm", 1e3)}
+
+
+@dataclass(frozen=True, eq=False)
+class PneumaticIdentification:
+    """A campaign's multi-step result, with the truth if known.
+
+    Attributes
+    ----------
+    spec : ExperimentSpec
+        The campaign file.
+    result : MultistepResult
+        Steps, parameters, validation (and refinement).
+    sources : mapping of str to Path
+        The experiment file of each test.
+    truth : mapping of str to float or None
+        True parameters (virtual bench), from ``[report] truth``.
+    folder : Path or None
+        Results folder, when written.
+    files : tuple of Path
+        Files written.
+    """
+
+    spec: ExperimentSpec
+    result: MultistepResult
+    sources: Mapping[str, Path]
+    truth: Mapping[str, float] | None = None
+    folder: Path | None = None
+    files: tuple[Path, ...] = ()
+
+    def table(self) -> list[dict[str, Any]]:
+        """Parameter rows with the truth and the relative error."""
+        rows = []
+        for row in self.result.table():
+            true = (self.truth or {}).get(row["name"])
+            rows.append({**row, "truth": true,
+                         "error_percent": None if true in (None, 0) else
+                         100.0 * (row["value"] - true) / true})
+        return rows
+
+    def to_dict(self) -> dict[str, Any]:
+        """Everything in ``results.json``."""
+        return {
+            "servoid_version": __version__,
+            "method": "pneumatic-multistep",
+            "campaign_file": str(self.spec.source) if self.spec.source else None,
+            "records": {k: str(v) for k, v in self.sources.items()},
+            "truth": dict(self.truth) if self.truth else None,
+            "parameters": self.table(),
+            **{k: v for k, v in self.result.to_dict().items() if k != "parameters"},
+        }
+
+    def __str__(self) -> str:
+        lines = [str(self.result)]
+        if self.truth:
+            errs = ", ".join(f"{r['name']} {r['error_percent']:+.2f} %" for r in self.table()
+                             if r["error_percent"] is not None)
+            lines.append(f"  error vs truth: {errs}")
+        if self.folder:
+            lines.append(f"  report: {self.folder / 'report.html'}")
+        return "\n".join(lines)
+
+
+def identify_pneumatic_spec(
+    spec: ExperimentSpec,
+    folder: Path | None,
+    *,
+    overwrite: bool = False,
+) -> PneumaticIdentification:
+    """Run the multi-step scheme a campaign file describes.
+
+    Parameters
+    ----------
+    spec : ExperimentSpec
+        The campaign (``[identify] method = "pneumatic-multistep"``; keys
+        in the module notes).
+    folder : Path or None
+        Results folder (results.json, report.html, figures); None only
+        computes.
+    overwrite : bool
+        Replace files of an earlier run.
+
+    Returns
+    -------
+    PneumaticIdentification
+        The result and the files written.
+
+    Raises
+    ------
+    OptionError
+        Unknown keys in ``[identify]``.
+    DataError
+        A test file or a known constant is missing.
+    """
+    if not isinstance(spec, ExperimentSpec):
+        raise TypeError(f"spec must be an ExperimentSpec, got {type(spec).__name__}")
+    table = dict(spec.identify)
+    unknown = sorted(set(table) - set(_KEYS))
+    if unknown:
+        raise OptionError(f"unknown key(s) in [identify]: {', '.join(unknown)}; valid keys for "
+                          f"method = \"pneumatic-multistep\" are {', '.join(_KEYS)}")
+    base = spec.source.parent if spec.source else spec.base_dir
+    sources: dict[str, Path] = {}
+    records: dict[str, Experiment] = {}
+    for test in _TESTS:
+        if test not in table:
+            raise DataError(f"[identify] {test} = \"<{test}.toml>\" is needed: the experiment "
+                            f"file of the {test} test")
+        sources[test] = base / str(table[test])
+    if "validation" in table:
+        sources["validation"] = base / str(table["validation"])
+    for test, path in sources.items():
+        sub = load_experiment_spec(path)
+        records[test] = _named(sub.load(), test)
+    if "validation" not in records:
+        records["validation"] = _named(spec.load(), "validation")
+        sources["validation"] = spec.data_path
+    known = _known(table, spec.loop)
+    refine = table.get("refine", False)
+    if isinstance(refine, tuple):
+        refine = list(refine)
+    result = identify_multistep(
+        records, known, derivatives=table.get("derivatives", "svf"), refine=refine,
+        refine_record=str(table.get("refine_record", "thermo")),
+        controller=_controller(spec.loop, table.get("known", {})),
+        p_krit=table.get("p_krit"), v_krit=table.get("v_krit"),
+        blend=bool(table.get("blend", False)),
+        mdot_limit=float(table.get("mdot_limit", 4e-3)),
+    )
+    truth = _truth(spec, base)
+    ident = PneumaticIdentification(spec, result, sources, truth)
+    if folder is None:
+        return ident
+    files = _write(ident, Path(folder), overwrite)
+    return dataclasses.replace(ident, folder=Path(folder), files=tuple(files))
+
+
+# -- helpers --------------------------------------------------------------------------------
+
+
+def _named(exp: Experiment, name: str) -> Experiment:
+    return exp if exp.name else dataclasses.replace(exp, name=name)
+
+
+def _known(table: Mapping[str, Any], loop: Mapping[str, Any]) -> KnownConstants:
+    inline = table.get("known")
+    if inline is not None and not isinstance(inline, Mapping):
+        raise DataError(f"[identify] known must be an inline table of constants, got {inline!r}")
+    merged = {k: v for k, v in dict(loop).items() if k in _KNOWN}
+    merged.update({k: v for k, v in dict(inline or {}).items() if k in _KNOWN})
+    return KnownConstants.from_mapping(merged)
+
+
+def _controller(loop: Mapping[str, Any], inline: Any) -> PositionController | None:
+    gains = {k: v for k, v in {**dict(inline or {}), **dict(loop)}.items() if k in ("K_p", "K_d")}
+    if not gains:
+        return None
+    if set(gains) != {"K_p", "K_d"}:
+        raise DataError("give both controller gains K_p [V/m] and K_d [V·s/m] in [loop], "
+                        "or neither (then they are reconstructed from the records)")
+    return PositionController(float(gains["K_p"]), float(gains["K_d"]))
+
+
+def _truth(spec: ExperimentSpec, base: Path) -> dict[str, float] | None:
+    name = dict(spec.report).get("truth")
+    if name is None:
+        return None
+    data = json.loads((base / str(name)).read_text(encoding="utf-8"))
+    if isinstance(data.get("parameters"), Mapping):
+        data = data["parameters"]
+    return {k: float(data[k]) for k in REFINABLE if isinstance(data.get(k), (int, float))}
+
+
+def _write(ident: PneumaticIdentification, folder: Path, overwrite: bool) -> list[Path]:
+    res = ident.result
+    names = ["results.json", "report.html", "validation.png", "steps.png"]
+    if res.refined_validation is not None:
+        names.append("validation_refined.png")
+    targets = {n: folder / n for n in names}
+    inputs = list(ident.sources.values()) + ([Path(ident.spec.source)] if ident.spec.source
+                                             else [])
+    check_outputs(list(targets.values()), inputs, overwrite)
+    folder.mkdir(parents=True, exist_ok=True)
+    _plot_comparison(res.validation, targets["validation.png"], overwrite,
+                     "S6: multi-step model")
+    if res.refined_validation is not None:
+        _plot_comparison(res.refined_validation, targets["validation_refined.png"], overwrite,
+                         "S6: refined model")
+    _plot_steps(res, targets["steps.png"], overwrite)
+    write_html(_page(ident, targets), targets["report.html"], overwrite=overwrite)
+    write_json(ident.to_dict(), targets["results.json"], overwrite=overwrite)
+    return list(targets.values())
+
+
+def _plot_comparison(comp: RecordComparison, path: Path, overwrite: bool, title: str) -> None:
+    chans = list(comp.measured)
+    fig, axes = plt.subplots(len(chans), 1, figsize=(9, 1.9 * len(chans)), sharex=True)
+    for ax, ch in zip(np.atleast_1d(axes), chans, strict=True):
+        label, unit, scale = _LABELS[ch]
+        ax.plot(comp.t, comp.measured[ch] * scale, color="0.2", lw=0.9, label="measured")
+        ax.plot(comp.t, comp.predicted[ch] * scale, color="C1", lw=0.9,
+                label=f"predicted (fit {comp.fit[ch]:.1f} %)")
+        ax.set_ylabel(f"{label} [{unit}]")
+        ax.legend(loc="upper right", fontsize=7)
+        ax.grid(alpha=0.3)
+    np.atleast_1d(axes)[0].set_title(f"{title} on the record {comp.record!r}")
+    np.atleast_1d(axes)[-1].set_xlabel("time [s]")
+    fig.tight_layout()
+    _save(fig, path, overwrite)
+
+
+def _plot_steps(res: MultistepResult, path: Path, overwrite: bool) -> None:
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    s0 = res.steps.get("S0 p_krit")
+    if s0 is not None:
+        axes[0].semilogy(s0.extra["grid"], np.maximum(s0.extra["grid_rss"], 1e-300), "o-", ms=3)
+        axes[0].axvline(s0["p_krit"], color="C3", lw=0.8)
+        axes[0].set_title(f"S0: RSS(p_krit), minimum {s0['p_krit']:.4f}", fontsize=9)
+        axes[0].set_xlabel("p_krit [-]")
+    s0v = res.steps.get("S0 ẋ_krit")
+    if s0v is not None:
+        axes[1].plot(s0v.extra["map_speed"], s0v.extra["map_force"], ".", ms=1.5)
+        axes[1].axvline(s0v["v_krit"], color="C3", lw=0.8)
+        axes[1].set_title(f"S0: friction map, ẋ_krit = {s0v['v_krit']:.4g} m/s", fontsize=9)
+        axes[1].set_xlabel("|ẋ_k| [m/s]")
+        axes[1].set_ylabel("F_fr·sgn ẋ_k [N]")
+    s2 = res.steps["S2"]
+    k_hist = np.asarray(s2.extra["rls_history_kappa"])
+    axes[2].plot(k_hist, label="κ")
+    axes[2].set_ylim(1.0, 2.0)
+    ax2 = axes[2].twinx()
+    ax2.plot(np.asarray(s2.extra["rls_history_R"]), color="C1", label="R")
+    ax2.set_ylim(200, 400)
+    axes[2].set_title(f"S2: RLS κ = {s2['kappa']:.4f}, R = {s2['R']:.1f}", fontsize=9)
+    axes[2].set_xlabel("RLS update (decimated)")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    _save(fig, path, overwrite)
+
+
+def _save(fig: Any, path: Path, overwrite: bool) -> None:
+    try:
+        with atomic_path(path, overwrite) as tmp:
+            fig.savefig(tmp, format="png", dpi=100)
+    finally:
+        plt.close(fig)
+
+
+def _page(ident: PneumaticIdentification, files: Mapping[str, Path]) -> Page:
+    res = ident.result
+    truth = bool(ident.truth)
+    cols = ("parameter", *(("truth",) if truth else ()), "estimate", "std", "95 % CI", "unit",
+            "step", *(("error",) if truth else ()))
+    rows = []
+    for r in ident.table():
+        cells = [r["name"]]
+        if truth:
+            cells.append("—" if r["truth"] is None else f"{r['truth']:.6g}")
+        cells += [f"{r['value']:.6g}", f"{r['std']:.3g}",
+                  f"[{r['ci95'][0]:.6g}, {r['ci95'][1]:.6g}]", r["unit"], r["step"]]
+        if truth:
+            cells.append("—" if r["error_percent"] is None else f"{r['error_percent']:+.3f} %")
+        rows.append(tuple(cells))
+    summary = Section(
+        "Identified parameters",
+        paragraphs=(
+            ("Multi-step scheme of Hahn & Piepenbrink (IFAC SYSID 1994, Fig. 17): each equation "
+            "group is identified from the test that excites it, earlier estimates inserted into "
+            f"later equations. Derivatives of the piston motion: {res.derivatives!r}."),
+        ),
+        tables=(Table(cols, tuple(rows), "Assembled parameter set (known constants in the "
+                      "results.json)"),),
+    )
+    sections = [summary]
+    for step in res.steps.values():
+        first, last = step.segment
+        est_rows = tuple((r.name, f"{r.value:.6g}", f"{r.std:.3g}",
+                          f"[{r.ci_low:.6g}, {r.ci_high:.6g}]", r.unit)
+                         for r in step.estimate.table())
+        sections.append(Section(
+            f"{step.step}: {step.title}",
+            paragraphs=(step.equation,
+                        (f"Record {step.record!r}: {step.n_used} of {step.mask.size} samples used "
+                        f"(first {first}, last {last}); estimator {step.method}."),
+                        *step.notes),
+            tables=(Table(("parameter", "estimate", "std", "95 % CI", "unit"), est_rows),),
+        ))
+    sections.append(Section("S0 profiles, friction map and the RLS of S2",
+                            figures=(Figure.from_file(files["steps.png"], "Step diagnostics"),)))
+    sections.append(_validation_section(res.validation, files["validation.png"],
+                                        "S6: validation of the multi-step model"))
+    if res.refinement is not None and res.refined_validation is not None:
+        ref = res.refinement
+        est_rows = tuple((r.name, f"{getattr(ref.start, r.name):.6g}", f"{r.value:.6g}",
+                          f"{r.std:.3g}", f"[{r.ci_low:.6g}, {r.ci_high:.6g}]", r.unit)
+                         for r in ref.estimate.table())
+        sections.append(Section(
+            "Grey-box refinement",
+            paragraphs=((f"Output error on {', '.join(ref.outputs)} of the record {ref.record!r} "
+                        "with the compiled simulator, weights 1/σ per channel "
+                        f"({', '.join(f'{k} {v:.3g}' for k, v in ref.noise_std.items())})."),
+                        *ref.notes),
+            tables=(Table(("parameter", "multi-step", "refined", "std", "95 % CI", "unit"),
+                          est_rows),),
+        ))
+        sections.append(_validation_section(res.refined_validation,
+                                            files["validation_refined.png"],
+                                            "S6: validation of the refined model"))
+    if res.notes:
+        sections.append(Section("Notes", paragraphs=res.notes))
+    name = ident.spec.source.name if ident.spec.source else "campaign"
+    return Page(
+        title=f"Servopneumatic multi-step identification: {name}",
+        subtitle="Parameters equation group by equation group (S0–S5), validated by simulation "
+                 "(S6)",
+        sections=tuple(sections),
+        meta=(("servoid", __version__), ("campaign file", str(ident.spec.source or "")),
+              *((f"{k} record", f"{p.name} (sha256 {sha256(_data_file(p))[:12]}…)")
+                for k, p in ident.sources.items())),
+    )
+
+
+def _data_file(path: Path) -> Path:
+    if path.suffix == ".toml":
+        return load_experiment_spec(path).data_path
+    return path
+
+
+def _validation_section(comp: RecordComparison, fig: Path, title: str) -> Section:
+    rows = tuple((_LABELS[ch][0], f"{v:.2f} %") for ch, v in comp.fit.items())
+    return Section(
+        title,
+        paragraphs=(
+            f"The full model is simulated on the held-back record {comp.record!r} "
+            + ("in closed loop from its reference" if comp.closed_loop else "from its input u")
+            + " and compared with the measurement ([S2] Figs 18–19); predicted mass flows are "
+              "clipped to the sensor range.",
+            *comp.notes,
+        ),
+        tables=(Table(("channel", "fit"), rows, "fit = 100(1 − ‖y − ŷ‖/‖y − ȳ‖)"),),
+        figures=(Figure.from_file(fig, "Predicted vs measured"),),
+    )
