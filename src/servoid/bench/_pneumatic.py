@@ -26,7 +26,9 @@ The chain of one run, for a record of ``duration·f_acq`` samples:
 Noise budget, per sensor channel c: the standard deviation at ``f_acq`` of
 sensor plus quantisation noise is ``rms(c − c̄)/10^(SNR/20)`` of the clean
 channel (filtered, unquantised), unless ``noise_std[c]`` states it; the
-temperatures, constant in this model, get ``temperature_noise`` [K].  The
+temperatures, constant in this model, get ``temperature_noise`` [K]; any
+other channel that is constant within one converter step (a force that is
+held through the whole record) carries quantisation only.  The
 identification sees the data at ``f_acq`` (no decimation), so that is
 where the SNR is defined.
 """
@@ -185,6 +187,9 @@ class PneumaticTest:
     def with_duration(self, duration: float) -> PneumaticTest:
         """Return the same test with another record length [s].
 
+        A force step keeps its place in the record: `force_delay` scales
+        with the duration.
+
         Parameters
         ----------
         duration : float
@@ -195,7 +200,9 @@ class PneumaticTest:
         PneumaticTest
             A validated copy.
         """
-        return PneumaticTest(**{**vars(self), "duration": duration})
+        d = _positive("duration", duration, "s")
+        return PneumaticTest(**{**vars(self), "duration": d,
+                                "force_delay": self.force_delay * d / self.duration})
 
     def signals(self, t: NDArray[np.float64]) -> dict[str, NDArray[np.float64] | None]:
         """Return the commands at the sample times t [s].
@@ -532,7 +539,7 @@ def run_pneumatic(
     *,
     rng: np.random.Generator | int,
 ) -> PneumaticRun:
-    """Play one test on the pneumatic rig and record what the DAQ writes.
+    """Play one test on the pneumatic rig; record what the DAQ writes.
 
     Parameters
     ----------
@@ -608,7 +615,7 @@ def _run(bench: PneumaticBench, test: PneumaticTest, n: int, gen: np.random.Gene
     sens = bench.sensitivities()
     cal = bench.calibration()
     dt_an = bench.dt / m
-    t_acq = np.arange(n) * bench.dt
+    t_acq = np.arange(n, dtype=np.float64) * bench.dt
     cmd = test.signals(t_acq)
     # The DAC plays u and x_ref: quantised volts, held over each acquisition period.
     dac = {k: None if v is None else np.repeat(_quantise(v * sens[k], bench)[0] / sens[k], m)
@@ -617,9 +624,8 @@ def _run(bench: PneumaticBench, test: PneumaticTest, n: int, gen: np.random.Gene
     res = simulate_pneumatic(p, dac["u"], dt_an, r=dac["x_ref"], f_ext=force,
                              controller=test.controller, flow=bench.flow, blend=bench.blend)
 
-    lag = discrete_sos(realise(TransferFunction([1.0], [1.0 / (2 * np.pi *
-                                                                bench.flow_bandwidth), 1.0])),
-                       dt_an)
+    tau = 1.0 / (2 * np.pi * bench.flow_bandwidth)  # the hot-wire's first-order lag
+    lag = discrete_sos(realise(TransferFunction(np.array([1.0]), np.array([tau, 1.0]))), dt_an)
     flows = sps.sosfilt(lag, np.column_stack([res.m_dot_I, res.m_dot_II]), axis=0)
     analog = {
         "u": res.u, "x_ref": res.r, "x_v": res.x_v, "p_I": res.p_I, "p_II": res.p_II,
@@ -637,28 +643,28 @@ def _run(bench: PneumaticBench, test: PneumaticTest, n: int, gen: np.random.Gene
         return np.clip(v, -limit, limit) if name in _FLOWS else v
 
     aa = discrete_sos(realise(bench.anti_alias()), dt_an)
-    clean_v = _sample(aa, np.column_stack([volts(c, analog[c]) for c in names]), m)
+    clean_an = np.column_stack([volts(c, analog[c]) for c in names])
+    start = clean_an[0].copy()
+    clean_v = _sample(aa, clean_an, m, start)
+    del clean_an
     clean = {c: clean_v[:, j] for j, c in enumerate(names)}
     si_clean = {c: cal[c][0] * clean[c] + cal[c][1] for c in names}
     rms = {c: float(np.sqrt(np.mean((x - x.mean()) ** 2))) for c, x in si_clean.items()}
     g_s = _noise_gain(aa, m)
     quant = {c: bench.lsb / math.sqrt(12.0) * cal[c][0] for c in names}
-    target = {c: _noise_target(bench, c, rms[c]) for c in names}
+    target = {c: _noise_target(bench, c, rms[c], bench.lsb * cal[c][0]) for c in names}
     sensor, total = {}, {}
     for c in names:
-        if target[c] is None:
-            sensor[c], total[c] = 0.0, quant[c]
-            continue
-        if target[c] < quant[c]:
+        tc, qc = target[c], quant[c]
+        sensor[c], total[c] = 0.0, qc
+        if tc is not None and tc < qc:
             _warn(notes,
                   f"test {test.name!r}, channel {c!r}: quantisation alone "
-                  f"({quant[c]:.3g} {PNEUMATIC_CHANNELS[c][1]} rms with {bench.bits} bits) "
-                  f"exceeds its noise budget ({target[c]:.3g}); the data are noisier than "
+                  f"({qc:.3g} {PNEUMATIC_CHANNELS[c][1]} rms with {bench.bits} bits) "
+                  f"exceeds its noise budget ({tc:.3g}); the data are noisier than "
                   "asked: use more bits or a larger signal")
-            sensor[c], total[c] = 0.0, quant[c]
-        else:
-            sensor[c] = math.sqrt(target[c] ** 2 - quant[c] ** 2) / g_s
-            total[c] = target[c]
+        elif tc is not None:
+            sensor[c], total[c] = math.sqrt(tc**2 - qc**2) / g_s, tc
     # One noise column per possible channel, drawn in a fixed order whatever is
     # recorded, so a seed gives the same realisation (scaled) at any SNR.
     white = gen.standard_normal((n * m, len(PNEUMATIC_CHANNELS)))
@@ -666,7 +672,7 @@ def _run(bench: PneumaticBench, test: PneumaticTest, n: int, gen: np.random.Gene
     noisy_an = np.column_stack([
         volts(c, analog[c] + sensor[c] * white[:, slot[c]]) for c in names])
     del white
-    noisy_v = _sample(aa, noisy_an, m)
+    noisy_v = _sample(aa, noisy_an, m, start)
     del noisy_an
     raw = {}
     for j, c in enumerate(names):
@@ -698,7 +704,7 @@ def _run(bench: PneumaticBench, test: PneumaticTest, n: int, gen: np.random.Gene
     )
 
 
-def _noise_target(bench: PneumaticBench, name: str, rms: float) -> float | None:
+def _noise_target(bench: PneumaticBench, name: str, rms: float, step: float) -> float | None:
     """Total noise std at f_acq [SI] a sensor channel should carry; None: none."""
     if name in _COMMANDS:
         return None
@@ -706,8 +712,8 @@ def _noise_target(bench: PneumaticBench, name: str, rms: float) -> float | None:
         return bench.noise_std[name]
     if name in _TEMPERATURES:
         return bench.temperature_noise
-    if bench.snr_db is None:
-        return None
+    if bench.snr_db is None or rms <= step:
+        return None  # no SNR, or a constant channel for which an SNR means nothing
     return rms / 10.0 ** (bench.snr_db / 20.0)
 
 
@@ -716,14 +722,16 @@ def _square(f: float, t: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.where(np.mod(f * t + 1e-9, 1.0) < 0.5, 1.0, -1.0)
 
 
-def _sample(sos: NDArray[np.float64], x: NDArray[np.float64], m: int) -> NDArray[np.float64]:
-    """Filter every column from its first value and keep every m-th sample.
+def _sample(sos: NDArray[np.float64], x: NDArray[np.float64], m: int,
+            start: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Filter every column and keep every m-th sample.
 
-    Starting at steady state (not from rest): the rig has been on before
-    the record starts, so the absolute pressures and temperatures do not
-    rise from 0 V through the filter.
+    The filter starts at steady state on `start`, the noise-free first
+    value (not from rest): the rig was on before the record starts, so
+    the absolute pressures and temperatures do not rise from 0 V, and the
+    first sample's noise is filtered like any other.
     """
-    zi = sps.sosfilt_zi(sos)[:, :, None] * x[0][None, None, :]
+    zi = sps.sosfilt_zi(sos)[:, :, None] * start[None, None, :]
     y, _ = sps.sosfilt(sos, x, axis=0, zi=zi)
     return np.asarray(y[::m], dtype=np.float64)
 

@@ -33,7 +33,7 @@ import numpy as np
 from .._atomic import atomic_path, check_writable
 from .._errors import DataError, ServoidWarning, check_option
 from ..actuators import PNEUMATIC_NOMINAL, PneumaticParameters
-from ..data import write_csv, write_experiment_spec, write_tdms
+from ..data import Experiment, write_csv, write_experiment_spec, write_tdms
 from ._files import RigFormat
 from ._pneumatic import (
     _TEST_NAMES,
@@ -157,42 +157,47 @@ def write_pneumatic_campaign(
     for target in targets:
         check_writable(target, overwrite)
 
-    runs: list[PneumaticRun] = []
+    # Simulate everything before writing anything (a failing test leaves no
+    # half campaign), but keep only what the files need: the simulator's
+    # analog-rate output of a 10 s test is ≈ 60 MB.
+    records: list[tuple[Experiment, dict[str, Any], dict[str, Any]]] = []
     issued: list[str] = []
     for test in plan:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            runs.append(run_pneumatic(bench, test,
-                                      rng=np.random.default_rng([int(seed),
-                                                                 _TEST_NAMES.index(test.name)])))
+            rec = run_pneumatic(bench, test, rng=np.random.default_rng(
+                [int(seed), _TEST_NAMES.index(test.name)]))
         for w in caught:
             text = str(w.message)
             if text not in issued:
                 issued.append(text)
                 warnings.warn(text, ServoidWarning, stacklevel=2)
+        doc = pneumatic_experiment_document(rec, f"{test.name}.{format}")
+        records.append((rec.raw, doc, _test_info(rec)))
+        del rec
 
     folder.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
-    for rec in runs:
-        rig = folder / f"{rec.test.name}.{format}"
-        toml = folder / f"{rec.test.name}.toml"
+    for raw, doc, _ in records:
+        rig = folder / doc["data"]["file"]
+        toml = rig.with_suffix(".toml")
         if format == "tdms":
-            write_tdms(rec.raw, rig, overwrite=overwrite)
+            write_tdms(raw, rig, overwrite=overwrite)
         else:
-            write_csv(rec.raw, rig, overwrite=overwrite)
-        write_experiment_spec(pneumatic_experiment_document(rec, rig.name), toml,
-                              overwrite=overwrite)
+            write_csv(raw, rig, overwrite=overwrite)
+        write_experiment_spec(doc, toml, overwrite=overwrite)
         written += [rig, toml]
-    data_run = next((r for r in runs if r.test.name == "validation"), runs[-1])
-    campaign = pneumatic_experiment_document(data_run, f"{data_run.test.name}.{format}")
+    infos = {info["name"]: info for _, _, info in records}
+    campaign = dict(next((d for _, d, i in records if i["name"] == "validation"),
+                         records[-1][1]))
     campaign["identify"] = {
         "method": METHOD,
-        **{r.test.name: f"{r.test.name}.toml" for r in runs},
+        **{name: f"{name}.toml" for name in infos},
         "known": known_constants(params),
     }
     write_experiment_spec(campaign, folder / CAMPAIGN, overwrite=overwrite)
     truth = folder / "truth.json"
-    text = json.dumps(pneumatic_truth_document(runs, int(seed), issued), indent=2,
+    text = json.dumps(_truth(bench, infos, int(seed), issued), indent=2,
                       ensure_ascii=False) + "\n"
     with atomic_path(truth, overwrite) as tmp:
         tmp.write_text(text, encoding="utf-8")
@@ -261,7 +266,30 @@ def pneumatic_truth_document(runs: Sequence[PneumaticRun], seed: int | None,
         JSON-ready: the identified parameters and the known constants at
         the top level, all parameters, units, the rig and every test.
     """
-    b = runs[0].bench
+    return _truth(runs[0].bench, {r.test.name: _test_info(r) for r in runs}, seed,
+                  warnings_issued)
+
+
+# -- private helpers ---------------------------------------------------------
+
+
+def _test_info(r: PneumaticRun) -> dict[str, Any]:
+    return {
+        **r.test.to_dict(),
+        "n_samples": r.raw.n_samples,
+        "channels": list(r.channels),
+        "signal_rms": r.signal_rms,
+        "noise_std": r.noise_std,
+        "quantisation_std": r.quantisation_std,
+        "sensor_noise_std": r.sensor_noise_std,
+        "hot_wire_saturation": r.saturation,
+        "dt_int": r.response.dt_int,
+        "warnings": list(r.warnings),
+    }
+
+
+def _truth(b: PneumaticBench, tests: dict[str, dict[str, Any]], seed: int | None,
+           warnings_issued: Sequence[str]) -> dict[str, Any]:
     p = b.params
     identified = {k: float(getattr(p, k)) for k in IDENTIFIED}
     known = known_constants(p)
@@ -280,20 +308,6 @@ def pneumatic_truth_document(runs: Sequence[PneumaticRun], seed: int | None,
         "flow_function": b.flow, "blend_friction": b.blend,
         "units": {k: u for k, (_, u) in PNEUMATIC_CHANNELS.items()},
     }
-    tests = {}
-    for r in runs:
-        tests[r.test.name] = {
-            **r.test.to_dict(),
-            "n_samples": r.raw.n_samples,
-            "channels": list(r.channels),
-            "signal_rms": r.signal_rms,
-            "noise_std": r.noise_std,
-            "quantisation_std": r.quantisation_std,
-            "sensor_noise_std": r.sensor_noise_std,
-            "hot_wire_saturation": r.saturation,
-            "dt_int": r.response.dt_int,
-            "warnings": list(r.warnings),
-        }
     return {
         "rig_kind": "pneumatic",
         **identified,
@@ -308,9 +322,6 @@ def pneumatic_truth_document(runs: Sequence[PneumaticRun], seed: int | None,
         "tests": tests,
         "warnings": list(warnings_issued),
     }
-
-
-# -- private helpers ---------------------------------------------------------
 
 
 def _plan(tests: object, duration: float | None) -> list[PneumaticTest]:
