@@ -80,7 +80,7 @@ def write_campaign(folder, tables, identify=None, loop=None):
     table["identify"] = identify or {
         "method": "pneumatic-multistep", "valve": "valve.toml", "thermo": "thermo.toml",
         "flow": "flow.toml", "friction": "friction.toml", "validation": "validation.toml",
-        "known": known, "derivatives": "measured"}
+        "known": known, "derivatives": "measured", "refine": ["c_k"]}
     table["loop"] = loop if loop is not None else {"K_p": 300.0, "K_d": 5.0}
     table["report"] = {"truth": "truth.json"}
     path = folder / "pneumatic.toml"
@@ -94,7 +94,7 @@ def test_campaign_writes_results_and_report(campaign, tmp_path):
     out = identify_pneumatic_spec(spec, tmp_path / "out")
     assert isinstance(out, PneumaticIdentification)
     assert {p.name for p in out.files} >= {"results.json", "report.html", "validation.png",
-                                           "steps.png"}
+                                           "steps.png", "validation_refined.png"}
     data = json.loads((tmp_path / "out" / "results.json").read_text())
     rows = {r["name"]: r for r in data["parameters"]}
     assert abs(rows["F_haft"]["error_percent"]) < 1e-6  # noise-free, measured derivatives
@@ -105,6 +105,9 @@ def test_campaign_writes_results_and_report(campaign, tmp_path):
                   "S6: validation"):
         assert title in html
     assert "error vs truth" in str(out)
+    assert "Grey-box refinement" in html and out.result.refinement is not None
+    # starts at the truth; moves only to absorb the other estimates' ~1e-7 errors
+    assert abs(out.result.refinement.parameters.c_k / 120.0 - 1) < 1e-4
     with pytest.raises(FileExistsError):
         identify_pneumatic_spec(spec, tmp_path / "out")
     identify_pneumatic_spec(spec, tmp_path / "out", overwrite=True)

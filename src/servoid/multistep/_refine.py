@@ -268,8 +268,9 @@ def refine_parameters(
     params : PneumaticParameters
         Start values (the multi-step result).
     free : sequence of str, optional
-        Parameters to fit (default all of :data:`REFINABLE`); the rest
-        stay fixed.
+        Parameters to fit (default all of :data:`REFINABLE` but the
+        switching threshold v_krit, whose output derivative is zero or a
+        jump); the rest stay fixed.
     bounds : mapping, optional
         ``{name: (lower, upper)}``; default [value/3, 3·value] (κ in
         (1.01, 2), p_krit in [0, 0.95]).
@@ -301,7 +302,9 @@ def refine_parameters(
     """
     if not isinstance(params, PneumaticParameters):
         raise TypeError(f"params must be PneumaticParameters, got {type(params).__name__}")
-    free_t = tuple(REFINABLE if free is None else free)
+    # ẋ_krit is a switching threshold: the simulated output moves with it only when a sample
+    # crosses it, so its finite-difference derivative is zero or a jump — not refinable by NLS
+    free_t = tuple(n for n in REFINABLE if n != "v_krit") if free is None else tuple(free)
     unknown = sorted(set(free_t) - set(REFINABLE))
     if unknown or not free_t:
         raise OptionError(f"free must name parameters among {', '.join(REFINABLE)}; "

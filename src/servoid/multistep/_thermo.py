@@ -158,10 +158,9 @@ def identify_thermodynamics(
         if np.any(vol <= 0.0):
             raise DataError(f"{step}: a chamber volume V₀ ± A x_k is <= 0; check x_k against "
                             "the known volumes")
-        kw = {"dt": dt, "omega_f": omega_f, "order": 1, "initial": "steady", "settle": settle}
-        f_vp = state_variable_filter(vol * p, **kw)
-        f_tm = state_variable_filter(temp * m, **kw)
-        f_dvp = state_variable_filter(area * v_k * p, **kw)
+        f_vp, f_tm, f_dvp = (
+            state_variable_filter(sig, dt, omega_f, 1, initial="steady", settle=settle)
+            for sig in (vol * p, temp * m, area * v_k * p))
         mask = np.zeros(record.n_samples, dtype=bool)
         mask[max(f_vp.first_valid, margin):record.n_samples - margin] = True
         mask &= window_all(np.abs(m) < limit, window)

@@ -355,7 +355,7 @@ def _page(ident: PneumaticIdentification, files: Mapping[str, Path]) -> Page:
                                         "S6: validation of the multi-step model"))
     if res.refinement is not None and res.refined_validation is not None:
         ref = res.refinement
-        est_rows = tuple((r.name, f"{getattr(ref.start, r.name):.6g}", f"{r.value:.6g}",
+        ref_rows = tuple((r.name, f"{getattr(ref.start, r.name):.6g}", f"{r.value:.6g}",
                           f"{r.std:.3g}", f"[{r.ci_low:.6g}, {r.ci_high:.6g}]", r.unit)
                          for r in ref.estimate.table())
         sections.append(Section(
@@ -365,7 +365,7 @@ def _page(ident: PneumaticIdentification, files: Mapping[str, Path]) -> Page:
                         f"({', '.join(f'{k} {v:.3g}' for k, v in ref.noise_std.items())})."),
                         *ref.notes),
             tables=(Table(("parameter", "multi-step", "refined", "std", "95 % CI", "unit"),
-                          est_rows),),
+                          ref_rows),),
         ))
         sections.append(_validation_section(res.refined_validation,
                                             files["validation_refined.png"],
