@@ -32,6 +32,7 @@ SUITES: dict[str, str] = {
     "ehsa": "bench_ehsa",
     "closedloop": "bench_closedloop",
     "pneumatic": "bench_pneumatic",
+    "multistep": "bench_multistep",
     "demo": "bench_demo",
     "studies": "bench_studies",  # slow pytest studies; skipped under --quick
 }

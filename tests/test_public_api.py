@@ -9,7 +9,8 @@ import pytest
 
 PACKAGES = ["servoid", "servoid.data", "servoid.signals", "servoid.models", "servoid.estimate",
             "servoid.validate", "servoid.report", "servoid.workflows", "servoid.cli",
-            "servoid.actuators", "servoid.closedloop", "servoid.bench", "servoid.datasets"]
+            "servoid.actuators", "servoid.closedloop", "servoid.bench", "servoid.datasets",
+            "servoid.multistep"]
 
 
 def test_top_level_exports():

@@ -8,16 +8,19 @@ from ._inverse import (
     controller_from_table,
     identify_inverse_dynamics_spec,
 )
+from ._pneumatic import PneumaticIdentification, identify_pneumatic_spec
 
 __all__ = [
     "ClosedLoopIdentification",
     "DemoResult",
     "IdentificationResult",
     "InverseDynamicsIdentification",
+    "PneumaticIdentification",
     "controller_from_table",
     "identify",
     "identify_closed_loop_spec",
     "identify_inverse_dynamics_spec",
+    "identify_pneumatic_spec",
     "loop_from_table",
     "run_demo",
 ]

@@ -26,10 +26,11 @@ from ..validate import ValidationReport, validate
 from ._closedloop import ClosedLoopIdentification, identify_closed_loop_spec
 from ._common import check_outputs, parameter_table, sha256, validation_section
 from ._inverse import InverseDynamicsIdentification, identify_inverse_dynamics_spec
+from ._pneumatic import PneumaticIdentification, identify_pneumatic_spec
 
 __all__ = ["IdentificationResult", "identify"]
 
-METHODS = ("arx", "closedloop", "inverse-dynamics")
+METHODS = ("arx", "closedloop", "inverse-dynamics", "pneumatic-multistep")
 _IDENTIFY_KEYS = ("method", "input", "output", "na", "nb", "nk", "criterion", "horizon")
 _REPORT_KEYS = ("folder", "truth")
 
@@ -79,7 +80,12 @@ def identify(
     overwrite: bool = False,
     write: bool = True,
     truth: Mapping[str, float] | None = None,
-) -> IdentificationResult | ClosedLoopIdentification | InverseDynamicsIdentification:
+) -> (
+    IdentificationResult
+    | ClosedLoopIdentification
+    | InverseDynamicsIdentification
+    | PneumaticIdentification
+):
     """Run the identification an experiment file describes.
 
     Loads and preprocesses the data, splits it into estimation and validation
@@ -103,11 +109,13 @@ def identify(
 
     Returns
     -------
-    IdentificationResult, ClosedLoopIdentification or InverseDynamicsIdentification
+    IdentificationResult, ClosedLoopIdentification, InverseDynamicsIdentification or PneumaticIdentification
         By ``[identify] method``: ``"arx"``, ``"closedloop"`` (see
-        :func:`~servoid.workflows.identify_closed_loop_spec` for its keys) or
+        :func:`~servoid.workflows.identify_closed_loop_spec` for its keys),
         ``"inverse-dynamics"`` (see
-        :func:`~servoid.workflows.identify_inverse_dynamics_spec`).
+        :func:`~servoid.workflows.identify_inverse_dynamics_spec`) or
+        ``"pneumatic-multistep"`` (see
+        :func:`~servoid.workflows.identify_pneumatic_spec`).
 
     Notes
     -----
@@ -126,6 +134,9 @@ def identify(
     if method == "inverse-dynamics":
         folder = _folder(spec, out) if write else None
         return identify_inverse_dynamics_spec(spec, folder, overwrite=overwrite)
+    if method == "pneumatic-multistep":
+        folder = _folder(spec, out) if write else None
+        return identify_pneumatic_spec(spec, folder, overwrite=overwrite)
     options = _identify_options(spec.identify)
     estimation, validation_data = spec.split_data()
     orders = {k: options[k] for k in ("na", "nb", "nk")}
