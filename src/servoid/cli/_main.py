@@ -15,7 +15,6 @@ from typing import Any
 
 from .. import __version__
 from .._errors import ServoidError
-from ..report import to_jsonable
 
 __all__ = ["main"]
 
@@ -36,6 +35,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"servoid: error: {message}", file=sys.stderr)
         return 1
     if getattr(args, "json", False):
+        from ..report import to_jsonable
+
         print(json.dumps({"ok": True, **to_jsonable(payload)}, indent=2))
     else:
         print(text)

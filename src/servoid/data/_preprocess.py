@@ -11,7 +11,6 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal as sps
 
 from .._errors import DataError, check_option
 from ._experiment import Channel, Experiment
@@ -82,6 +81,7 @@ def detrend(
     offsets : mapping, optional
         Operating point per channel, required for ``kind="offset"``.
     """
+    from scipy import signal as sps  # deferred: importing scipy.signal costs ~1 s
     check_option("kind", kind, ("mean", "linear", "offset"))
     if channels is None:
         channels = [ch.name for ch in exp.channels if ch.role != "side"]
@@ -127,6 +127,7 @@ def decimate(exp: Experiment, q: int, ftype: Literal["fir", "iir"] = "fir") -> E
         Chebyshev I cutting at 0.8 times the new Nyquist frequency, applied
         forward and backward.
     """
+    from scipy import signal as sps  # deferred: importing scipy.signal costs ~1 s
     if isinstance(q, bool) or not isinstance(q, (int, np.integer)) or q < 1:
         raise DataError(f"decimation factor q must be an integer >= 1, got {q!r}")
     check_option("ftype", ftype, ("fir", "iir"))
@@ -175,6 +176,7 @@ def lowpass(
     channels : sequence of str, optional
         Channels to filter; default all.
     """
+    from scipy import signal as sps  # deferred: importing scipy.signal costs ~1 s
     nyquist = 0.5 / exp.dt
     if not 0 < cutoff < nyquist:
         raise DataError(
@@ -203,6 +205,7 @@ def filter(
     channels : sequence of str, optional
         Channels to filter; default all.
     """
+    from scipy import signal as sps  # deferred: importing scipy.signal costs ~1 s
     sos = np.atleast_2d(np.asarray(sos, dtype=float))
     if sos.shape[1] != 6:
         raise DataError(f"sos must have shape (n_sections, 6), got {sos.shape}")
