@@ -1,6 +1,6 @@
 """Reports: figures, a single-file HTML page, JSON results."""
 
-from ._figures import plot_residuals, plot_validation
+from ._figures import new_figure, plot_residuals, plot_validation, save_figure
 from ._html import Figure, Page, Section, Table, render_html, write_html
 from ._json import to_jsonable, write_json
 from ._lti_figures import plot_bode, plot_poles
@@ -10,11 +10,13 @@ __all__ = [
     "Page",
     "Section",
     "Table",
+    "new_figure",
     "plot_bode",
     "plot_poles",
     "plot_residuals",
     "plot_validation",
     "render_html",
+    "save_figure",
     "to_jsonable",
     "write_html",
     "write_json",

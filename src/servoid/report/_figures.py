@@ -4,16 +4,19 @@ from __future__ import annotations
 
 import os
 
-import matplotlib
-
-matplotlib.use("Agg")  # files only: never open a window, works without a display
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
 from .._atomic import atomic_path
 from ..validate import ValidationReport
 
-__all__ = ["plot_residuals", "plot_validation"]
+__all__ = ["new_figure", "plot_residuals", "plot_validation", "save_figure"]
+
+
+def new_figure(figsize: tuple[float, float]) -> Figure:
+    """A figure outside pyplot: no window, no global state, any backend the user has."""
+    return Figure(figsize=figsize)
 
 
 def plot_validation(
@@ -22,9 +25,8 @@ def plot_validation(
     """Save measured vs simulated (and predicted) output to a PNG/SVG file."""
     t = report.time
     first = report.first
-    fig, (ax, ax_err) = plt.subplots(
-        2, 1, figsize=(9, 5.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]}
-    )
+    fig = new_figure((9, 5.5))
+    ax, ax_err = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     label_unit = f" [{unit}]" if unit else ""
     ax.plot(t, report.measured, color="0.2", lw=1.0, label="measured")
     ax.plot(t[first:], report.simulated[first:], color="C1", lw=1.0,
@@ -39,7 +41,7 @@ def plot_validation(
     ax_err.set_ylabel(f"error{label_unit}")
     ax_err.set_xlabel("time [s]")
     ax_err.grid(alpha=0.3)
-    _save(fig, path, overwrite)
+    save_figure(fig, path, overwrite)
 
 
 def plot_residuals(
@@ -48,7 +50,8 @@ def plot_residuals(
     """Save residual autocorrelation and input cross-correlation with bounds."""
     res = report.residuals
     n_cross = res.cross_correlation.shape[0]
-    fig, axes = plt.subplots(1 + n_cross, 1, figsize=(9, 2.6 * (1 + n_cross)))
+    fig = new_figure((9, 2.6 * (1 + n_cross)))
+    axes = fig.subplots(1 + n_cross, 1)
     axes = np.atleast_1d(axes)
     verdict = "white" if res.is_white else "not white"
     _stem(axes[0], res.lags, res.autocorrelation, res.bound)
@@ -61,10 +64,10 @@ def plot_residuals(
         axes[k + 1].set_title(f"input {k} – residual cross-correlation")
     axes[-1].set_xlabel("lag [samples]")
     fig.tight_layout()
-    _save(fig, path, overwrite)
+    save_figure(fig, path, overwrite)
 
 
-def _stem(ax: plt.Axes, lags: np.ndarray, r: np.ndarray, bound: float) -> None:
+def _stem(ax: Axes, lags: np.ndarray, r: np.ndarray, bound: float) -> None:
     ax.vlines(lags, 0, r, color="C0", lw=1.2)
     ax.plot(lags, r, "o", color="C0", ms=3)
     ax.axhspan(-bound, bound, color="C2", alpha=0.15, lw=0)
@@ -72,10 +75,8 @@ def _stem(ax: plt.Axes, lags: np.ndarray, r: np.ndarray, bound: float) -> None:
     ax.grid(alpha=0.3)
 
 
-def _save(fig: plt.Figure, path: str | os.PathLike[str], overwrite: bool) -> None:
+def save_figure(fig: Figure, path: str | os.PathLike[str], overwrite: bool = False) -> None:
+    """Save a figure atomically; the format follows the file extension (default PNG)."""
     suffix = os.path.splitext(os.fspath(path))[1].lstrip(".") or "png"
-    try:
-        with atomic_path(path, overwrite) as tmp:
-            fig.savefig(tmp, format=suffix, dpi=110)
-    finally:
-        plt.close(fig)
+    with atomic_path(path, overwrite) as tmp:
+        fig.savefig(tmp, format=suffix, dpi=110)

@@ -5,14 +5,10 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 from ..models import TransferFunction
-from ._figures import _save
+from ._figures import new_figure, save_figure
 
 __all__ = ["plot_bode", "plot_poles"]
 
@@ -44,7 +40,8 @@ def plot_bode(
     nyquists = [0.5 / m.dt for m in models.values() if m.dt is not None]
     f_hi = f_max if f_max is not None else (min(nyquists) if nyquists else 1000.0 * f_min)
     f = np.logspace(np.log10(f_min), np.log10(f_hi), 600)
-    fig, (ax_m, ax_p) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    fig = new_figure((8, 6))
+    ax_m, ax_p = fig.subplots(2, 1, sharex=True)
     for k, (label, model) in enumerate(models.items()):
         h = model.freqresp(2 * np.pi * f)
         style = {"color": "black", "lw": 2.0, "alpha": 0.5} if k == 0 else {"lw": 1.2, "ls": "--"}
@@ -59,7 +56,7 @@ def plot_bode(
     if title:
         ax_m.set_title(title)
     fig.tight_layout()
-    _save(fig, path, overwrite)
+    save_figure(fig, path, overwrite)
 
 
 def plot_poles(
@@ -69,7 +66,8 @@ def plot_poles(
     overwrite: bool = False,
 ) -> None:
     """Save pole maps: continuous models in the s-plane, discrete in the z-plane."""
-    fig, (ax_s, ax_z) = plt.subplots(1, 2, figsize=(10, 4.5))
+    fig = new_figure((10, 4.5))
+    ax_s, ax_z = fig.subplots(1, 2)
     markers = "xo+^sd"
     for k, (label, model) in enumerate(continuous.items()):
         p = model.poles()
@@ -97,4 +95,4 @@ def plot_poles(
     ax_z.grid(alpha=0.3)
     ax_z.legend(fontsize=8)
     fig.tight_layout()
-    _save(fig, path, overwrite)
+    save_figure(fig, path, overwrite)
