@@ -165,8 +165,12 @@ def test_campaign_file_lists_tests_truth_and_known_constants(campaign):
     assert {t: ident[t] for t in TESTS} == {t: f"{t}.toml" for t in TESTS}
     p = PNEUMATIC_NOMINAL
     known = dict(ident["known"])
+    # the hot-wire's lag is a known sensor dynamic the flow steps filter their regressors by
+    assert known.pop("mdot_sensor_bandwidth") == 1000.0
     assert known == {k: pytest.approx(getattr(p, k), rel=1e-15) for k in (
         "A_I", "A_II", "V_0I", "V_0II", "m_k", "p_S", "p_R", "p_amb", "T_S", "g")}
+    # the rig senses ẋ_k, ẍ_k, and its u passes the anti-alias filter (no staircase)
+    assert ident["derivatives"] == "measured" and ident["valve_u_hold"] == "cubic"
     assert dict(spec.report) == {"truth": "truth.json"}
     assert dict(spec.loop) == {"K_p": 300.0, "K_d": 5.0, "u_max": 10.0}
     assert spec.load().names == EXPECTED_CHANNELS["validation"]

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from .._errors import ChannelError, DataError, ModelError, OptionError, check_option
 from ..actuators import PneumaticParameters
 from ..data import Experiment
-from ..estimate import Estimate
+from ..estimate import Estimate, state_variable_filter
 
 __all__ = [
     "DERIVATIVES",
@@ -42,8 +42,10 @@ MDOT_LIMIT = 4e-3
 _KNOWN_UNITS = {
     "A_I": "m²", "A_II": "m²", "V_0I": "m³", "V_0II": "m³", "m_k": "kg", "p_S": "Pa",
     "p_R": "Pa", "p_amb": "Pa", "T_S": "K", "g": "m/s²", "stroke": "m", "u_max": "V",
-    "eps_v": "m/s",
+    "eps_v": "m/s", "mdot_sensor_bandwidth": "Hz",
 }
+#: Optional constants: None means "not applicable" (an ideal sensor).
+_OPTIONAL = ("mdot_sensor_bandwidth",)
 
 
 @dataclass(frozen=True)
@@ -79,6 +81,13 @@ class KnownConstants:
         Valve amplifier saturation [V] for S6.  Default 10.
     eps_v : float
         Stick band of the friction law [m/s].  Default 1e-4.
+    mdot_sensor_bandwidth : float or None
+        Corner of the mass-flow sensors' first-order lag [Hz] (the
+        hot-wire of [S2]: 1 kHz), or None for a sensor without dynamics.
+        The flow equations (3.x) are static in x_v and p: a lagging ṁ
+        biases S0/S3 (p_krit by +0.23 on the virtual rig) unless their
+        regressors pass the same lag; S2 filters its other terms
+        likewise.  Default None.
 
     Examples
     --------
@@ -101,10 +110,13 @@ class KnownConstants:
     stroke: float = 0.2
     u_max: float = 10.0
     eps_v: float = 1e-4
+    mdot_sensor_bandwidth: float | None = None
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
+            if value is None and f.name in _OPTIONAL:
+                continue
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer,
                                                                  np.floating)):
                 raise TypeError(f"KnownConstants.{f.name} must be a real number, got {value!r}")
@@ -212,8 +224,8 @@ class KnownConstants:
         )
 
     def to_dict(self) -> dict[str, float]:
-        """Plain data for JSON."""
-        return dataclasses.asdict(self)
+        """Plain data for JSON or TOML (an optional constant left None is left out)."""
+        return {k: v for k, v in dataclasses.asdict(self).items() if v is not None}
 
 
 @dataclass(frozen=True, eq=False)
@@ -360,6 +372,29 @@ def temperature(record: Experiment, name: str, known: KnownConstants) -> NDArray
     if name in record.names:
         return np.asarray(record[name], dtype=float)
     return np.full(record.n_samples, known.T_S)
+
+
+def mdot_sensor_lag(x: NDArray[np.float64], dt: float, known: KnownConstants,
+                    step: str) -> tuple[NDArray[np.float64], int]:
+    """Pass a signal through the mass-flow sensors' first-order lag.
+
+    "Filter both sides identically": a term that is compared with a
+    measured ṁ gets the sensor's known dynamics ``1/(1 + s/ω_m)``,
+    discretised exactly (cubic hold) and started at steady state on
+    x[0].  Returns the filtered signal and the number of start-up samples
+    to discard (0 without a sensor lag, the signal returned as is).
+    """
+    bandwidth = known.mdot_sensor_bandwidth
+    if bandwidth is None:
+        return x, 0
+    omega = 2.0 * math.pi * bandwidth
+    if omega >= math.pi / dt:
+        raise DataError(
+            f"{step}: the mass-flow sensor bandwidth {bandwidth:g} Hz must lie below the "
+            f"Nyquist frequency {0.5 / dt:g} Hz of the record; sample faster or leave "
+            "mdot_sensor_bandwidth out (an ideal sensor)")
+    out = state_variable_filter(x, dt, omega, 1, initial="steady")
+    return np.array(out.derivative(0)), out.first_valid
 
 
 def check_derivatives(derivatives: str) -> None:

@@ -23,16 +23,27 @@ re-fits the edges with κ, R from S2 and b from S0.
 Samples where the mass-flow sensor is saturated (|ṁ| ≥ 0.98·limit, the
 paper's hot-wire sensor reads at most 4 g/s) are excluded, as are
 samples with |x_v| <= ``x_v_min``.
+
+Sensor dynamics.  The equations are static in x_v and p, but the hot-wire
+reads ṁ through a first-order lag (1 kHz in [S2]).  Regressing the lagged
+ṁ on unlagged regressors biases the profile over b strongly (p_krit 0.48
+instead of 0.25 on the virtual rig, noise-free): the error is largest where
+x_v moves fast.  With ``known.mdot_sensor_bandwidth`` given, every regressor
+passes the same lag before the LS ("filter both sides identically"); the
+two edges of a chamber then overlap for a few samples after each spool
+zero crossing and share one LS per chamber.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import linalg
 
 from .._errors import DataError, IdentifiabilityError, ServoidWarning
 from ..actuators import psi_ellipse, psi_max
@@ -45,6 +56,7 @@ from ._common import (
     channel,
     check_known,
     check_positive,
+    mdot_sensor_lag,
     pressures,
     temperature,
 )
@@ -60,33 +72,55 @@ EDGES: dict[int, tuple[str, int, str]] = {
 }
 _SATURATION_MARGIN = 0.98
 _EQ_S3 = ("(3.1), (3.2) with κ, R from S2 and p_krit from S0 inserted: samples split by "
-          "sgn x_v and chamber, one LS per edge of ṁ on π|x_v|ψ(π)p_up√(2/(R T_up)) → a_i d_i; "
-          "samples with a saturated ṁ sensor excluded")
+          "sgn x_v and chamber, LS of ṁ on π|x_v|ψ(π)p_up√(2/(R T_up)) per edge (per chamber "
+          "when the regressors pass the ṁ sensor's known lag) → a_i d_i; samples with a "
+          "saturated ṁ sensor excluded")
 _EQ_S0 = ("(3.1), (3.2) Type IV in b = p_krit: separable LS, outer grid over b (step 0.01) "
           "and Brent refinement, inner LS of the four edge coefficients (Type II for fixed b)")
 
 
 @dataclass(frozen=True)
-class _EdgeData:
-    """Samples of one edge: index, measured flow and the ψ ingredients."""
+class _ChamberData:
+    """One chamber's flow equation: its identifiable edges and regression rows.
 
-    edge: int
-    index: NDArray[np.intp]
-    mdot: NDArray[np.float64]
-    area: NDArray[np.float64]  # π|x_v| [m]·(a d) gives the orifice area
-    p_up: NDArray[np.float64]
-    p_down: NDArray[np.float64]
-    c_flow: NDArray[np.float64]  # √(2/(R T_up)) at R = 1
-    sign: float  # +1 flow into the chamber (supply edge), −1 out of it
+    The regressors are built on the whole record (an edge contributes where
+    the spool opens it, 0 elsewhere) and pass the mass-flow sensor's lag, if
+    known, before the rows are taken: with a lag the two edges of a chamber
+    overlap for a few samples after each spool zero crossing, so they share
+    one LS; without it their columns have disjoint rows and the LS splits
+    into one per edge, as in [S2].
+    """
 
-    def regressor(self, b: float, kappa: float, R: float) -> NDArray[np.float64]:
-        """ṁ/(a d) for critical ratio b."""
-        forward = self.p_up >= self.p_down
-        hi = np.where(forward, self.p_up, self.p_down)
-        lo = np.where(forward, self.p_down, self.p_up)
-        psi = psi_ellipse(lo / hi, b, kappa)
-        mag = self.area * psi * hi * self.c_flow / math.sqrt(R)
-        return self.sign * np.where(forward, mag, -mag)
+    chamber: str
+    edges: tuple[int, ...]
+    rows: NDArray[np.intp]
+    mdot: NDArray[np.float64]  # measured ṁ at the rows
+    area: dict[int, NDArray[np.float64]]  # π|x_v| where the edge is open, else 0 [m]
+    p_ch: NDArray[np.float64]
+    t_ch: NDArray[np.float64]
+    p_S: float
+    p_R: float
+    T_S: float
+    open_rows: dict[int, NDArray[np.bool_]]  # per edge: rows at which it is open
+    lag: Callable[[NDArray[np.float64]], NDArray[np.float64]]
+
+    def regressors(self, b: float, kappa: float, R: float) -> NDArray[np.float64]:
+        """Columns ṁ/(a_i d_i) of the chamber's edges at the rows."""
+        cols = []
+        for edge in self.edges:
+            supply = edge in (2, 3)
+            if supply:  # flow into the chamber; a reversed drop reverses it
+                p_up, p_down, c_flow = self.p_S, self.p_ch, math.sqrt(2.0 / self.T_S)
+            else:
+                p_up, p_down, c_flow = self.p_ch, self.p_R, np.sqrt(2.0 / self.t_ch)
+            forward = p_up >= p_down
+            hi = np.where(forward, p_up, p_down)
+            lo = np.where(forward, p_down, p_up)
+            psi = psi_ellipse(lo / hi, b, kappa)
+            mag = self.area[edge] * psi * hi * c_flow / math.sqrt(R)
+            col = np.where(forward, mag, -mag) * (1.0 if supply else -1.0)
+            cols.append(self.lag(col)[self.rows])
+        return np.column_stack(cols)
 
 
 def identify_critical_pressure(
@@ -138,22 +172,25 @@ def identify_critical_pressure(
         No edge has enough unsaturated samples, or the profile is flat.
     """
     known = check_known(known)
-    edges, notes, mask = _edge_data(record, known, mdot_limit, x_v_min, min_samples, "S0 (p_krit)")
+    chambers, notes, mask = _chamber_data(record, known, mdot_limit, x_v_min, min_samples,
+                                          "S0 (p_krit)")
     lo, hi = (float(v) for v in bounds)
     step = check_positive("step", step, "")
     grid = np.arange(lo, hi + 0.5 * step, step)
     grid = grid[grid <= hi + 1e-12]
     kappa, R = 1.4, 287.0  # placeholders: the profile over b does not depend on them
-    mdot = np.concatenate([e.mdot for e in edges])
-    offsets = np.cumsum([0] + [e.mdot.size for e in edges])
+    mdot = np.concatenate([c.mdot for c in chambers])
+    edges = [e for c in chambers for e in c.edges]
+    row0 = np.cumsum([0] + [c.rows.size for c in chambers])
+    col0 = np.cumsum([0] + [len(c.edges) for c in chambers])
 
     def build(b: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         phi = np.zeros((mdot.size, len(edges)))
-        for j, e in enumerate(edges):
-            phi[offsets[j]:offsets[j + 1], j] = e.regressor(b, kappa, R)
+        for j, c in enumerate(chambers):
+            phi[row0[j]:row0[j + 1], col0[j]:col0[j + 1]] = c.regressors(b, kappa, R)
         return phi, mdot
 
-    labels = tuple(f"c_{e.edge}" for e in edges)
+    labels = tuple(f"c_{e}" for e in edges)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ServoidWarning)
         est = fit_separable(build, (lo, hi), grid=grid, method="grid+golden", names=labels,
@@ -166,7 +203,7 @@ def identify_critical_pressure(
         equation=_EQ_S0, record=name, estimate=est, mask=mask, method="separable_ls",
         notes=tuple(notes),
         extra={"grid": est.options["grid"], "grid_rss": est.options["grid_rss"],
-               "edges": [e.edge for e in edges], "placeholder_kappa": kappa,
+               "edges": edges, "placeholder_kappa": kappa,
                "placeholder_R": R},
     )
 
@@ -235,31 +272,42 @@ def identify_flow(
     R = check_positive("R", R, "J/(kg·K)")
     if not 0.0 <= p_krit < 1.0:
         raise DataError(f"p_krit must lie in [0, 1), got {p_krit:g}")
-    edges, notes, mask = _edge_data(record, known, mdot_limit, x_v_min, min_samples, "S3 (flow)")
-    values, stds, names = [], [], []
+    chambers, notes, mask = _chamber_data(record, known, mdot_limit, x_v_min, min_samples,
+                                          "S3 (flow)")
+    values: list[float] = []
+    blocks: list[NDArray[np.float64]] = []
+    scale: list[float] = []
+    names: list[str] = []
     rss, rows = 0.0, 0
     dlog_psi = (math.log(psi_max(kappa + 1e-6)) - math.log(psi_max(kappa - 1e-6))) / 2e-6
     per_edge = {}
-    for e in edges:
-        phi = e.regressor(p_krit, kappa, R)[:, None]
-        res = lstsq(phi, e.mdot, (f"ad_{e.edge}",))
-        ad = float(res.theta[0])
-        # ad ∝ √R/ψ_max(κ) for the measured lumped coefficient: delta method
-        var = float(res.covariance[0, 0]) + (ad / (2 * R) * R_std) ** 2 + (
-            ad * dlog_psi * kappa_std) ** 2
-        values.append(ad)
-        stds.append(math.sqrt(var))
-        names.append(f"ad_{e.edge}")
+    for c in chambers:
+        phi = c.regressors(p_krit, kappa, R)
+        labels = tuple(f"ad_{e}" for e in c.edges)
+        res = lstsq(phi, c.mdot, labels)
+        ad = np.asarray(res.theta, dtype=float)
+        blocks.append(np.asarray(res.covariance))
+        scale += ad.tolist()
+        values += ad.tolist()
+        names += labels
         rss += res.rss
         rows += res.n_rows
-        per_edge[f"ad_{e.edge}"] = {"samples": int(res.n_rows), "ls_std": float(res.std[0]),
-                                    "rms_residual": math.sqrt(res.rss / res.n_rows)}
+        resid = c.mdot - phi @ ad
+        for k, e in enumerate(c.edges):
+            on = c.open_rows[e]
+            per_edge[f"ad_{e}"] = {"samples": int(on.sum()), "ls_std": float(res.std[k]),
+                                   "rms_residual": math.sqrt(float(np.mean(resid[on] ** 2)))}
+    # ad ∝ √R/ψ_max(κ) for the measured lumped coefficients: delta method, fully
+    # correlated across the edges (one κ, one R inserted into all of them)
+    g = np.array(scale) * math.sqrt((R_std / (2 * R)) ** 2 + (dlog_psi * kappa_std) ** 2)
+    cov = linalg.block_diag(*blocks) + np.outer(g, g)
     est = Estimate(
         model=None, parameters=np.array(values), names=tuple(names),
-        covariance=np.diag(np.square(stds)), noise_variance=rss / max(rows - len(values), 1),
+        covariance=cov, noise_variance=rss / max(rows - len(values), 1),
         n_samples=rows, method="ls", units=("m",) * len(values),
         options={"kappa": kappa, "R": R, "p_krit": p_krit, "mdot_limit": mdot_limit,
-                 "covariance": "per-edge LS, κ and R std propagated (delta method)"},
+                 "mdot_sensor_bandwidth": known.mdot_sensor_bandwidth,
+                 "covariance": "per-chamber LS, κ and R std propagated (delta method)"},
     )
     return StepResult(
         step="S3", title="flow coefficients a_i d_i of the valve edges", equation=_EQ_S3,
@@ -271,16 +319,21 @@ def identify_flow(
 # -- helpers --------------------------------------------------------------------------------
 
 
-def _edge_data(
+def _chamber_data(
     record: Experiment, known: KnownConstants, mdot_limit: float, x_v_min: float,
     min_samples: int, step: str,
-) -> tuple[list[_EdgeData], list[str], NDArray[np.bool_]]:
+) -> tuple[list[_ChamberData], list[str], NDArray[np.bool_]]:
     x_v = channel(record, "x_v", step)
     p_1, p_2 = pressures(record, step)
     flows = {"I": channel(record, "mdot_I", step), "II": channel(record, "mdot_II", step)}
     temps = {"I": temperature(record, "T_I", known), "II": temperature(record, "T_II", known)}
     press = {"I": p_1, "II": p_2}
     limit = check_positive("mdot_limit", mdot_limit, "kg/s") * _SATURATION_MARGIN
+    start = mdot_sensor_lag(np.zeros(record.n_samples), record.dt, known, step)[1]
+
+    def lag(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return mdot_sensor_lag(x, record.dt, known, step)[0]
+
     notes: list[str] = []
     for chamber, m in flows.items():
         share = float(np.mean(np.abs(m) >= limit))
@@ -290,15 +343,24 @@ def _edge_data(
                    "are excluded — reduce the excitation so |ṁ| stays within the sensor range")
             warnings.warn(msg, ServoidWarning, stacklevel=3)
             notes.append(msg)
-    edges: list[_EdgeData] = []
     missing: dict[int, str] = {}
     mask = np.zeros(record.n_samples, dtype=bool)
     big = np.abs(x_v) > x_v_min
-    for edge, (chamber, sign, _) in EDGES.items():
-        side = big & (np.sign(x_v) == sign)
-        ok = side & (np.abs(flows[chamber]) < limit)
-        n_side, n_ok = int(side.sum()), int(ok.sum())
-        if n_ok < min_samples:
+    big[:start] = False  # the sensor-lag filter's start-up
+    chambers: list[_ChamberData] = []
+    for chamber in ("I", "II"):
+        # a saturated reading is clipped after the sensor's lag: every other sample is a
+        # valid reading of the lagged flow, whatever its neighbours
+        ok = big & (np.abs(flows[chamber]) < limit)
+        found: list[int] = []
+        for edge, (ch, sign, _) in EDGES.items():
+            if ch != chamber:
+                continue
+            side = big & (np.sign(x_v) == sign)
+            n_side, n_ok = int(side.sum()), int((side & ok).sum())
+            if n_ok >= min_samples:
+                found.append(edge)
+                continue
             word = "positive" if sign > 0 else "negative"
             if n_side < min_samples:
                 missing[edge] = (f"spool never {word}" if n_side == 0 else
@@ -306,17 +368,20 @@ def _edge_data(
             else:
                 missing[edge] = (f"ṁ_{chamber} saturated on {n_side - n_ok} of the {n_side} "
                                  f"samples with x_v {word}")
+        if not found:
             continue
-        idx = np.flatnonzero(ok)
+        # rows: where a kept edge is open (an unidentifiable edge's rows carry its flow)
+        keep = np.zeros(record.n_samples, dtype=bool)
+        for edge in found:
+            keep |= np.sign(x_v) == EDGES[edge][1]
+        idx = np.flatnonzero(ok & keep)
         mask[idx] = True
-        supply = edge in (2, 3)
-        p_ch = press[chamber][idx]
-        t_up = np.full(idx.size, known.T_S) if supply else temps[chamber][idx]
-        edges.append(_EdgeData(
-            edge=edge, index=idx, mdot=flows[chamber][idx], area=math.pi * np.abs(x_v[idx]),
-            p_up=np.full(idx.size, known.p_S) if supply else p_ch,
-            p_down=p_ch if supply else np.full(idx.size, known.p_R),
-            c_flow=np.sqrt(2.0 / t_up), sign=1.0 if supply else -1.0,
+        chambers.append(_ChamberData(
+            chamber=chamber, edges=tuple(found), rows=idx, mdot=flows[chamber][idx],
+            area={e: math.pi * np.abs(x_v) * (np.sign(x_v) == EDGES[e][1]) for e in found},
+            p_ch=press[chamber], t_ch=temps[chamber], p_S=known.p_S, p_R=known.p_R,
+            T_S=known.T_S,
+            open_rows={e: np.sign(x_v[idx]) == EDGES[e][1] for e in found}, lag=lag,
         ))
     if missing:
         reasons: dict[str, list[int]] = {}
@@ -326,8 +391,8 @@ def _edge_data(
             f"{why}: edge{'s' if len(es) > 1 else ''} "
             f"{' and '.join(str(e) for e in es)} unidentifiable" for why, es in reasons.items())
         msg = f"{step}: {text} (need at least {min_samples} unsaturated samples per edge)"
-        if not edges:
+        if not chambers:
             raise IdentifiabilityError(msg)
         warnings.warn(msg, ServoidWarning, stacklevel=3)
         notes.append(msg)
-    return edges, notes, mask
+    return chambers, notes, mask

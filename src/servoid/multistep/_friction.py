@@ -24,7 +24,9 @@ where F_haft fades linearly into d_k + c_k·ẋ_krit, so c_k and d_k enter).
 Derivatives.  ``"measured"`` takes ẋ_k, ẍ_k from the ``v_k``, ``a_k``
 channels, sample by sample; a sample counts as moving above max(ε, 4σ_v), σ_v the
 velocity noise from second differences, so a stuck piston's noisy velocity does
-not enter (4.2).  ``"svf"`` filters x_k and every term of the
+not enter (4.2), and only samples at least ``guard`` (0.5 ms) away from a change
+of regime are used, since the sensors' anti-alias filter smears the friction
+jump there.  ``"svf"`` filters x_k and every term of the
 equation by one zero-phase state-variable filter G = F(−s)F(s) (no lag),
 so ``m_k s²G x_k − G F_p = −G[friction]`` holds exactly; the regime of
 each sample comes from the filtered velocity sG x_k, and only samples
@@ -85,6 +87,7 @@ class _Signals:
     dt: float
     omega_f: float
     floor: float  # lowest speed counted as moving: ε, or 4σ of the velocity noise
+    guard: int  # measured derivatives: samples kept clear of a regime change on each side
 
     def filt(self, s: NDArray[np.float64]) -> NDArray[np.float64]:
         """Apply the equation's filter to a regressor signal."""
@@ -93,10 +96,10 @@ class _Signals:
         return zero_phase_derivatives(s, self.dt, self.omega_f)[0]
 
     def whole_window(self, mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
-        """Samples whose filter window lies entirely in ``mask``."""
-        if self.half_window == 0:
+        """Samples whose filter window (or guard band) lies entirely in ``mask``."""
+        h = self.half_window if self.half_window else self.guard
+        if h == 0:
             return mask & self.valid
-        h = self.half_window
         full = window_all(mask, 2 * h + 1)  # True at i when mask[i−2h..i] all hold
         out = np.zeros_like(mask)
         out[:-h] = full[h:]
@@ -110,6 +113,7 @@ def identify_critical_velocity(
     derivatives: Derivatives = "measured",
     bounds: tuple[float, float] = (0.01, 0.5),
     omega_f: float = 2 * math.pi * 400.0,
+    guard: float = 5e-4,
     min_samples: int = 20,
     name: str = "friction",
 ) -> StepResult:
@@ -129,6 +133,12 @@ def identify_critical_velocity(
         Search interval of the threshold [m/s].
     omega_f : float
         Zero-phase filter bandwidth for ``"svf"`` [rad/s].
+    guard : float
+        With measured derivatives: samples closer than this to a change of
+        regime are left out [s].  The sensors and the rig's anti-alias
+        filter smear the friction jump at a change (85 → 67 N at ẋ_krit)
+        over a few samples, which biased c_k by −2 % on the virtual rig;
+        0.5 ms covers a 2 kHz anti-alias filter.
     min_samples : int
         Fewest samples on each side of the threshold.
     name : str
@@ -145,7 +155,7 @@ def identify_critical_velocity(
         Too few samples on one side of every candidate threshold.
     """
     known = check_known(known)
-    sig = _signals(record, known, derivatives, omega_f, "S0 (ẋ_krit)")
+    sig = _signals(record, known, derivatives, omega_f, guard, "S0 (ẋ_krit)")
     # with filtered derivatives a window touching a stuck sample smears the static force
     # into the map: keep whole windows of motion only
     use = sig.whole_window(np.abs(sig.v) > sig.floor)
@@ -195,6 +205,7 @@ def identify_sliding_friction(
     v_krit: float,
     derivatives: Derivatives = "measured",
     omega_f: float = 2 * math.pi * 400.0,
+    guard: float = 5e-4,
     name: str = "friction",
 ) -> StepResult:
     """Identify Coulomb d_k and viscous c_k friction (step S4).
@@ -211,6 +222,12 @@ def identify_sliding_friction(
         Recorded ẋ_k, ẍ_k, or the zero-phase SVF of x_k (module notes).
     omega_f : float
         Zero-phase filter bandwidth for ``"svf"`` [rad/s].
+    guard : float
+        With measured derivatives: samples closer than this to a change of
+        regime are left out [s].  The sensors and the rig's anti-alias
+        filter smear the friction jump at a change (85 → 67 N at ẋ_krit)
+        over a few samples, which biased c_k by −2 % on the virtual rig;
+        0.5 ms covers a 2 kHz anti-alias filter.
     name : str
         Record name for the result.
 
@@ -221,7 +238,7 @@ def identify_sliding_friction(
     """
     known = check_known(known)
     v_krit = check_positive("v_krit", v_krit, "m/s")
-    sig = _signals(record, known, derivatives, omega_f, "S4 (sliding friction)")
+    sig = _signals(record, known, derivatives, omega_f, guard, "S4 (sliding friction)")
     sliding = np.abs(sig.v) >= v_krit
     rows = sig.whole_window(sliding)
     sgn = np.sign(sig.v) * sliding
@@ -246,6 +263,7 @@ def identify_low_speed_friction(
     derivatives: Derivatives = "measured",
     blend: bool = False,
     omega_f: float = 2 * math.pi * 400.0,
+    guard: float = 5e-4,
     name: str = "friction",
 ) -> StepResult:
     """Identify the static friction F_haft (step S5).
@@ -269,6 +287,12 @@ def identify_low_speed_friction(
         d_k + c_k ẋ_krit at ẋ_krit (then c_k and d_k enter the regression).
     omega_f : float
         Zero-phase filter bandwidth for ``"svf"`` [rad/s].
+    guard : float
+        With measured derivatives: samples closer than this to a change of
+        regime are left out [s].  The sensors and the rig's anti-alias
+        filter smear the friction jump at a change (85 → 67 N at ẋ_krit)
+        over a few samples, which biased c_k by −2 % on the virtual rig;
+        0.5 ms covers a 2 kHz anti-alias filter.
     name : str
         Record name for the result.
 
@@ -279,7 +303,7 @@ def identify_low_speed_friction(
     """
     known = check_known(known)
     v_krit = check_positive("v_krit", v_krit, "m/s")
-    sig = _signals(record, known, derivatives, omega_f, "S5 (low-speed friction)")
+    sig = _signals(record, known, derivatives, omega_f, guard, "S5 (low-speed friction)")
     eps = sig.floor
     if v_krit <= eps:
         raise DataError(f"v_krit must be > the moving-speed floor {eps:g} m/s (ε or 4σ of the "
@@ -293,7 +317,7 @@ def identify_low_speed_friction(
     y = sig.y + sig.filt(known_part)
     reg = -sig.filt(sgn * low * (1.0 - w))
     if sig.half_window == 0:
-        rows = low & sig.valid
+        rows = sig.whole_window(low)
     else:
         rows = sig.whole_window(speed > eps) & (np.abs(reg) > 0.2)
     _enough(rows, "S5 (low-speed friction)",
@@ -313,9 +337,14 @@ def identify_low_speed_friction(
 
 
 def _signals(
-    record: Experiment, known: KnownConstants, derivatives: str, omega_f: float, step: str,
+    record: Experiment, known: KnownConstants, derivatives: str, omega_f: float,
+    guard: float, step: str,
 ) -> _Signals:
     check_derivatives(derivatives)
+    if isinstance(guard, bool) or not isinstance(guard, (int, float)) or not (
+            math.isfinite(guard) and guard >= 0.0):
+        raise DataError(f"guard must be a time >= 0 s, got {guard!r}")
+    n_guard = math.ceil(guard / record.dt - 1e-9)
     p_1, p_2 = pressures(record, step)
     f_ext = np.asarray(record["f_ext"], dtype=float) if "f_ext" in record.names else 0.0
     f_p = (p_1 * known.A_I - p_2 * known.A_II - known.p_amb * (known.A_I - known.A_II)
@@ -326,7 +355,7 @@ def _signals(
         a = channel(record, "a_k", step)
         # a stuck piston's noisy velocity must not count as motion: floor at 4σ of its noise
         floor = max(known.eps_v, 4.0 * _noise_level(v))
-        return _Signals(v, known.m_k * a - f_p, valid, 0, record.dt, omega_f, floor)
+        return _Signals(v, known.m_k * a - f_p, valid, 0, record.dt, omega_f, floor, n_guard)
     omega_f = check_positive("omega_f", omega_f, "rad/s")
     x_k = channel(record, "x_k", step)
     _, v, a, margin = zero_phase_derivatives(x_k, record.dt, omega_f)
@@ -335,13 +364,27 @@ def _signals(
     valid[record.n_samples - margin:] = False
     half = math.ceil(6.0 / omega_f / record.dt)
     return _Signals(v, known.m_k * a - g_fp, valid, max(half, 1), record.dt, omega_f,
-                    known.eps_v)
+                    known.eps_v, 0)
 
 
 def _noise_level(v: NDArray[np.float64]) -> float:
-    """Std of white noise on a smooth signal from its second differences (robust)."""
-    d2 = np.diff(v, 2)
-    return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / math.sqrt(6.0))
+    """Std of the noise on a smooth signal from its second differences (robust).
+
+    White noise gives var(x[k+L] − 2x[k] + x[k−L]) = 6σ² at every lag L.  A
+    rig's anti-alias filter colours the noise (at 0.2·f_acq it stays correlated
+    over two to three samples), and the lag-1 difference then sees only a third
+    of σ (checked on the virtual rig), which let a stuck piston's noisy velocity
+    pass the 4σ floor.  From lag 3 on the noise is decorrelated while a smooth
+    signal's curvature, growing as L², stays small and sparse; the median over
+    lags 1..8 of the MAD estimates is robust to both.
+    """
+    est = []
+    for lag in range(1, 9):
+        if v.size <= 2 * lag + 2:
+            break
+        d2 = v[2 * lag:] - 2.0 * v[lag:-lag] + v[:-2 * lag]
+        est.append(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / math.sqrt(6.0))
+    return float(np.median(est)) if est else 0.0
 
 
 def _split_rss(s: NDArray[np.float64], f: NDArray[np.float64]) -> NDArray[np.float64]:

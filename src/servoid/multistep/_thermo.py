@@ -19,6 +19,8 @@ state-variable filter derivative of x_k (:func:`zero_phase_derivatives`).
 The p·V̇ term must be excited: the paper adds a rectangular external force
 to the closed-loop sine for it.  Windows of the filter touching a
 saturated mass-flow sample (|ṁ| ≥ 98 % of the sensor range) are dropped.
+With ``known.mdot_sensor_bandwidth`` the terms V·p and V̇·p pass the
+mass-flow sensor's first-order lag before the SVF, as ṁ did in the sensor.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from ._common import (
     check_known,
     check_positive,
     ls_estimate,
+    mdot_sensor_lag,
     physical_estimate,
     pressures,
     temperature,
@@ -158,11 +161,15 @@ def identify_thermodynamics(
         if np.any(vol <= 0.0):
             raise DataError(f"{step}: a chamber volume V₀ ± A x_k is <= 0; check x_k against "
                             "the known volumes")
+        # ṁ is read through the sensor's lag H (if known): H(T ṁ) = T·H ṁ with T
+        # constant over H's few samples, so the two other terms pass H too
+        vp, lag_start = mdot_sensor_lag(vol * p, dt, known, step)
+        dvp = mdot_sensor_lag(area * v_k * p, dt, known, step)[0]
         f_vp, f_tm, f_dvp = (
             state_variable_filter(sig, dt, omega_f, 1, initial="steady", settle=settle)
-            for sig in (vol * p, temp * m, area * v_k * p))
+            for sig in (vp, temp * m, dvp))
         mask = np.zeros(record.n_samples, dtype=bool)
-        mask[max(f_vp.first_valid, margin):record.n_samples - margin] = True
+        mask[max(f_vp.first_valid + lag_start, margin):record.n_samples - margin] = True
         mask &= window_all(np.abs(m) < limit, window)
         ys.append(f_vp.derivative(1)[mask])
         phis.append(np.column_stack([f_tm.derivative(0)[mask], -f_dvp.derivative(0)[mask]]))

@@ -11,8 +11,10 @@ record) names one experiment file per test of the multi-step scheme
     flow = "flow.toml"            # S0 p_krit, S3
     friction = "friction.toml"    # S0 ẋ_krit, S4, S5
     validation = "validation.toml"  # S6 (default: this file's [data])
-    known = {A_I = 1.963e-3, ...}   # or the same keys in [loop]
-    derivatives = "svf"           # or "measured"
+    known = {A_I = 1.963e-3, ...}   # or the same keys in [loop]; optional
+                                  # mdot_sensor_bandwidth [Hz] (the ṁ sensor's lag)
+    derivatives = "svf"           # or "measured" (the v_k, a_k sensors)
+    valve_u_hold = "zoh"          # or "cubic": u recorded through the anti-alias filter
     refine = false                # true, or a list of parameter names
 
     [loop]
@@ -57,7 +59,7 @@ __all__ = ["PneumaticIdentification", "identify_pneumatic_spec"]
 
 _TESTS = ("valve", "thermo", "flow", "friction")
 _KEYS = ("method", *_TESTS, "validation", "known", "derivatives", "refine", "refine_record",
-         "p_krit", "v_krit", "blend", "mdot_limit")
+         "p_krit", "v_krit", "blend", "mdot_limit", "valve_u_hold")
 _KNOWN = tuple(f.name for f in dataclasses.fields(KnownConstants))
 _LABELS = {"p_I": ("p_I", "bar", 1e-5), "p_II": ("p_II", "bar", 1e-5),
            "mdot_I": ("ṁ_I", "g/s", 1e3), "mdot_II": ("ṁ_II", "g/s", 1e3),
@@ -189,6 +191,7 @@ def identify_pneumatic_spec(
         p_krit=table.get("p_krit"), v_krit=table.get("v_krit"),
         blend=bool(table.get("blend", False)),
         mdot_limit=float(table.get("mdot_limit", 4e-3)),
+        valve_u_hold=table.get("valve_u_hold", "zoh"),
     )
     truth = _truth(spec, base)
     ident = PneumaticIdentification(spec, result, sources, truth)
