@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-import tempfile
+import secrets
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -28,27 +28,38 @@ def check_writable(path: str | os.PathLike[str], overwrite: bool = False) -> Pat
 
 @contextmanager
 def atomic_path(path: str | os.PathLike[str], overwrite: bool = False) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; rename it onto ``path`` on success.
+    """Yield a temporary path beside ``path``; move it onto ``path`` on success.
 
-    A failure leaves no partial file behind and the old ``path`` (if any) untouched.
+    A failure leaves no partial file behind and the old ``path`` (if any)
+    untouched. The parent folder must exist: a mistyped folder is an error,
+    not a new directory. Without ``overwrite`` the final step is a hard link,
+    which fails if ``path`` appeared meanwhile, so nothing is ever replaced.
     """
     target = check_writable(path, overwrite)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    tmp = Path(tmp_name)
+    if not target.parent.is_dir():
+        raise FileNotFoundError(
+            f"cannot write {target}: the folder {target.parent} does not exist; create it first"
+        )
+    tmp = target.parent / f".{target.name}.{secrets.token_hex(6)}.tmp"
+    # O_EXCL: never reuse a name; mode 0666 lets the kernel apply the user's umask.
+    os.close(os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
     try:
         yield tmp
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual file mode
-        if target.exists() and not overwrite:  # appeared while we were writing
-            raise OutputExistsError(f"{target} appeared while writing; not overwritten")
-        os.replace(tmp, target)
+        if overwrite:
+            os.replace(tmp, target)
+        else:
+            _move_no_replace(tmp, target)
     finally:
         if tmp.exists():
             tmp.unlink()
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+def _move_no_replace(tmp: Path, target: Path) -> None:
+    try:
+        os.link(tmp, target)
+    except FileExistsError:
+        raise OutputExistsError(f"{target} appeared while writing; not overwritten") from None
+    except OSError:  # a file system without hard links: check, then rename
+        if target.exists():
+            raise OutputExistsError(f"{target} appeared while writing; not overwritten") from None
+        os.replace(tmp, target)

@@ -82,6 +82,7 @@ def test_round_trip_dict_write_load(rig: Path) -> None:
 
 def test_write_elsewhere_keeps_pointing_at_the_rig_file(rig: Path) -> None:
     spec = ExperimentSpec.from_dict(_doc(), base_dir=rig)
+    (rig / "sub").mkdir()
     moved = write_experiment_spec(spec, rig / "sub" / "run.toml")
     loaded = load_experiment_spec(moved)
     assert loaded.file == "../bench.tdms"
