@@ -103,6 +103,13 @@ def residual_analysis(
     """
     e = np.asarray(residuals, dtype=float).ravel()
     n = e.size
+    if not np.all(np.isfinite(e)):
+        raise DataError(
+            f"residuals have {int(np.sum(~np.isfinite(e)))} non-finite value(s) of {n}: the "
+            "model's prediction diverged or the data hold NaN; a whiteness test would be meaningless"
+        )
+    if u is not None and not np.all(np.isfinite(np.asarray(u, dtype=float))):
+        raise DataError("the input for the cross-correlation test has non-finite values")
     if not 0 < confidence < 1:
         raise DataError(f"confidence must lie in (0, 1), got {confidence}")
     if max_lag < 1 or max_lag >= n // 2:
