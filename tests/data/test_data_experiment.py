@@ -145,3 +145,9 @@ def test_experiment_set_checks() -> None:
         ExperimentSet((a, a.rename({"y": "pos"})))
     with pytest.raises(DataError, match="at least one experiment"):
         ExperimentSet(())
+
+
+def test_notes_are_read_only():
+    exp = Experiment.from_arrays(0.1, y=[1.0, 2.0, 3.0])
+    with pytest.raises(TypeError):
+        exp.notes["x"] = 1  # type: ignore[index]

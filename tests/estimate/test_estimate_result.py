@@ -72,6 +72,10 @@ def test_arrays_are_read_only(est):
         est.covariance[0, 0] = 1.0
     with pytest.raises(AttributeError):
         est.noise_variance = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        est.residuals[0] = 1.0
+    with pytest.raises(TypeError):
+        est.options["na"] = 5
 
 
 def test_estimate_copies_its_inputs():

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -105,7 +106,7 @@ class Experiment:
         if channels[0].values.size < 2:
             raise DataError(f"an Experiment needs at least 2 samples, got {channels[0].values.size}")
         object.__setattr__(self, "channels", channels)
-        object.__setattr__(self, "notes", dict(self.notes))
+        object.__setattr__(self, "notes", MappingProxyType(dict(self.notes)))
 
     # -- construction -------------------------------------------------------------------------
 

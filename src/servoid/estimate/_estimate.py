@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -76,7 +77,7 @@ class Estimate:
         if not self.units:
             object.__setattr__(self, "units", ("",) * self.parameters.size)
         object.__setattr__(self, "names", tuple(self.names))
-        object.__setattr__(self, "options", dict(self.options))
+        object.__setattr__(self, "options", MappingProxyType(dict(self.options)))
 
     @property
     def std(self) -> NDArray[np.float64]:
@@ -120,9 +121,11 @@ class Estimate:
     @cached_property
     def residuals(self) -> NDArray[np.float64]:
         """Residuals of the fit (computed on first access)."""
-        if self.residual_function is None:
-            return np.empty(0)
-        return np.asarray(self.residual_function())
+        values = np.empty(0) if self.residual_function is None else np.array(
+            self.residual_function(), dtype=float
+        )
+        values.setflags(write=False)
+        return values
 
     def to_dict(self, level: float = 0.95) -> dict[str, Any]:
         """Plain-data summary for JSON."""
