@@ -131,3 +131,11 @@ def test_identify_missing_file(capsys, tmp_path):
     assert code == 1
     assert json.loads(out)["ok"] is False
     assert "nope.toml" in err
+
+
+def test_demo_refuses_a_foreign_folder(capsys, tmp_path):
+    (tmp_path / "mine.txt").write_text("precious")
+    code, _, err = run(capsys, "demo", "--out", str(tmp_path))
+    assert code == 1
+    assert "holds no earlier demo" in err and "--overwrite" in err
+    assert [p.name for p in tmp_path.iterdir()] == ["mine.txt"]

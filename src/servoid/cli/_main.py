@@ -58,8 +58,10 @@ def _parser() -> argparse.ArgumentParser:
         "rig file and experiment TOML, identify, validate, and print truth vs estimate.",
     )
     demo.add_argument("--out", default="servoid-demo", help="folder for the demo's files "
-                      "(default: %(default)s; files of an earlier demo there are replaced)")
+                      "(default: %(default)s; an earlier demo's files there are replaced)")
     demo.add_argument("--seed", type=int, default=2026, help="noise seed (default: %(default)s)")
+    demo.add_argument("--overwrite", action="store_true",
+                      help="write into a non-empty folder that holds no earlier demo")
     _json_flag(demo)
     demo.set_defaults(run=_run_demo)
 
@@ -92,7 +94,7 @@ def _json_flag(parser: argparse.ArgumentParser) -> None:
 def _run_demo(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..workflows import run_demo
 
-    result = run_demo(args.out, seed=args.seed)
+    result = run_demo(args.out, seed=args.seed, overwrite=args.overwrite)
     return result.to_dict(), str(result)
 
 

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .._errors import OutputExistsError
 from ..bench import BenchRun, EhsaBench, run, write_bench_files
 from ..signals import prbs
 from ._closedloop import ClosedLoopIdentification
@@ -61,27 +62,45 @@ class DemoResult:
         return "\n".join(head) + str(self.identification)
 
 
+_MARKER = ".servoid-demo"
+
+
 def run_demo(
-    out: str | os.PathLike[str] = "servoid-demo", *, seed: int = 2026, snr_db: float = 30.0
+    out: str | os.PathLike[str] = "servoid-demo",
+    *,
+    seed: int = 2026,
+    snr_db: float = 30.0,
+    overwrite: bool = False,
 ) -> DemoResult:
     """Run the study-1 demo and write its folder.
 
     Parameters
     ----------
     out : path
-        Folder for the rig files and the report; files of an earlier demo
-        run there are replaced.
+        Folder for the rig files and the report. Files of an earlier demo
+        run there (the folder holds the demo's marker file) are replaced; a
+        non-empty folder without the marker is refused unless ``overwrite``.
     seed : int
         Seed of the bench's noise.
     snr_db : float
         Signal-to-noise ratio of the position at 1 kHz [dB].
+    overwrite : bool
+        Write into a non-empty folder that is not an earlier demo's.
     """
     out = Path(out)
+    if out.is_dir() and any(out.iterdir()) and not (out / _MARKER).exists() and not overwrite:
+        raise OutputExistsError(
+            f"{out} is not empty and holds no earlier demo: the demo would replace files "
+            "there. Choose another --out or pass --overwrite"
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    (out / _MARKER).write_text("written by servoid demo; its files here may be replaced\n")
     bench = EhsaBench(snr_db=snr_db)
     excitation = prbs(11, clock=10, amplitude=1e-3, dt=bench.dt)
     record = run(bench, excitation, rng=seed)
     files = write_bench_files(record, out, format="tdms", overwrite=True)
     toml = next(p for p in files if p.suffix == ".toml")
     result = identify(toml, out / "report", overwrite=True)
-    assert isinstance(result, ClosedLoopIdentification)
+    if not isinstance(result, ClosedLoopIdentification):  # the bench's TOML asks for closedloop
+        raise TypeError(f"the demo's experiment file gave {type(result).__name__}")
     return DemoResult(record, result, tuple(files))
