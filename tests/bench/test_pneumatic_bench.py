@@ -172,7 +172,8 @@ def test_campaign_file_lists_tests_truth_and_known_constants(campaign):
     # the rig senses ẋ_k, ẍ_k, and its u passes the anti-alias filter (no staircase)
     assert ident["derivatives"] == "measured" and ident["valve_u_hold"] == "cubic"
     assert dict(spec.report) == {"truth": "truth.json"}
-    assert dict(spec.loop) == {"K_p": 300.0, "K_d": 5.0, "u_max": 10.0}
+    # the validation record's loop (softer than the other tests': no stick–slip hunting)
+    assert dict(spec.loop) == {"K_p": 100.0, "K_d": 5.0, "u_max": 10.0}
     assert spec.load().names == EXPECTED_CHANNELS["validation"]
     for t in TESTS:  # every named TOML exists beside it and loads
         load_experiment_spec(folder / ident[t])
