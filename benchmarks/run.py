@@ -33,6 +33,7 @@ SUITES: dict[str, str] = {
     "closedloop": "bench_closedloop",
     "pneumatic": "bench_pneumatic",
     "multistep": "bench_multistep",
+    "signals": "bench_signals",
     "demo": "bench_demo",
     "studies": "bench_studies",  # slow pytest studies; skipped under --quick
 }

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -183,13 +181,10 @@ def test_levels_offset_amplitude_and_clock() -> None:
     assert x.description["bit_time"] == pytest.approx(4e-3, rel=1e-15)  # one product
 
 
-def test_n20_is_fast() -> None:
-    prbs(20)  # warm-up: imports and allocator
-    start = time.perf_counter()
+def test_n20_full_length() -> None:
+    # speed is measured in benchmarks/bench_signals.py, never asserted in a unit test
     x = prbs(20)
-    elapsed = time.perf_counter() - start
     assert x.n_samples == 2**20 - 1
-    assert elapsed < 0.5  # budget "well under a second"; measured about 10 ms
 
 
 # -- spectrum -------------------------------------------------------------------------------
