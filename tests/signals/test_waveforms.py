@@ -46,10 +46,10 @@ def test_multisine_power_only_on_chosen_lines(harmonics: str, phases: str) -> No
 
 
 def test_multisine_peak_scaling_and_rms_scaling() -> None:
-    x = multisine(1024, 1e-3, 1.0, 200.0, amplitude=2.5, offset=-1.0)
+    x = multisine(1024, 1e-3, 2.0, 200.0, amplitude=2.5, offset=-1.0)
     assert np.max(np.abs(x.values - x.offset)) == pytest.approx(2.5, rel=1e-12)  # one scaling
     assert x.amplitude == pytest.approx(2.5, rel=1e-12)  # one scaling
-    y = multisine(1024, 1e-3, 1.0, 200.0, amplitude=0.5, scale="rms")
+    y = multisine(1024, 1e-3, 2.0, 200.0, amplitude=0.5, scale="rms")
     assert np.sqrt(np.mean(y.values**2)) == pytest.approx(0.5, rel=1e-12)  # one scaling
     assert y.amplitude == pytest.approx(np.max(np.abs(y.values)), rel=1e-15)  # one product
 
@@ -181,3 +181,19 @@ def test_random_binary_levels_clock_and_reproducibility() -> None:
 def test_random_binary_is_roughly_balanced() -> None:
     x = random_binary(40_000, rng=np.random.default_rng(2))
     assert abs(x.values.mean()) < 4 / 200  # 4σ: the mean of 40 000 fair ±1 coins has σ 1/200
+
+
+def test_multisine_warns_when_f_min_is_off_the_grid():
+    from servoid import ServoidWarning
+    from servoid.signals import multisine
+
+    with pytest.warns(ServoidWarning, match=r"lowest excited line is 1 Hz, not f_min = 0.1 Hz.*period of 10000 samples"):
+        multisine(1000, 0.001, 0.1, 10.0)
+
+
+def test_multisine_warns_on_a_single_line():
+    from servoid import ServoidWarning
+    from servoid.signals import multisine
+
+    with pytest.warns(ServoidWarning, match="only 1 line"):
+        multisine(1000, 0.001, 2.5, 3.5)
