@@ -151,3 +151,9 @@ def test_notes_are_read_only():
     exp = Experiment.from_arrays(0.1, y=[1.0, 2.0, 3.0])
     with pytest.raises(TypeError):
         exp.notes["x"] = 1  # type: ignore[index]
+
+
+def test_indexing_by_slice_points_to_slice_method():
+    exp = Experiment.from_arrays(0.1, y=np.arange(30.0))
+    with pytest.raises(TypeError, match=r"exp.slice\(start, stop\)"):
+        exp[10:20]  # type: ignore[index]

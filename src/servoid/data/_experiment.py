@@ -219,6 +219,11 @@ class Experiment:
         )
 
     def __getitem__(self, name: str) -> NDArray[np.float64]:
+        if not isinstance(name, str):
+            raise TypeError(
+                f"index an Experiment by channel name, got {type(name).__name__}; "
+                "use exp.slice(start, stop) for a range of samples"
+            )
         return self.channel(name).values
 
     def unit(self, name: str) -> str:
