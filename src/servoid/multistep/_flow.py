@@ -43,7 +43,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import linalg
 
 from .._errors import DataError, IdentifiabilityError, ServoidWarning
 from ..actuators import psi_ellipse, psi_max
@@ -109,10 +108,15 @@ class _ChamberData:
         cols = []
         for edge in self.edges:
             supply = edge in (2, 3)
+            n = self.p_ch.size
+            p_up: NDArray[np.float64]
+            p_down: NDArray[np.float64]
+            c_flow: NDArray[np.float64]
             if supply:  # flow into the chamber; a reversed drop reverses it
-                p_up, p_down, c_flow = self.p_S, self.p_ch, math.sqrt(2.0 / self.T_S)
+                p_up, p_down = np.full(n, self.p_S), self.p_ch
+                c_flow = np.full(n, math.sqrt(2.0 / self.T_S))
             else:
-                p_up, p_down, c_flow = self.p_ch, self.p_R, np.sqrt(2.0 / self.t_ch)
+                p_up, p_down, c_flow = self.p_ch, np.full(n, self.p_R), np.sqrt(2.0 / self.t_ch)
             forward = p_up >= p_down
             hi = np.where(forward, p_up, p_down)
             lo = np.where(forward, p_down, p_up)
@@ -300,7 +304,11 @@ def identify_flow(
     # ad ∝ √R/ψ_max(κ) for the measured lumped coefficients: delta method, fully
     # correlated across the edges (one κ, one R inserted into all of them)
     g = np.array(scale) * math.sqrt((R_std / (2 * R)) ** 2 + (dlog_psi * kappa_std) ** 2)
-    cov = linalg.block_diag(*blocks) + np.outer(g, g)
+    cov = np.outer(g, g)
+    at = 0
+    for block in blocks:  # per-chamber LS: block diagonal
+        cov[at:at + block.shape[0], at:at + block.shape[0]] += block
+        at += block.shape[0]
     est = Estimate(
         model=None, parameters=np.array(values), names=tuple(names),
         covariance=cov, noise_variance=rss / max(rows - len(values), 1),
