@@ -45,5 +45,7 @@ def test_error_tree():
     assert issubclass(servoid.ChannelError, KeyError)
     assert issubclass(servoid.ConvergenceError, RuntimeError)
     assert issubclass(servoid.OutputExistsError, FileExistsError)
-    for cls in (servoid.DataError, servoid.OptionError, servoid.ModelError):
+    assert issubclass(servoid.OptionTypeError, TypeError)
+    for cls in (servoid.DataError, servoid.OptionError, servoid.OptionTypeError,
+                servoid.ModelError):
         assert issubclass(cls, servoid.ServoidError)

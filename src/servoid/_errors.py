@@ -9,6 +9,7 @@ and from the built-in exception a Python user would expect, so both
     │   └── FileFormatError            malformed, truncated or unreadable file
     ├── ChannelError(KeyError)         a named channel is missing
     ├── OptionError(ValueError)        an option outside its set of values
+    ├── OptionTypeError(TypeError)     an option or argument of the wrong type
     ├── IdentifiabilityError(ValueError)  data cannot determine the parameters
     ├── ModelError(ValueError)         a model that cannot do what is asked
     ├── ConvergenceError(RuntimeError) an iterative solver failed
@@ -29,6 +30,7 @@ __all__ = [
     "IdentifiabilityError",
     "ModelError",
     "OptionError",
+    "OptionTypeError",
     "OutputExistsError",
     "ServoidError",
     "ServoidWarning",
@@ -57,6 +59,10 @@ class ChannelError(ServoidError, KeyError):
 
 class OptionError(ServoidError, ValueError):
     """An option value outside its set of valid values."""
+
+
+class OptionTypeError(ServoidError, TypeError):
+    """An option or argument of the wrong type (a string where a number belongs)."""
 
 
 class IdentifiabilityError(ServoidError, ValueError):

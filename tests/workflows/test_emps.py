@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from servoid import DataError, OptionError, OutputExistsError
+from servoid import DataError, OptionError, OptionTypeError, OutputExistsError
 from servoid.data import ExperimentSpec, load_experiment_spec
 from servoid.workflows._inverse import controller_from_table, identify_inverse_dynamics_spec
 
@@ -94,7 +94,7 @@ def test_compute_only_without_extras(spec):
         ({"model": "stribeck"}, OptionError, "model"),
         ({"refine_output": "velocity"}, OptionError, "refine_output"),
         ({"colour": "red"}, OptionError, "colour"),
-        ({"refine": "yes"}, DataError, "refine"),
+        ({"refine": "yes"}, OptionTypeError, "refine must be true or false"),
         ({"linear_orders": [2, 2]}, DataError, "linear_orders"),
     ],
 )

@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from numbers import Integral, Real
+from numbers import Real
 from typing import Literal
 
+from .._checks import as_int, type_error
 from .._errors import DataError, check_option
 from ..actuators import SET_B, EhsaParameters
 from ..models import TransferFunction
@@ -231,7 +232,7 @@ def _set(obj: EhsaBench, name: str, value: object) -> None:
 
 def _real(name: str, value: object, unit: str) -> float:
     if isinstance(value, bool) or not isinstance(value, Real):
-        raise TypeError(f"{name} must be a real number [{unit}], got {value!r}")
+        raise type_error(name, value, f"a real number [{unit}]")
     return float(value)
 
 
@@ -243,9 +244,4 @@ def _positive(name: str, value: object, unit: str) -> float:
 
 
 def _integer(name: str, value: object, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, Integral):
-        raise TypeError(f"{name} must be an integer in {low}..{high}, got {value!r}")
-    v = int(value)
-    if not low <= v <= high:
-        raise DataError(f"{name} must lie in {low}..{high}, got {v}")
-    return v
+    return as_int(name, value, minimum=low, maximum=high)

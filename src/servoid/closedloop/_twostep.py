@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal as sps
 
+from .._checks import as_float
 from .._errors import DataError, OptionError, ServoidWarning, check_option
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import fit_arx, fit_tf_greybox
@@ -256,6 +257,7 @@ def _lowpass(
 ) -> Experiment | ExperimentSet:
     segments = as_segments(data)
     nyquist = 0.5 / segments[0].dt
+    cutoff = as_float("prefilter", cutoff, finite=False)
     if not 0.0 < cutoff < nyquist:
         raise OptionError(f"prefilter must lie in (0, {nyquist:g}) Hz (Nyquist), got {cutoff!r}")
     sos = sps.butter(4, cutoff, fs=2.0 * nyquist, output="sos")
@@ -283,5 +285,5 @@ def _arx_tf(theta: NDArray[np.float64], na: int, nk: int, dt: float) -> Transfer
 
 
 def _check_positive(name: str, value: float) -> None:
-    if not value > 0:
+    if not as_float(name, value, finite=False) > 0:
         raise OptionError(f"{name} must be > 0, got {value!r}")

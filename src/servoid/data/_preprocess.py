@@ -12,6 +12,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._checks import as_float, as_int
 from .._errors import DataError, check_option
 from ._experiment import Channel, Experiment
 
@@ -178,6 +179,8 @@ def lowpass(
     """
     from scipy import signal as sps  # deferred: importing scipy.signal costs ~1 s
     nyquist = 0.5 / exp.dt
+    cutoff = as_float("cutoff", cutoff, finite=False)
+    order = as_int("order", order, minimum=1)
     if not 0 < cutoff < nyquist:
         raise DataError(
             f"cutoff must lie in (0, {nyquist:g}) Hz (the Nyquist frequency), got {cutoff}"

@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal as sps
 
+from .._checks import as_int
 from .._errors import DataError, IdentifiabilityError, ServoidWarning, check_option
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import PolynomialModel
@@ -288,15 +289,14 @@ def _warn_if_unstable(a: NDArray[np.float64]) -> None:
 
 
 def _count(name: str, value: object, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer, got {value!r}")
-    if value < minimum:
-        raise DataError(f"{name} must be >= {minimum}, got {value}")
-    return int(value)
+    return as_int(name, value, minimum=minimum)
 
 
 def _per_input(name: str, value: object, n_inputs: int, minimum: int) -> tuple[int, ...]:
-    values = [value] * n_inputs if np.isscalar(value) else list(value)  # type: ignore[arg-type]
+    if isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim):
+        values = list(value)
+    else:  # a scalar, or anything else: as_int names the wrong type
+        values = [value] * n_inputs
     if len(values) != n_inputs:
         raise DataError(f"{name} needs one value per input ({n_inputs}), got {values}")
     return tuple(_count(name, v, minimum) for v in values)

@@ -1,8 +1,9 @@
 """Argument checks shared by the excitation designers.
 
 These run at the public boundary only; inner helpers trust their inputs.
-Wrong types raise :class:`TypeError`, wrong values :class:`DataError`, and
-every message names the parameter, the value received and the expectation.
+Wrong types raise :class:`~servoid.OptionTypeError` (a ``TypeError``), wrong
+values :class:`DataError`, and every message names the parameter, the value
+received and the expectation.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from numbers import Integral, Real
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import DataError
+from .._errors import DataError, OptionTypeError
 
 __all__ = [
     "RngLike",
@@ -33,7 +34,9 @@ def as_int(name: str, value: object, minimum: int = 1, what: str = "") -> int:
     """Return ``value`` as an int >= ``minimum`` or raise."""
     kind = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
     if isinstance(value, bool) or not isinstance(value, Integral):
-        raise TypeError(f"{name} must be {kind}{what}, got {value!r} ({type(value).__name__})")
+        raise OptionTypeError(
+            f"{name} must be {kind}{what}, got {value!r} ({type(value).__name__})"
+        )
     if value < minimum:
         raise DataError(f"{name} must be {kind}{what}, got {value}")
     return int(value)
@@ -44,7 +47,7 @@ def as_float(
 ) -> float:
     """Return ``value`` as a finite float, optionally > 0 or >= 0."""
     if isinstance(value, bool) or not isinstance(value, Real):
-        raise TypeError(f"{name} must be a real number{unit}, got {type(value).__name__}")
+        raise OptionTypeError(f"{name} must be a real number{unit}, got {type(value).__name__}")
     out = float(value)
     if not math.isfinite(out):
         raise DataError(f"{name} must be finite{unit}, got {out}")
@@ -72,7 +75,7 @@ def as_rng(value: object, purpose: str) -> np.random.Generator:
         if value < 0:
             raise DataError(f"rng seed must be >= 0, got {value}")
         return np.random.default_rng(int(value))
-    raise TypeError(
+    raise OptionTypeError(
         f"{purpose} needs rng=, a numpy.random.Generator or an integer seed (so the design "
         f"can be reproduced), got {type(value).__name__}"
     )

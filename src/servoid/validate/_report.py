@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal as sps
 
+from .._checks import type_error
 from .._errors import DataError, check_option
 from ..data import Experiment
 from ._metrics import fit_percent, nrmse, relative_error, rmse, vaf
@@ -105,6 +106,8 @@ def validate(
         Level of the correlation bands and verdicts.
     """
     check_option("input", input, ("u", "r"))
+    if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)):
+        raise type_error("horizon", horizon, "an integer (samples)")
     if horizon < 1:
         raise DataError(f"horizon must be >= 1 sample, got {horizon}")
     dt = getattr(model, "dt", None)

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
-import json
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .. import __version__
+from .._checks import as_float, as_float_list, as_int, type_error
 from .._errors import DataError, OptionError, ServoidWarning, check_option
 from ..closedloop import (
     APPROACHES,
@@ -33,12 +35,21 @@ from ..report import (
     write_json,
 )
 from ..validate import ValidationReport, validate
-from ._common import check_outputs, parameter_table, sha256, validation_section
+from ._common import (
+    check_outputs,
+    parameter_table,
+    read_truth,
+    report_options,
+    sha256,
+    validation_section,
+)
 
 __all__ = ["ClosedLoopIdentification", "identify_closed_loop_spec", "loop_from_table"]
 
 _KEYS = ("method", "approach", "na", "nb", "nk", "horizon", "prefilter", "discretization")
 _NAMES = ("K", "omega_hp", "delta_hp")
+_DISCRETIZATIONS = ("tustin", "prewarp", "zoh")
+_F_KEYS = ("num", "den", "dt")
 _LABEL = {"indirect": "two-step", "one-step": "one-step", "direct": "direct"}
 
 
@@ -102,8 +113,8 @@ class ClosedLoopIdentification:
         approaches = list(self.results)
         head = f"  {'param':<9} {'truth':>10}" + "".join(
             f" {_LABEL[a]:>22}" for a in approaches) + "   95 % CI (" + _LABEL[self.primary] + ")"
-        lines = [f"closed-loop identification ({', '.join(_LABEL[a] for a in approaches)}), "
-                 f"loop c = {self.loop.c:g}, F = {_f_text(self.loop)}", head]
+        lines = [(f"closed-loop identification ({', '.join(_LABEL[a] for a in approaches)}), "
+                 f"loop c = {self.loop.c:g}, F = {_f_text(self.loop)}"), head]
         for row in self.table():
             truth = "—" if row["truth"] is None else f"{row['truth']:.5g}"
             cells = "".join(
@@ -133,10 +144,30 @@ def loop_from_table(table: Mapping[str, Any]) -> FeedbackLoop:
             "the closed-loop approaches need the known loop: add [loop] with c = <forward gain> "
             "and F = <feedback gain> to the experiment file"
         )
-    feedback = table["F"]
-    if isinstance(feedback, Mapping):
-        feedback = TransferFunction(feedback["num"], feedback["den"], dt=feedback.get("dt"))
-    return FeedbackLoop(float(table["c"]), feedback)
+    c = as_float("c", table["c"], where="[loop]")
+    return FeedbackLoop(c, _feedback(table["F"]))
+
+
+def _feedback(value: Any) -> float | TransferFunction:
+    if isinstance(value, Mapping):
+        unknown = sorted(set(value) - set(_F_KEYS))
+        if unknown:
+            raise OptionError(f"unknown key(s) in [loop] F: {', '.join(unknown)}; valid keys "
+                              f"are {', '.join(_F_KEYS)}")
+        missing = [k for k in ("num", "den") if k not in value]
+        if missing:
+            raise DataError(f"[loop] F needs {' and '.join(missing)}: write F = {{num = [...], "
+                            f"den = [...]}} (continuous) or add dt = <s> (discrete)")
+        num = as_float_list("F.num", value["num"], min_length=1, where="[loop]")
+        den = as_float_list("F.den", value["den"], min_length=1, where="[loop]")
+        dt = value.get("dt")
+        if dt is not None:
+            dt = as_float("F.dt", dt, positive=True, unit="s", where="[loop]")
+        return TransferFunction(np.asarray(num), np.asarray(den), dt=dt)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise type_error("F", value, "a number or a table {num = [...], den = [...]}",
+                         where="[loop]")
+    return as_float("F", value, where="[loop]")
 
 
 def identify_closed_loop_spec(
@@ -196,12 +227,25 @@ def _options(table: Mapping[str, Any]) -> dict[str, Any]:
                "prefilter": None, "discretization": "tustin"}
     options.update(table)
     approach = options["approach"]
-    approaches = [approach] if isinstance(approach, str) else list(approach)
+    if isinstance(approach, str):
+        approaches = [approach]
+    elif isinstance(approach, (list, tuple)):
+        approaches = list(approach)
+    else:
+        raise type_error("approach", approach, "a string or a list of strings",
+                         where="[identify]")
     if not approaches:
         raise OptionError(f"[identify] approach is empty; choose from {', '.join(APPROACHES)}")
     for a in approaches:
         check_option("[identify] approach", a, APPROACHES)
     options["approach"] = approaches
+    for key, minimum in (("na", 0), ("nb", 1), ("nk", 0)):
+        options[key] = as_int(key, options[key], minimum=minimum, where="[identify]")
+    options["horizon"] = as_int("horizon", options["horizon"], minimum=1, where="[identify]")
+    if options["prefilter"] is not None:
+        options["prefilter"] = as_float("prefilter", options["prefilter"], positive=True,
+                                        unit="Hz", where="[identify]")
+    check_option("[identify] discretization", options["discretization"], _DISCRETIZATIONS)
     return options
 
 
@@ -212,14 +256,11 @@ def _validate(result: ClosedLoopResult, data: Any, horizon: int) -> ValidationRe
 
 
 def _truth_from_spec(spec: ExperimentSpec) -> dict[str, float] | None:
-    name = dict(spec.report).get("truth")
+    name = report_options(spec.report).get("truth")
     if name is None:
         return None
     base = spec.source.parent if spec.source else Path.cwd()
-    data = json.loads((base / str(name)).read_text(encoding="utf-8"))
-    if not all(k in data for k in _NAMES) and isinstance(data.get("parameters"), dict):
-        data = data["parameters"]
-    return {k: float(data[k]) for k in _NAMES if k in data}
+    return read_truth(base / name, _NAMES)
 
 
 def _f_text(loop: FeedbackLoop) -> str:
@@ -271,12 +312,12 @@ def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
     summary = Section(
         "Physical parameters",
         paragraphs=(
-            "Reduced EHSA plant G0(s) = K / (s (s²/ω_hp² + 2 δ_hp s/ω_hp + 1)) identified inside "
+            ("Reduced EHSA plant G0(s) = K / (s (s²/ω_hp² + 2 δ_hp s/ω_hp + 1)) identified inside "
             f"its known loop H = c·G0/(1 + F·G0), c = {ident.loop.c:g}, F = {_f_text(ident.loop)}. "
             "Two-step: ARX of the closed loop from (r, y), G0 = B/(c·A − F·B), Tustin d2c; "
             "standard deviations by the delta method from the ARX covariance. One-step: output-"
             "error fit of the parameterised closed loop (Levenberg–Marquardt), covariance "
-            "σ̂²(JᵀJ)⁻¹.",
+            "σ̂²(JᵀJ)⁻¹."),
         ),
         tables=(
             Table(columns, tuple(rows), "Estimates on the estimation half"),

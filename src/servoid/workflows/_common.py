@@ -3,15 +3,45 @@
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
-from .._errors import OutputExistsError
+from .._checks import as_float, as_str, read_json
+from .._errors import FileFormatError, OptionError, OutputExistsError
 from ..estimate import Estimate
 from ..report import Figure, Section, Table
 from ..validate import ValidationReport
 
-__all__ = ["check_outputs", "parameter_table", "sha256", "validation_section"]
+__all__ = ["REPORT_KEYS", "check_outputs", "parameter_table", "read_truth", "report_options",
+           "sha256", "validation_section"]
+
+REPORT_KEYS = ("folder", "truth")
+
+
+def report_options(table: Mapping[str, Any]) -> dict[str, str]:
+    """Check ``[report]``: only ``folder`` and ``truth``, both paths as strings."""
+    unknown = sorted(set(table) - set(REPORT_KEYS))
+    if unknown:
+        raise OptionError(
+            f"unknown key(s) in [report]: {', '.join(unknown)}; valid: {', '.join(REPORT_KEYS)}"
+        )
+    return {key: as_str(key, value, where="[report]") for key, value in table.items()}
+
+
+def read_truth(path: Path, names: Sequence[str]) -> dict[str, float]:
+    """The known parameters ``names`` found in a JSON truth file, as floats.
+
+    The file is an object holding the names at its top level or under
+    ``"parameters"``; names absent from it are left out.
+    """
+    data = read_json(path, "truth file")
+    if not isinstance(data, Mapping):
+        raise FileFormatError(f"truth file {path} must hold a JSON object, got "
+                              f"{type(data).__name__}")
+    if not all(k in data for k in names) and isinstance(data.get("parameters"), Mapping):
+        data = data["parameters"]
+    return {k: as_float(k, data[k], where=f"truth file {path}:") for k in names if k in data}
 
 
 def check_outputs(targets: Sequence[Path], inputs: Sequence[Path], overwrite: bool) -> None:
@@ -61,10 +91,10 @@ def validation_section(report: ValidationReport, fig_sim: Path, fig_res: Path) -
     return Section(
         "Validation",
         paragraphs=(
-            "The model is simulated from the input alone on the held-back data (the first "
+            ("The model is simulated from the input alone on the held-back data (the first "
             f"{report.first} samples set the initial conditions) and compared with the "
             f"measurement. Residual correlations are tested at {100 * res.confidence:.0f} % "
-            "confidence.",
+            "confidence."),
         ),
         tables=(metrics,),
         figures=(

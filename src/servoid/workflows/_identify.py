@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from .._errors import DataError, OptionError, check_option
+from .._checks import as_int, as_int_list, as_str, type_error
+from .._errors import OptionError, check_option
 from ..data import ExperimentSpec, load_experiment_spec
 from ..estimate import Estimate, fit_arx, select_arx_order
 from ..report import (
@@ -24,7 +25,13 @@ from ..report import (
 )
 from ..validate import ValidationReport, validate
 from ._closedloop import ClosedLoopIdentification, identify_closed_loop_spec
-from ._common import check_outputs, parameter_table, sha256, validation_section
+from ._common import (
+    check_outputs,
+    parameter_table,
+    report_options,
+    sha256,
+    validation_section,
+)
 from ._inverse import InverseDynamicsIdentification, identify_inverse_dynamics_spec
 from ._pneumatic import PneumaticIdentification, identify_pneumatic_spec
 
@@ -32,7 +39,7 @@ __all__ = ["IdentificationResult", "identify"]
 
 METHODS = ("arx", "closedloop", "inverse-dynamics", "pneumatic-multistep")
 _IDENTIFY_KEYS = ("method", "input", "output", "na", "nb", "nk", "criterion", "horizon")
-_REPORT_KEYS = ("folder", "truth")
+_ORDER_MINIMUM = {"na": 0, "nb": 1, "nk": 0}
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,6 +135,7 @@ def identify(
         spec = load_experiment_spec(spec)
     method = spec.identify.get("method", "arx")
     check_option("[identify] method", method, METHODS)
+    report_options(spec.report)
     if method == "closedloop":
         folder = _folder(spec, out) if write else None
         return identify_closed_loop_spec(spec, folder, overwrite=overwrite, truth=truth)
@@ -173,30 +181,33 @@ def _identify_options(table: Mapping[str, Any]) -> dict[str, Any]:
             f"unknown key(s) in [identify]: {', '.join(unknown)}; valid keys are "
             f"{', '.join(_IDENTIFY_KEYS)}"
         )
-    options = {"method": "arx", "input": "u", "output": None, "na": 2, "nb": 2, "nk": 1,
-               "criterion": "aic", "horizon": 5}
+    options: dict[str, Any] = {"method": "arx", "input": "u", "output": None, "na": 2, "nb": 2,
+                               "nk": 1, "criterion": "aic", "horizon": 5}
     options.update({k: (list(v) if isinstance(v, (list, tuple)) else v) for k, v in table.items()})
     check_option("[identify] input", options["input"], ("u", "r"))
     check_option("[identify] criterion", options["criterion"], ("aic", "fpe", "mdl", "fit"))
-    for key in ("na", "nb", "nk"):
-        values = options[key] if isinstance(options[key], list) else [options[key]]
-        if not values or any(isinstance(v, bool) or not isinstance(v, int) for v in values):
-            raise DataError(f"[identify] {key} must be an integer or a list of integers, got {options[key]!r}")
+    if options["output"] is not None:
+        as_str("output", options["output"], where="[identify]")
+    for key, minimum in _ORDER_MINIMUM.items():
+        value = options[key]
+        if isinstance(value, list):
+            options[key] = as_int_list(key, value, min_length=1, minimum=minimum,
+                                       where="[identify]")
+        elif isinstance(value, int) and not isinstance(value, bool):
+            options[key] = as_int(key, value, minimum=minimum, where="[identify]")
+        else:
+            raise type_error(key, value, "an integer or a list of integers", where="[identify]")
+    options["horizon"] = as_int("horizon", options["horizon"], minimum=1, where="[identify]")
     return options
 
 
 def _folder(spec: ExperimentSpec, out: str | os.PathLike[str] | None) -> Path:
     if out is not None:
         return Path(out)
-    report = dict(spec.report)
-    unknown = sorted(set(report) - set(_REPORT_KEYS))
-    if unknown:
-        raise OptionError(
-            f"unknown key(s) in [report]: {', '.join(unknown)}; valid: {', '.join(_REPORT_KEYS)}"
-        )
+    report = report_options(spec.report)
     base = spec.source.parent if spec.source else Path.cwd()
     if "folder" in report:
-        return base / str(report["folder"])
+        return base / report["folder"]
     stem = spec.source.stem if spec.source else "experiment"
     return base / f"{stem}-results"
 
@@ -223,16 +234,16 @@ def _page(result: IdentificationResult, fig_sim: Path, fig_res: Path) -> Page:
     data = Section(
         "Experiment",
         paragraphs=(
-            f"Data file {spec.data_path.name} (sha256 {sha256(spec.data_path)[:16]}…), "
-            f"input {', '.join(o['inputs'])} ({o['input']}), output {o['output']}.",
+            (f"Data file {spec.data_path.name} (sha256 {sha256(spec.data_path)[:16]}…), "
+            f"input {', '.join(o['inputs'])} ({o['input']}), output {o['output']}."),
         ),
     )
     model = Section(
         "Model",
         paragraphs=(
-            f"ARX ({orders}) by least squares ({o['solver']} route, scaled condition number "
+            (f"ARX ({orders}) by least squares ({o['solver']} route, scaled condition number "
             f"{o['condition']:.3g}) on {est.n_samples} equations; residual variance "
-            f"{est.noise_variance:.4g}.",
+            f"{est.noise_variance:.4g}."),
         ),
         tables=(parameter_table(est),),
     )

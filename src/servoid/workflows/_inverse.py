@@ -12,7 +12,6 @@ Reference for the method and the EMPS data: Janot, Gautier, Brunot,
 
 from __future__ import annotations
 
-import json
 import math
 import warnings
 from collections.abc import Mapping
@@ -28,7 +27,17 @@ import numpy as np
 
 from .. import __version__
 from .._atomic import atomic_path
-from .._errors import DataError, OptionError, ServoidWarning, check_option
+from .._checks import (
+    as_bool,
+    as_float,
+    as_int,
+    as_int_list,
+    as_mapping,
+    as_str,
+    read_json,
+    type_error,
+)
+from .._errors import DataError, FileFormatError, OptionError, ServoidWarning, check_option
 from ..actuators import CascadeController, RigidAxis, simulate_rigid_loop
 from ..data import Experiment, ExperimentSpec
 from ..estimate import (
@@ -41,7 +50,7 @@ from ..estimate import (
 )
 from ..report import Figure, Page, Section, Table, write_html, write_json
 from ..validate import relative_error, simulate_from_data
-from ._common import check_outputs, parameter_table, sha256
+from ._common import check_outputs, parameter_table, report_options, sha256
 
 __all__ = ["InverseDynamicsIdentification", "controller_from_table",
            "identify_inverse_dynamics_spec"]
@@ -50,6 +59,7 @@ _KEYS = ("method", "model", "position", "force", "reference", "cutoff", "order",
          "decimation_filter", "differentiation", "trim", "refine", "refine_output", "integration",
          "linear", "linear_orders", "holdout")
 _LOOP_KEYS = ("kp", "kv", "gtau", "saturation")
+_W = "[identify]"
 _DEFAULTS: dict[str, Any] = {
     "model": ["symmetric", "asymmetric"], "position": None, "force": None, "reference": None,
     "cutoff": 100.0, "order": 4, "decimation": 10, "decimation_filter": "fir",
@@ -201,9 +211,9 @@ def controller_from_table(
                 f"[loop] {key} is needed for the closed-loop simulation and is neither in the "
                 "experiment file nor a scalar of the data file; add it under [loop]"
             )
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise DataError(f"[loop] {key} must be a number, got {value!r}")
-        values[key] = float(value)
+        where = "[loop]" if key in table else "data file scalar"
+        values[key] = as_float(key, value, positive=True, finite=key != "saturation",
+                               where=where)
     return CascadeController(values["kp"], values["kv"], values["gtau"], values["saturation"])
 
 
@@ -289,21 +299,38 @@ def _options(table: Mapping[str, Any]) -> dict[str, Any]:
     options = dict(_DEFAULTS)
     options.update({k: v for k, v in table.items() if k != "method"})
     models = options["model"]
-    models = [models] if isinstance(models, str) else list(models)
+    if isinstance(models, str):
+        models = [models]
+    elif isinstance(models, (list, tuple)):
+        models = list(models)
+    else:
+        raise type_error("model", models, "a string or a list of strings", where=_W)
     if not models:
         raise OptionError(f"[identify] model is empty; choose from {', '.join(FRICTION_MODELS)}")
     for m in models:
         check_option("[identify] model", m, FRICTION_MODELS)
     options["model"] = list(dict.fromkeys(models))
+    for key in ("position", "force", "reference"):
+        if options[key] is not None:
+            as_str(key, options[key], where=_W)
+    options["cutoff"] = as_float("cutoff", options["cutoff"], positive=True, unit="Hz", where=_W)
+    options["order"] = as_int("order", options["order"], minimum=1, where=_W)
+    options["decimation"] = as_int("decimation", options["decimation"], minimum=1, where=_W)
+    options["trim"] = as_int("trim", options["trim"], minimum=0, where=_W)
+    check_option("[identify] decimation_filter", options["decimation_filter"], ("fir", "iir"))
+    check_option("[identify] differentiation", options["differentiation"],
+                 ("central", "backward"))
     check_option("[identify] refine_output", options["refine_output"],
                  ("position", "force", "both"))
     check_option("[identify] integration", options["integration"], ("exact", "sign"))
     for key in ("refine", "linear", "holdout"):
-        if not isinstance(options[key], bool):
-            raise DataError(f"[identify] {key} must be true or false, got {options[key]!r}")
-    orders = list(options["linear_orders"])
-    if len(orders) != 3 or any(isinstance(v, bool) or not isinstance(v, int) for v in orders):
-        raise DataError(f"[identify] linear_orders must be [na, nb, nk], got {orders!r}")
+        as_bool(key, options[key], where=_W)
+    orders = options["linear_orders"]
+    if isinstance(orders, (list, tuple)) and len(orders) != 3:
+        raise DataError(f"[identify] linear_orders must be [na, nb, nk], got {list(orders)!r}")
+    orders = as_int_list("linear_orders", orders, length=3, minimum=0, where=_W)
+    if orders[1] < 1:
+        raise DataError(f"[identify] linear_orders = [na, nb, nk] needs nb >= 1, got {orders!r}")
     options["linear_orders"] = orders
     return options
 
@@ -392,10 +419,42 @@ def _only(data: Experiment, role: Any) -> str:
 
 
 def _published_from_spec(spec: ExperimentSpec) -> dict[str, Any] | None:
-    name = dict(spec.report).get("truth")
+    name = report_options(spec.report).get("truth")
     if name is None:
         return None
-    return json.loads((spec.base_dir / str(name)).read_text(encoding="utf-8"))
+    path = spec.base_dir / name
+    data = read_json(path, "truth file")
+    if not isinstance(data, Mapping):
+        raise FileFormatError(f"truth file {path} must hold a JSON object, got "
+                              f"{type(data).__name__}")
+    _check_published(data, f"truth file {path}:")
+    return dict(data)
+
+
+def _check_published(data: Mapping[str, Any], where: str) -> None:
+    """The parts of a reference-results file that the comparison reads must be numbers."""
+
+    def number(name: str, value: Any) -> None:
+        if value is not None:
+            as_float(name, value, finite=False, where=where)
+
+    for model in FRICTION_MODELS:
+        if model not in data:
+            continue
+        ref = as_mapping(model, data[model], where=where)
+        params = as_mapping(f"{model}.parameters", ref.get("parameters", {}), where=where)
+        for name, entry in params.items():
+            entry = as_mapping(f"{model}.parameters.{name}", entry, where=where)
+            if "value" not in entry:
+                raise FileFormatError(f"{where} {model}.parameters.{name} needs a \"value\"")
+            as_float(f"{model}.parameters.{name}.value", entry["value"], where=where)
+            number(f"{model}.parameters.{name}.std", entry.get("std"))
+        number(f"{model}.relative_error", ref.get("relative_error"))
+    if data.get("closed_loop") is not None:
+        loop = as_mapping("closed_loop", data["closed_loop"], where=where)
+        for key in ("position", "force"):
+            number(f"closed_loop.{key}", loop.get(key))
+    number("linear_relative_error", data.get("linear_relative_error"))
 
 
 # -- output -----------------------------------------------------------------------------------

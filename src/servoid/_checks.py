@@ -1,0 +1,196 @@
+"""Boundary validators shared across servoid.
+
+Each ``as_*`` function returns the value in its canonical Python type or
+raises a servoid error whose message names the parameter (prefixed by
+``where``, e.g. ``"[identify]"``), the value received and the expectation::
+
+    as_int("na", "three", where="[identify]")
+    # OptionTypeError: [identify] na must be an integer, got 'three' (str)
+
+A wrong type raises :class:`~servoid.OptionTypeError` (a ``TypeError``), a
+wrong value :class:`~servoid.DataError` (a ``ValueError``), a malformed
+file :class:`~servoid.FileFormatError`. Run these at the boundary (public
+functions, file readers); inner helpers trust their inputs.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from numbers import Integral, Real
+from pathlib import Path
+from typing import Any
+
+from ._errors import DataError, FileFormatError, OptionTypeError
+
+__all__ = [
+    "as_bool",
+    "as_float",
+    "as_float_list",
+    "as_int",
+    "as_int_list",
+    "as_mapping",
+    "as_str",
+    "read_json",
+    "type_error",
+]
+
+
+def _label(name: str, where: str) -> str:
+    return f"{where} {name}" if where else name
+
+
+def type_error(name: str, value: object, expected: str, *, where: str = "") -> OptionTypeError:
+    """The error for ``value`` not being ``expected`` (e.g. ``"an integer"``).
+
+    Returned, not raised, so the caller writes ``raise type_error(...)``.
+    """
+    return OptionTypeError(
+        f"{_label(name, where)} must be {expected}, got {value!r} ({type(value).__name__})"
+    )
+
+
+def as_int(
+    name: str,
+    value: object,
+    *,
+    minimum: int | None = None,
+    maximum: int | None = None,
+    where: str = "",
+) -> int:
+    """Return ``value`` as an int, optionally within ``[minimum, maximum]``.
+
+    Booleans and floats (even ``2.0``) are refused: a count is an integer.
+    """
+    if isinstance(value, bool) or not isinstance(value, Integral):
+        raise type_error(name, value, "an integer", where=where)
+    out = int(value)
+    label = _label(name, where)
+    if minimum is not None and maximum is not None:
+        if not minimum <= out <= maximum:
+            raise DataError(f"{label} must lie in {minimum}..{maximum}, got {out}")
+    elif minimum is not None and out < minimum:
+        raise DataError(f"{label} must be >= {minimum}, got {out}")
+    elif maximum is not None and out > maximum:
+        raise DataError(f"{label} must be <= {maximum}, got {out}")
+    return out
+
+
+def as_float(
+    name: str,
+    value: object,
+    *,
+    positive: bool = False,
+    nonneg: bool = False,
+    finite: bool = True,
+    unit: str = "",
+    where: str = "",
+) -> float:
+    """Return ``value`` (an int or a float, not a bool) as a float.
+
+    ``finite`` refuses inf and NaN; ``positive`` requires > 0, ``nonneg``
+    >= 0. ``unit`` (e.g. ``"Hz"``) is appended to the value messages.
+    """
+    if isinstance(value, bool) or not isinstance(value, Real):
+        raise type_error(name, value, "a number", where=where)
+    out = float(value)
+    label = _label(name, where)
+    suffix = f" {unit}" if unit else ""
+    if finite and not math.isfinite(out):
+        raise DataError(f"{label} must be finite, got {out}")
+    if positive and not out > 0:
+        raise DataError(f"{label} must be > 0{suffix}, got {out:g}")
+    if nonneg and not out >= 0:
+        raise DataError(f"{label} must be >= 0{suffix}, got {out:g}")
+    return out
+
+
+def as_bool(name: str, value: object, *, where: str = "") -> bool:
+    """Return ``value`` if it is ``True`` or ``False`` (not 0/1, not ``"yes"``)."""
+    if not isinstance(value, bool):
+        raise type_error(name, value, "true or false", where=where)
+    return value
+
+
+def as_str(name: str, value: object, *, where: str = "", empty: bool = False) -> str:
+    """Return ``value`` if it is a string, non-empty unless ``empty``."""
+    if not isinstance(value, str):
+        raise type_error(name, value, "a string", where=where)
+    if not value and not empty:
+        raise DataError(f"{_label(name, where)} must be a non-empty string, got ''")
+    return value
+
+
+def as_mapping(name: str, value: object, *, where: str = "") -> Mapping[str, Any]:
+    """Return ``value`` if it is a mapping (a TOML table, a JSON object)."""
+    if not isinstance(value, Mapping):
+        raise type_error(name, value, "a table", where=where)
+    return value
+
+
+def _as_list(name: str, value: object, expected: str, where: str,
+             length: int | None, min_length: int) -> list[Any]:
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence):
+        raise type_error(name, value, expected, where=where)
+    items = list(value)
+    label = _label(name, where)
+    if length is not None and len(items) != length:
+        raise DataError(f"{label} must have {length} entries, got {len(items)}: {items!r}")
+    if len(items) < min_length:
+        raise DataError(f"{label} must have at least {min_length} "
+                        f"{'entry' if min_length == 1 else 'entries'}, got {items!r}")
+    return items
+
+
+def as_int_list(
+    name: str,
+    value: object,
+    *,
+    length: int | None = None,
+    min_length: int = 0,
+    minimum: int | None = None,
+    maximum: int | None = None,
+    where: str = "",
+) -> list[int]:
+    """Return a list or tuple of integers as a list, each checked by :func:`as_int`.
+
+    An entry is named ``name[i]`` in messages.
+    """
+    items = _as_list(name, value, "a list of integers", where, length, min_length)
+    return [as_int(f"{name}[{i}]", v, minimum=minimum, maximum=maximum, where=where)
+            for i, v in enumerate(items)]
+
+
+def as_float_list(
+    name: str,
+    value: object,
+    *,
+    length: int | None = None,
+    min_length: int = 0,
+    finite: bool = True,
+    where: str = "",
+) -> list[float]:
+    """Return a list or tuple of numbers as a list of floats (see :func:`as_float`)."""
+    items = _as_list(name, value, "a list of numbers", where, length, min_length)
+    return [as_float(f"{name}[{i}]", v, finite=finite, where=where) for i, v in enumerate(items)]
+
+
+def read_json(path: str | Path, what: str) -> Any:
+    """Parse a JSON file; ``what`` says what it is (``"truth file"``).
+
+    A missing file raises :class:`FileNotFoundError`; malformed JSON, or
+    bytes that are not UTF-8, raise :class:`~servoid.FileFormatError`
+    naming the file and the parser's complaint.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise FileFormatError(f"{what} {path} is not UTF-8 text: {exc.reason} at byte "
+                              f"{exc.start}") from exc
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise FileFormatError(f"{what} {path} is not valid JSON: {exc.msg} (line {exc.lineno}, "
+                              f"column {exc.colno})") from exc

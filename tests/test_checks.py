@@ -1,0 +1,140 @@
+"""servoid._checks: the shared boundary validators."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from servoid import DataError, FileFormatError, OptionTypeError, ServoidError
+from servoid._checks import (
+    as_bool,
+    as_float,
+    as_float_list,
+    as_int,
+    as_int_list,
+    as_mapping,
+    as_str,
+    read_json,
+    type_error,
+)
+
+
+def test_option_type_error_is_both_servoid_and_type_error():
+    assert issubclass(OptionTypeError, ServoidError)
+    assert issubclass(OptionTypeError, TypeError)
+    err = type_error("na", "three", "an integer", where="[identify]")
+    assert isinstance(err, OptionTypeError)
+    assert str(err) == "[identify] na must be an integer, got 'three' (str)"
+
+
+def test_as_int_accepts_integers():
+    assert as_int("n", 3) == 3
+    out = as_int("n", np.int64(4), minimum=0, maximum=4)
+    assert out == 4 and type(out) is int
+
+
+@pytest.mark.parametrize(
+    ("value", "kwargs", "error", "message"),
+    [
+        ("three", {"where": "[identify]"}, OptionTypeError,
+         "[identify] na must be an integer, got 'three' (str)"),
+        (2.0, {}, OptionTypeError, "na must be an integer, got 2.0 (float)"),
+        (True, {}, OptionTypeError, "na must be an integer, got True (bool)"),
+        (None, {}, OptionTypeError, "na must be an integer, got None (NoneType)"),
+        (-1, {"minimum": 0}, DataError, "na must be >= 0, got -1"),
+        (9, {"maximum": 8}, DataError, "na must be <= 8, got 9"),
+        (9, {"minimum": 1, "maximum": 8, "where": "[x]"}, DataError,
+         "[x] na must lie in 1..8, got 9"),
+    ],
+)
+def test_as_int_refuses(value, kwargs, error, message):
+    with pytest.raises(error) as info:
+        as_int("na", value, **kwargs)
+    assert str(info.value) == message
+
+
+def test_as_float_accepts_numbers():
+    assert as_float("x", 2) == 2.0 and type(as_float("x", 2)) is float
+    assert as_float("x", np.float32(0.5)) == 0.5
+    assert math.isinf(as_float("x", math.inf, finite=False))
+    assert as_float("x", 0.0, nonneg=True) == 0.0
+
+
+@pytest.mark.parametrize(
+    ("value", "kwargs", "error", "message"),
+    [
+        ("x", {"where": "[loop]"}, OptionTypeError, "[loop] c must be a number, got 'x' (str)"),
+        (True, {}, OptionTypeError, "c must be a number, got True (bool)"),
+        ([1.0], {}, OptionTypeError, "c must be a number, got [1.0] (list)"),
+        (math.nan, {}, DataError, "c must be finite, got nan"),
+        (math.inf, {}, DataError, "c must be finite, got inf"),
+        (0.0, {"positive": True, "unit": "Hz"}, DataError, "c must be > 0 Hz, got 0"),
+        (-2.5, {"nonneg": True}, DataError, "c must be >= 0, got -2.5"),
+        (math.nan, {"positive": True, "finite": False}, DataError, "c must be > 0, got nan"),
+    ],
+)
+def test_as_float_refuses(value, kwargs, error, message):
+    with pytest.raises(error) as info:
+        as_float("c", value, **kwargs)
+    assert str(info.value) == message
+
+
+def test_as_bool_str_mapping():
+    assert as_bool("refine", False) is False
+    with pytest.raises(OptionTypeError, match=r"^\[identify\] refine must be true or false, "
+                       r"got 1 \(int\)$"):
+        as_bool("refine", 1, where="[identify]")
+    assert as_str("output", "y") == "y"
+    assert as_str("output", "", empty=True) == ""
+    with pytest.raises(OptionTypeError, match=r"output must be a string, got 5 \(int\)"):
+        as_str("output", 5)
+    with pytest.raises(DataError, match="output must be a non-empty string"):
+        as_str("output", "")
+    assert as_mapping("F", {"num": [1]}) == {"num": [1]}
+    with pytest.raises(OptionTypeError, match=r"F must be a table, got 3 \(int\)"):
+        as_mapping("F", 3)
+
+
+def test_lists():
+    assert as_int_list("orders", (2, 2, 1), length=3) == [2, 2, 1]
+    assert as_float_list("num", [1, 2.5]) == [1.0, 2.5]
+    cases = [
+        (lambda: as_int_list("orders", "221"), OptionTypeError,
+         "orders must be a list of integers, got '221' (str)"),
+        (lambda: as_int_list("orders", [2, 2], length=3, where="[identify]"), DataError,
+         "[identify] orders must have 3 entries, got 2: [2, 2]"),
+        (lambda: as_int_list("orders", [2, "x", 1]), OptionTypeError,
+         "orders[1] must be an integer, got 'x' (str)"),
+        (lambda: as_int_list("orders", [2, -1], minimum=0), DataError,
+         "orders[1] must be >= 0, got -1"),
+        (lambda: as_float_list("den", [], min_length=1), DataError,
+         "den must have at least 1 entry, got []"),
+        (lambda: as_float_list("den", 2.0), OptionTypeError,
+         "den must be a list of numbers, got 2.0 (float)"),
+        (lambda: as_float_list("den", [1.0, None]), OptionTypeError,
+         "den[1] must be a number, got None (NoneType)"),
+    ]
+    for call, error, message in cases:
+        with pytest.raises(error) as info:
+            call()
+        assert str(info.value) == message
+
+
+def test_read_json(tmp_path):
+    good = tmp_path / "truth.json"
+    good.write_text('{"K": 1.5}', encoding="utf-8")
+    assert read_json(good, "truth file") == {"K": 1.5}
+    bad = tmp_path / "bad.json"
+    bad.write_text("{bad", encoding="utf-8")
+    with pytest.raises(FileFormatError) as info:
+        read_json(bad, "truth file")
+    assert str(info.value).startswith(f"truth file {bad} is not valid JSON: ")
+    assert "line 1, column 2" in str(info.value)
+    binary = tmp_path / "bin.json"
+    binary.write_bytes(b"\xff\xfe{")
+    with pytest.raises(FileFormatError, match="is not UTF-8 text"):
+        read_json(binary, "truth file")
+    with pytest.raises(FileNotFoundError):
+        read_json(tmp_path / "missing.json", "truth file")
