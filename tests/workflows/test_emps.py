@@ -11,7 +11,7 @@ import pytest
 
 from servoid import DataError, OptionError, OptionTypeError, OutputExistsError
 from servoid.data import ExperimentSpec, load_experiment_spec
-from servoid.workflows._inverse import controller_from_table, identify_inverse_dynamics_spec
+from servoid.workflows import controller_from_table, identify_inverse_dynamics_spec
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "emps"
 

@@ -50,16 +50,12 @@ from numpy.typing import NDArray
 from scipy import optimize
 
 from .._errors import ChannelError, ConvergenceError, DataError, check_option
-from ..actuators._rigid import (
-    CascadeController,
-    Integration,
-    RigidAxis,
-    RigidLoopResponse,
-    simulate_rigid_loop,
-)
+from ..actuators import CascadeController, RigidAxis, RigidLoopResponse, simulate_rigid_loop
 from ..data import Channel, Experiment, decimate, lowpass
 from ._estimate import Estimate
 from ._ls import lstsq
+
+Integration = Literal["exact", "sign"]  # as simulate_rigid_loop takes it
 
 __all__ = [
     "FRICTION_MODELS",

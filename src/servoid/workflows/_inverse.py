@@ -19,14 +19,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")  # files only, never a window
-import matplotlib.pyplot as plt
 import numpy as np
 
 from .. import __version__
-from .._atomic import atomic_path
 from .._checks import (
     as_bool,
     as_float,
@@ -48,7 +43,18 @@ from ..estimate import (
     fit_inverse_dynamics,
     inverse_dynamics_regression,
 )
-from ..report import Figure, Page, Section, Table, write_html, write_json
+from ..report import (
+    Figure,
+    Page,
+    Section,
+    Table,
+    plot_force_fit,
+    plot_friction,
+    plot_linear,
+    plot_loop,
+    write_html,
+    write_json,
+)
 from ..validate import relative_error, simulate_from_data
 from ._common import check_outputs, parameter_table, report_options, sha256
 
@@ -577,93 +583,3 @@ def _page(ident: InverseDynamicsIdentification, files: Mapping[str, Path]) -> Pa
         meta=(("servoid", __version__), ("experiment file", str(spec.source or "")),
               ("data file", str(spec.data_path))),
     )
-
-
-# -- figures ----------------------------------------------------------------------------------
-
-
-def plot_force_fit(regressions: Mapping[str, Any], estimates: Mapping[str, Estimate],
-                   path: Path, overwrite: bool) -> None:
-    """Decimated measured force against each IDIM-LS prediction."""
-    fig, (ax, ax_err) = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True,
-                                     gridspec_kw={"height_ratios": [3, 1]})
-    first = next(iter(regressions.values()))
-    ax.plot(first.time, first.force, color="0.2", lw=1.0, label="measured τ")
-    for k, (key, reg) in enumerate(regressions.items()):
-        est = estimates[key]
-        fitted = reg.regressors @ est.parameters
-        ax.plot(reg.time, fitted, color=f"C{k + 1}", lw=0.8,
-                label=f"{key} ({est.options['relative_error']:.3g} %)")
-        ax_err.plot(reg.time, reg.force - fitted, color=f"C{k + 1}", lw=0.6)
-    ax.set_ylabel("force [N]")
-    ax.legend(loc="upper right", fontsize=8)
-    ax_err.set_ylabel("error [N]")
-    ax_err.set_xlabel("time [s]")
-    for a in (ax, ax_err):
-        a.grid(alpha=0.3)
-    _save(fig, path, overwrite)
-
-
-def plot_friction(regressions: Mapping[str, Any], estimates: Mapping[str, Estimate],
-                  path: Path, overwrite: bool) -> None:
-    """Friction τ − M q̈ against velocity, with the fitted laws."""
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    key0 = next(iter(regressions))
-    reg = regressions[key0]
-    est = estimates[key0]
-    qd = reg.regressors[:, 1]
-    if est.options["model"] == "asymmetric":
-        qd = reg.regressors[:, 1] + reg.regressors[:, 3]
-    ax.plot(qd, reg.force - est.parameters[0] * reg.regressors[:, 0], ".", ms=2, color="0.5",
-            label="τ − M̂ q̈ (decimated)")
-    v = np.linspace(qd.min(), qd.max(), 400)
-    v = v[v != 0]
-    for k, (key, e) in enumerate(estimates.items()):
-        ax.plot(v, e.model.friction(v), color=f"C{k + 1}", lw=1.5, label=key)
-    ax.set_xlabel("velocity [m/s]")
-    ax.set_ylabel("friction + offset [N]")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
-    _save(fig, path, overwrite)
-
-
-def plot_loop(time: Any, position: Any, force: Any, sims: Mapping[str, Any], path: Path,
-              overwrite: bool) -> None:
-    """Measured vs simulated closed loop: position, its error, force."""
-    fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
-    axes[0].plot(time, position, color="0.2", lw=1.0, label="measured")
-    axes[2].plot(time, force, color="0.2", lw=0.8, label="measured")
-    for k, (key, sim) in enumerate(sims.items()):
-        axes[0].plot(time, sim.position, color=f"C{k + 1}", lw=0.8, ls="--", label=key)
-        axes[1].plot(time, 1e6 * (position - sim.position), color=f"C{k + 1}", lw=0.6, label=key)
-        axes[2].plot(time, sim.force, color=f"C{k + 1}", lw=0.6, label=key)
-    axes[0].set_ylabel("position [m]")
-    axes[1].set_ylabel("position error [µm]")
-    axes[2].set_ylabel("force [N]")
-    axes[2].set_xlabel("time [s]")
-    for a in axes:
-        a.grid(alpha=0.3)
-        a.legend(loc="upper right", fontsize=7)
-    _save(fig, path, overwrite)
-
-
-def plot_linear(time: Any, position: Any, simulated: Any, label: str, path: Path,
-                overwrite: bool) -> None:
-    """Measured position against the linear model's simulation."""
-    fig, ax = plt.subplots(figsize=(9, 4))
-    ax.plot(time, position, color="0.2", lw=1.0, label="measured")
-    ax.plot(time, simulated, color="C3", lw=0.8, label=f"{label} simulated from the input")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("position [m]")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
-    _save(fig, path, overwrite)
-
-
-def _save(fig: Any, path: Path, overwrite: bool) -> None:
-    try:
-        fig.tight_layout()
-        with atomic_path(path, overwrite) as tmp:
-            fig.savefig(tmp, format="png", dpi=110)
-    finally:
-        plt.close(fig)
