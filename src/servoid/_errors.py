@@ -62,7 +62,7 @@ class OptionError(ServoidError, ValueError):
 
 
 class OptionTypeError(ServoidError, TypeError):
-    """An option or argument of the wrong type (a string where a number belongs)."""
+    """An option of the wrong type (text where a number belongs)."""
 
 
 class IdentifiabilityError(ServoidError, ValueError):
@@ -82,7 +82,7 @@ class OutputExistsError(ServoidError, FileExistsError):
 
 
 class ServoidWarning(UserWarning):
-    """A result that is valid but suspicious (unstable, poorly excited, ...)."""
+    """A valid but suspicious result (unstable, poorly excited)."""
 
 
 def check_option(name: str, value: object, valid: Iterable[object]) -> None:

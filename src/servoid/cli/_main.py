@@ -20,7 +20,7 @@ __all__ = ["main"]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``servoid`` command with ``argv``; return the exit code."""
+    """Run the ``servoid`` command; return the exit code."""
     parser = _parser()
     try:
         args = parser.parse_args(argv)

@@ -29,7 +29,7 @@ class ParameterRow:
 
 @dataclass(frozen=True, eq=False)
 class Estimate:
-    """A fitted model with parameter covariance, residuals and diagnostics.
+    """A fitted model with covariance, residuals and diagnostics.
 
     Attributes
     ----------

@@ -48,7 +48,7 @@ class OrderCandidate:
 
 @dataclass(frozen=True, eq=False)
 class OrderSelection:
-    """Result of :func:`select_arx_order`: every candidate and the chosen one."""
+    """Every order candidate of a grid search and the chosen one."""
 
     candidates: tuple[OrderCandidate, ...]
     criterion: Criterion

@@ -15,14 +15,14 @@ __all__ = ["new_figure", "plot_residuals", "plot_validation", "save_figure"]
 
 
 def new_figure(figsize: tuple[float, float]) -> Figure:
-    """A figure outside pyplot: no window, no global state, any backend the user has."""
+    """A matplotlib figure outside pyplot (no window, no state)."""
     return Figure(figsize=figsize)
 
 
 def plot_validation(
     report: ValidationReport, path: str | os.PathLike[str], unit: str = "", overwrite: bool = False
 ) -> None:
-    """Save measured vs simulated (and predicted) output to a PNG/SVG file."""
+    """Save measured vs simulated and predicted output."""
     t = report.time
     first = report.first
     fig = new_figure((9, 5.5))
@@ -47,7 +47,7 @@ def plot_validation(
 def plot_residuals(
     report: ValidationReport, path: str | os.PathLike[str], overwrite: bool = False
 ) -> None:
-    """Save residual autocorrelation and input cross-correlation with bounds."""
+    """Save residual correlation plots with confidence bands."""
     res = report.residuals
     n_cross = res.cross_correlation.shape[0]
     fig = new_figure((9, 2.6 * (1 + n_cross)))
@@ -76,7 +76,7 @@ def _stem(ax: Axes, lags: np.ndarray, r: np.ndarray, bound: float) -> None:
 
 
 def save_figure(fig: Figure, path: str | os.PathLike[str], overwrite: bool = False) -> None:
-    """Save a figure atomically; the format follows the file extension (default PNG)."""
+    """Save a figure atomically in the format of its extension."""
     suffix = os.path.splitext(os.fspath(path))[1].lstrip(".") or "png"
     with atomic_path(path, overwrite) as tmp:
         fig.savefig(tmp, format=suffix, dpi=110)

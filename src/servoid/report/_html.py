@@ -54,7 +54,7 @@ class Section:
 
 @dataclass(frozen=True)
 class Page:
-    """A whole report page; ``meta`` holds provenance lines (key, value)."""
+    """A whole report page with provenance lines in ``meta``."""
 
     title: str
     sections: tuple[Section, ...]

@@ -16,7 +16,7 @@ __all__ = ["to_jsonable", "write_json"]
 
 
 def to_jsonable(obj: Any) -> Any:
-    """Convert numpy scalars/arrays (and NaN/inf) to plain JSON values."""
+    """Convert numpy values (and NaN/inf) to plain JSON values."""
     if isinstance(obj, Mapping):
         return {str(k): to_jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):

@@ -65,7 +65,7 @@ def plot_poles(
     path: str | os.PathLike[str],
     overwrite: bool = False,
 ) -> None:
-    """Save pole maps: continuous models in the s-plane, discrete in the z-plane."""
+    """Save pole maps in the s-plane and the z-plane."""
     fig = new_figure((10, 4.5))
     ax_s, ax_z = fig.subplots(1, 2)
     markers = "xo+^sd"

@@ -62,7 +62,7 @@ def rmse(y: ArrayLike, y_hat: ArrayLike) -> float | NDArray[np.float64]:
 
 
 def vaf(y: ArrayLike, y_hat: ArrayLike) -> float | NDArray[np.float64]:
-    """Variance accounted for, 100·(1 − var(y − ŷ)/var(y)) [%] (per column)."""
+    """Variance accounted for, 100·(1 − var(y − ŷ)/var(y)) [%]."""
     y, y_hat = _pair(y, y_hat)
     _warn_degenerate(np.var(y, axis=0), "VAF")
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -70,7 +70,7 @@ def vaf(y: ArrayLike, y_hat: ArrayLike) -> float | NDArray[np.float64]:
 
 
 def relative_error(y: ArrayLike, y_hat: ArrayLike) -> float | NDArray[np.float64]:
-    """Relative error 100·‖y − ŷ‖/‖y‖ [%] (per column), as in the EMPS benchmark."""
+    """Relative error 100·‖y − ŷ‖/‖y‖ [%] per column."""
     y, y_hat = _pair(y, y_hat)
     if np.any(~(np.linalg.norm(y, axis=0) > 0)):
         warnings.warn("the relative error is undefined for an all-zero measured output",

@@ -153,7 +153,7 @@ def validate(
 def simulate_from_data(
     model: Any, y: NDArray[np.float64], u: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], int]:
-    """Simulate from the input, starting from measured initial conditions.
+    """Simulate from the input and measured initial conditions.
 
     For an ARX-type model (A y = Σ B_i u_i) the first ``m`` = longest-lag
     samples of y and u set the initial state exactly, so the simulation has

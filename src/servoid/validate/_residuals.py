@@ -15,7 +15,7 @@ __all__ = ["ResidualAnalysis", "residual_analysis"]
 
 @dataclass(frozen=True, eq=False)
 class ResidualAnalysis:
-    """Correlation tests of residuals ε against whiteness and the input.
+    """Residual tests for whiteness and independence of the input.
 
     Attributes
     ----------
@@ -88,7 +88,7 @@ def residual_analysis(
     max_lag: int = 25,
     confidence: float = 0.99,
 ) -> ResidualAnalysis:
-    """Test residuals for whiteness and for correlation with the input.
+    """Test residuals for whiteness and correlation with the input.
 
     Parameters
     ----------

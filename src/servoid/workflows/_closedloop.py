@@ -55,7 +55,7 @@ _LABEL = {"indirect": "two-step", "one-step": "one-step", "direct": "direct"}
 
 @dataclass(frozen=True, eq=False)
 class ClosedLoopIdentification:
-    """Every requested closed-loop approach, validated, with the truth if known."""
+    """Every closed-loop approach asked for, validated."""
 
     spec: ExperimentSpec
     loop: FeedbackLoop
@@ -131,7 +131,7 @@ class ClosedLoopIdentification:
 
 
 def loop_from_table(table: Mapping[str, Any]) -> FeedbackLoop:
-    """Build the known loop from the ``[loop]`` table of an experiment file.
+    """Build the known loop from an experiment file's ``[loop]``.
 
     ``c`` is the forward gain; ``F`` the feedback, a number or a table
     ``{num = [...], den = [...]}`` (continuous, or discrete with ``dt``).
