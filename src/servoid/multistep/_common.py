@@ -499,3 +499,94 @@ def unknown_keys(where: str, given: Mapping[str, Any], valid: Sequence[str]) -> 
     if unknown:
         raise OptionError(f"unknown key(s) in {where}: {', '.join(unknown)}; valid keys are "
                           f"{', '.join(valid)}")
+
+
+def newey_west_lags(n: int) -> int:
+    """Bartlett-kernel bandwidth of Newey & West (1994): ⌊4 (n/100)^(2/9)⌋."""
+    return int(4.0 * (max(n, 1) / 100.0) ** (2.0 / 9.0))
+
+
+def hac_covariance(
+    groups: Sequence[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.intp]]],
+    lags: int,
+) -> NDArray[np.float64]:
+    """LS covariance robust to coloured residuals (Newey–West, Bartlett kernel).
+
+    The steps regress rig signals whose noise passed the anti-alias filter
+    (and, in S2, the equation's SVF): their residuals are correlated over
+    several samples, so σ²(ΦᵀΦ)⁻¹ understates the spread.  With H = ΣΦᵀΦ
+    and g_t = φ_t e_t this returns ``H⁻¹ S H⁻¹ · n/(n − p)`` where
+    ``S = Σ_l w_l Σ_t g_t g_{t−l}ᵀ``, ``w_l = 1 − |l|/(L + 1)``.
+
+    Parameters
+    ----------
+    groups : sequence of (phi, resid, index)
+        Regression rows of one record each (e.g. a chamber), with the
+        sample index of each row: lags are taken in time, so rows across a
+        gap in the mask are not paired.
+    lags : int
+        Bandwidth L [samples].
+
+    Returns
+    -------
+    ndarray, shape (p, p)
+        The covariance of the LS estimate.
+    """
+    p = groups[0][0].shape[1]
+    h = np.zeros((p, p))
+    s = np.zeros((p, p))
+    n = 0
+    for phi, resid, index in groups:
+        h += phi.T @ phi
+        n += resid.size
+        if index.size == 0:
+            continue
+        g = np.zeros((int(index[-1]) - int(index[0]) + 1, p))
+        g[index - index[0]] = phi * resid[:, None]
+        s += g.T @ g
+        for lag in range(1, min(lags, g.shape[0] - 1) + 1):
+            gam = g[lag:].T @ g[:-lag]
+            s += (1.0 - lag / (lags + 1.0)) * (gam + gam.T)
+    h_inv = np.linalg.inv(h)
+    cov = h_inv @ s @ h_inv * (n / max(n - p, 1))
+    return np.asarray(0.5 * (cov + cov.T))
+
+
+def propagate(
+    cov: NDArray[np.float64],
+    solve: Any,
+    inserted: Sequence[tuple[float, float]],
+) -> tuple[NDArray[np.float64], list[NDArray[np.float64]]]:
+    """Add the uncertainty of inserted estimates to a step's covariance.
+
+    Delta method, the inserted values taken as independent of this step's
+    data: ``cov + Σ_j g_j g_jᵀ σ_j²`` with ``g_j = ∂θ/∂z_j`` by central
+    differences ``(θ(z_j + h_j) − θ(z_j − h_j)) / 2h_j``.
+
+    Parameters
+    ----------
+    cov : ndarray, shape (p, p)
+        The step's own covariance.
+    solve : callable
+        ``solve(j, delta)`` → θ re-estimated with inserted value j moved by
+        ``delta``.
+    inserted : sequence of (value, step)
+        Per inserted value its std σ_j and the difference step h_j (> 0);
+        entries with σ_j = 0 are skipped.
+
+    Returns
+    -------
+    (ndarray, list of ndarray)
+        The covariance and the gradients g_j (zeros where skipped).
+    """
+    out = np.array(cov, dtype=float)
+    grads = []
+    for j, (std, h) in enumerate(inserted):
+        if std <= 0.0:
+            grads.append(np.zeros(out.shape[0]))
+            continue
+        g = (np.asarray(solve(j, +h), dtype=float) - np.asarray(solve(j, -h), dtype=float)) / (
+            2.0 * h)
+        out += np.outer(g, g) * std**2
+        grads.append(g)
+    return out, grads

@@ -36,10 +36,12 @@ zero crossing and share one LS per chamber.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,8 +57,11 @@ from ._common import (
     channel,
     check_known,
     check_positive,
+    hac_covariance,
     mdot_sensor_lag,
+    newey_west_lags,
     pressures,
+    propagate,
     temperature,
 )
 
@@ -202,6 +207,18 @@ def identify_critical_pressure(
     for w in caught:
         notes.append(f"S0 (p_krit): {w.message}")
         warnings.warn(str(w.message), ServoidWarning, stacklevel=2)
+    # the joint covariance σ̂²(JᵀJ)⁻¹ takes white residuals; the rig's ṁ noise passed the
+    # anti-alias filter: Newey–West on the same Jacobian J = [∂r/∂b, Φ(b)]
+    b_hat, coef = float(est["p_krit"]), np.asarray(est.parameters[1:], dtype=float)
+    h = float(est.options["difference_step"])
+    phi, y = build(b_hat)
+    jac = np.column_stack([(build(b_hat + h)[0] - build(b_hat - h)[0]) @ coef / (2.0 * h), phi])
+    resid = y - phi @ coef
+    cov = hac_covariance([(jac[row0[j]:row0[j + 1]], resid[row0[j]:row0[j + 1]], c.rows)
+                          for j, c in enumerate(chambers)], newey_west_lags(y.size))
+    est = dataclasses.replace(est, covariance=cov, options={
+        **est.options, "white_covariance": est.covariance.tolist(),
+        "covariance": "joint Jacobian [∂r/∂b, Φ], Newey–West (coloured residuals)"})
     return StepResult(
         step="S0 p_krit", title="critical pressure ratio p_krit of the flow function",
         equation=_EQ_S0, record=name, estimate=est, mask=mask, method="separable_ls",
@@ -221,6 +238,7 @@ def identify_flow(
     p_krit: float,
     kappa_std: float = 0.0,
     R_std: float = 0.0,
+    p_krit_std: float = 0.0,
     mdot_limit: float = MDOT_LIMIT,
     x_v_min: float = 0.0,
     min_samples: int = 50,
@@ -246,6 +264,9 @@ def identify_flow(
         Std of κ, propagated into the edges' std (delta method).
     R_std : float
         Std of R, propagated likewise.
+    p_krit_std : float
+        Std of p_krit, propagated likewise (∂(a_i d_i)/∂p_krit by
+        re-solving at p_krit ± 0.001).
     mdot_limit : float
         Mass-flow sensor range [kg/s]; saturated samples are excluded.
     x_v_min : float
@@ -258,7 +279,9 @@ def identify_flow(
     Returns
     -------
     StepResult
-        ``ad_1`` … ``ad_4`` [m] for the identifiable edges.
+        ``ad_1`` … ``ad_4`` [m] for the identifiable edges.  The covariance
+        is the LS one robust to coloured residuals (Newey–West) plus the
+        inserted κ, R and p_krit uncertainties (delta method).
 
     Raises
     ------
@@ -278,44 +301,67 @@ def identify_flow(
         raise DataError(f"p_krit must lie in [0, 1), got {p_krit:g}")
     chambers, notes, mask = _chamber_data(record, known, mdot_limit, x_v_min, min_samples,
                                           "S3 (flow)")
+    p_krit_std = float(p_krit_std)
+    if not (math.isfinite(p_krit_std) and p_krit_std >= 0.0):
+        raise DataError(f"p_krit_std must be finite and >= 0, got {p_krit_std:g}")
+
+    def fit(b: float) -> list[Any]:
+        return [lstsq(c.regressors(b, kappa, R), c.mdot, tuple(f"ad_{e}" for e in c.edges))
+                for c in chambers]
+
+    fits = fit(p_krit)
     values: list[float] = []
-    blocks: list[NDArray[np.float64]] = []
-    scale: list[float] = []
     names: list[str] = []
+    groups = []
     rss, rows = 0.0, 0
-    dlog_psi = (math.log(psi_max(kappa + 1e-6)) - math.log(psi_max(kappa - 1e-6))) / 2e-6
     per_edge = {}
-    for c in chambers:
-        phi = c.regressors(p_krit, kappa, R)
-        labels = tuple(f"ad_{e}" for e in c.edges)
-        res = lstsq(phi, c.mdot, labels)
+    for c, res in zip(chambers, fits, strict=True):
         ad = np.asarray(res.theta, dtype=float)
-        blocks.append(np.asarray(res.covariance))
-        scale += ad.tolist()
+        phi = c.regressors(p_krit, kappa, R)
+        resid = c.mdot - phi @ ad
+        groups.append([(phi, resid, c.rows)])
         values += ad.tolist()
-        names += labels
+        names += [f"ad_{e}" for e in c.edges]
         rss += res.rss
         rows += res.n_rows
-        resid = c.mdot - phi @ ad
         for k, e in enumerate(c.edges):
             on = c.open_rows[e]
             per_edge[f"ad_{e}"] = {"samples": int(on.sum()), "ls_std": float(res.std[k]),
                                    "rms_residual": math.sqrt(float(np.mean(resid[on] ** 2)))}
+    # per-chamber LS, block diagonal; residuals coloured by the anti-alias filter and the
+    # sensor lag: Newey–West covariance
+    lags = newey_west_lags(rows)
+    cov = np.zeros((len(values), len(values)))
+    at = 0
+    for group in groups:
+        block = hac_covariance(group, lags)
+        cov[at:at + block.shape[0], at:at + block.shape[0]] = block
+        at += block.shape[0]
+    ls_var = np.diag(cov).copy()
     # ad ∝ √R/ψ_max(κ) for the measured lumped coefficients: delta method, fully
     # correlated across the edges (one κ, one R inserted into all of them)
-    g = np.array(scale) * math.sqrt((R_std / (2 * R)) ** 2 + (dlog_psi * kappa_std) ** 2)
-    cov = np.outer(g, g)
-    at = 0
-    for block in blocks:  # per-chamber LS: block diagonal
-        cov[at:at + block.shape[0], at:at + block.shape[0]] += block
-        at += block.shape[0]
+    dlog_psi = (math.log(psi_max(kappa + 1e-6)) - math.log(psi_max(kappa - 1e-6))) / 2e-6
+    g = np.array(values) * math.sqrt((R_std / (2 * R)) ** 2 + (dlog_psi * kappa_std) ** 2)
+    cov += np.outer(g, g)
+    # p_krit (S0) enters the regressors nonlinearly: re-solve at p_krit ± h
+    h = min(1e-3, 0.5 * min(p_krit, 1.0 - p_krit)) if p_krit > 0.0 else 1e-3
+
+    def solve(_: int, delta: float) -> NDArray[np.float64]:
+        return np.concatenate([np.asarray(r.theta, dtype=float) for r in fit(p_krit + delta)])
+
+    cov, grads = propagate(cov, solve, [(p_krit_std, h)])
+    for k, n in enumerate(names):
+        per_edge[n].update({"hac_std": math.sqrt(ls_var[k]),
+                            "d_dp_krit": float(grads[0][k])})
     est = Estimate(
         model=None, parameters=np.array(values), names=tuple(names),
         covariance=cov, noise_variance=rss / max(rows - len(values), 1),
         n_samples=rows, method="ls", units=("m",) * len(values),
         options={"kappa": kappa, "R": R, "p_krit": p_krit, "mdot_limit": mdot_limit,
                  "mdot_sensor_bandwidth": known.mdot_sensor_bandwidth,
-                 "covariance": "per-chamber LS, κ and R std propagated (delta method)"},
+                 "p_krit_std": p_krit_std, "hac_lags": lags,
+                 "covariance": "per-chamber LS (Newey–West, coloured residuals); the std of "
+                               "κ, R and p_krit propagated (delta method)"},
     )
     return StepResult(
         step="S3", title="flow coefficients a_i d_i of the valve edges", equation=_EQ_S3,

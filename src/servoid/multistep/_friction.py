@@ -15,8 +15,10 @@ where F_haft fades linearly into d_k + c_k·ẋ_krit, so c_k and d_k enter).
   is found *exactly* among all gaps between sorted sample speeds (cumulative
   sums, O(N log N)), the documented alternative to a grid.  The residual
   sum is a step function of the threshold, so there is no curvature for
-  a variance: the std reported is the width of the optimal gap over √12
-  (a uniform distribution over it).
+  a variance: the std is a moving-block bootstrap (the map's samples in
+  time order, resampled in 20 ms blocks, the search repeated).  The
+  optimal gap's width/√12, a resolution, is 10× smaller and kept only as
+  ``options["resolution_std"]``.
 * **S4** — LS on (4.1) over the samples with |ẋ_k| ≥ ẋ_krit:
   ``y = m_k ẍ_k − F_p``, ``φ = [−sgn ẋ_k, −ẋ_k]`` → (d_k, c_k).
 * **S5** — LS on (4.2) over ε < |ẋ_k| < ẋ_krit with c_k, d_k inserted.
@@ -38,8 +40,10 @@ velocity; the gain is that no differentiated noise enters.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,8 +59,11 @@ from ._common import (
     check_derivatives,
     check_known,
     check_positive,
+    hac_covariance,
     ls_estimate,
+    newey_west_lags,
     pressures,
+    propagate,
     window_all,
 )
 from ._thermo import zero_phase_derivatives
@@ -115,6 +122,9 @@ def identify_critical_velocity(
     omega_f: float = 2 * math.pi * 400.0,
     guard: float = 5e-4,
     min_samples: int = 20,
+    n_boot: int = 100,
+    block: float = 0.02,
+    rng: np.random.Generator | int | None = None,
     name: str = "friction",
 ) -> StepResult:
     """Find the friction threshold ẋ_krit from the F_fr–ẋ_k map (S0).
@@ -141,13 +151,21 @@ def identify_critical_velocity(
         0.5 ms covers a 2 kHz anti-alias filter.
     min_samples : int
         Fewest samples on each side of the threshold.
+    n_boot : int
+        Bootstrap resamples for the std (module notes).
+    block : float
+        Length of the bootstrap's blocks [s]; longer than the noise's
+        correlation (the anti-alias filter's few samples).
+    rng : numpy.random.Generator or int, optional
+        Source of the bootstrap's draws, or a seed; None: seed 0, so a
+        result is reproducible.
     name : str
         Record name for the result.
 
     Returns
     -------
     StepResult
-        ``v_krit`` [m/s] with the std of the optimal gap (module notes).
+        ``v_krit`` [m/s] with its bootstrap std (module notes).
 
     Raises
     ------
@@ -161,31 +179,49 @@ def identify_critical_velocity(
     use = sig.whole_window(np.abs(sig.v) > sig.floor)
     speed = np.abs(sig.v[use])
     force = -sig.y[use] * np.sign(sig.v[use])  # friction along the motion
-    order = np.argsort(speed, kind="stable")
-    s, f = speed[order], force[order]
     lo, hi = (float(b) for b in bounds)
-    rss = _split_rss(s, f)
-    k = np.arange(1, s.size)  # split between s[k−1] and s[k]: k samples below
-    thr = 0.5 * (s[k - 1] + s[k])
-    ok = (thr >= lo) & (thr <= hi) & (k >= min_samples) & (s.size - k >= min_samples) & (
-        s[k] > s[k - 1])
-    if not ok.any():
+    best = _best_split(speed, force, lo, hi, min_samples)
+    if best is None:
+        s = np.sort(speed)
         raise IdentifiabilityError(
             f"S0 (ẋ_krit): no threshold in [{lo:g}, {hi:g}] m/s has {min_samples} moving samples "
             f"on both sides (speeds span {s.min() if s.size else 0:.3g}–"
             f"{s.max() if s.size else 0:.3g} m/s); the friction test must pass through low and "
             "high speeds"
         )
-    best = int(np.flatnonzero(ok)[np.argmin(rss[ok])])
-    gap = float(s[k[best]] - s[k[best] - 1])
-    value = float(thr[best])
+    value, gap, rss_best, s, f = best
+    # the RSS is a step function of the threshold (no curvature for a variance): moving-block
+    # bootstrap over the map's samples in time order, blocks longer than the noise's colour
+    if not (rng is None or isinstance(rng, (np.random.Generator, int, np.integer))) or (
+            isinstance(rng, bool)):
+        raise TypeError(f"rng must be a numpy Generator, an int seed or None, got {rng!r}")
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(
+        0 if rng is None else int(rng))
+    if isinstance(n_boot, bool) or not isinstance(n_boot, (int, np.integer)):
+        raise TypeError(f"n_boot must be an int, got {n_boot!r}")
+    n_boot = int(n_boot)
+    if n_boot < 2:
+        raise DataError(f"n_boot must be >= 2, got {n_boot}")
+    width = max(1, min(speed.size, round(check_positive("block", block, "s") / record.dt)))
+    boot = []
+    for _ in range(n_boot):
+        starts = gen.integers(0, speed.size - width + 1, math.ceil(speed.size / width))
+        idx = (starts[:, None] + np.arange(width)).ravel()[:speed.size]
+        again = _best_split(speed[idx], force[idx], lo, hi, min_samples)
+        if again is not None:
+            boot.append(again[0])
+    if len(boot) < 2:
+        raise IdentifiabilityError("S0 (ẋ_krit): the bootstrap resamples find no threshold; "
+                                   "the map is too sparse near ẋ_krit")
+    var = float(np.var(boot, ddof=1))
     est = Estimate(
         model=None, parameters=np.array([value]), names=("v_krit",),
-        covariance=np.array([[gap**2 / 12.0]]), noise_variance=float(rss[best]) / max(
-            s.size - 4, 1),
+        covariance=np.array([[var]]), noise_variance=rss_best / max(s.size - 4, 1),
         n_samples=int(s.size), method="threshold_search", units=("m/s",),
-        options={"gap": [float(s[k[best] - 1]), float(s[k[best]])], "bounds": [lo, hi],
-                 "std": "width of the optimal gap / √12 (the RSS is a step function)"},
+        options={"gap": gap, "bounds": [lo, hi], "n_boot": n_boot, "block": width,
+                 "resolution_std": (gap[1] - gap[0]) / math.sqrt(12.0),
+                 "std": f"moving-block bootstrap ({n_boot} resamples, blocks of {width} "
+                        "samples) of the threshold search"},
     )
     stride = max(1, s.size // 2000)
     mask = np.zeros(record.n_samples, dtype=bool)
@@ -203,6 +239,7 @@ def identify_sliding_friction(
     known: KnownConstants,
     *,
     v_krit: float,
+    v_krit_std: float = 0.0,
     derivatives: Derivatives = "measured",
     omega_f: float = 2 * math.pi * 400.0,
     guard: float = 5e-4,
@@ -218,6 +255,9 @@ def identify_sliding_friction(
         Areas, m_k, p_amb, g.
     v_krit : float
         Threshold ẋ_krit from S0 [m/s].
+    v_krit_std : float
+        Its std, propagated into the covariance (delta method, secant
+        over ±σ: the rows change with the threshold).
     derivatives : {"measured", "svf"}
         Recorded ẋ_k, ẍ_k, or the zero-phase SVF of x_k (module notes).
     omega_f : float
@@ -234,19 +274,36 @@ def identify_sliding_friction(
     Returns
     -------
     StepResult
-        ``d_k`` [N] and ``c_k`` [N·s/m] with LS std.
+        ``d_k`` [N] and ``c_k`` [N·s/m]; covariance LS robust to coloured
+        residuals (Newey–West) plus the propagated v_krit std.
     """
     known = check_known(known)
     v_krit = check_positive("v_krit", v_krit, "m/s")
+    v_krit_std = _check_std("v_krit_std", v_krit_std)
     sig = _signals(record, known, derivatives, omega_f, guard, "S4 (sliding friction)")
-    sliding = np.abs(sig.v) >= v_krit
-    rows = sig.whole_window(sliding)
-    sgn = np.sign(sig.v) * sliding
-    phi = np.column_stack([-sig.filt(sgn), -sig.filt(sig.v * sliding)])[rows]
-    _enough(rows, "S4 (sliding friction)", f"|ẋ_k| >= ẋ_krit = {v_krit:g} m/s")
-    res = lstsq(phi, sig.y[rows], ("d_k", "c_k"))
-    est = ls_estimate(res, ("d_k", "c_k"), ("N", "N·s/m"), "ls",
-                      {"v_krit": v_krit, "derivatives": derivatives})
+
+    def fit(threshold: float) -> tuple[Any, NDArray[np.bool_], NDArray[np.float64]]:
+        sliding = np.abs(sig.v) >= threshold
+        rows = sig.whole_window(sliding)
+        sgn = np.sign(sig.v) * sliding
+        phi = np.column_stack([-sig.filt(sgn), -sig.filt(sig.v * sliding)])[rows]
+        _enough(rows, "S4 (sliding friction)", f"|ẋ_k| >= ẋ_krit = {threshold:g} m/s")
+        return lstsq(phi, sig.y[rows], ("d_k", "c_k")), rows, phi
+
+    res, rows, phi = fit(v_krit)
+    # residuals coloured by the anti-alias filter (and the SVF): Newey–West
+    lags = max(sig.half_window, newey_west_lags(res.n_rows))
+    cov = hac_covariance([(phi, sig.y[rows] - phi @ res.theta, np.flatnonzero(rows))], lags)
+    # ẋ_krit (S0) selects the rows: secant over ±σ (the fit is a step function of it)
+    h = min(v_krit_std, 0.5 * v_krit)
+    cov, grads = propagate(cov, lambda _, d: fit(v_krit + d)[0].theta, [(v_krit_std, h)])
+    est = dataclasses.replace(
+        ls_estimate(res, ("d_k", "c_k"), ("N", "N·s/m"), "ls",
+                    {"v_krit": v_krit, "v_krit_std": v_krit_std, "derivatives": derivatives,
+                     "hac_lags": lags, "white_std": [float(v) for v in res.std],
+                     "d_dv_krit": grads[0].tolist(),
+                     "covariance": "LS, Newey–West; v_krit std propagated (delta method)"}),
+        covariance=cov)
     return StepResult(
         step="S4", title="sliding friction d_k, c_k", equation=_EQ_S4, record=name,
         estimate=est, mask=rows, method="ls", extra={"derivatives": derivatives},
@@ -260,6 +317,8 @@ def identify_low_speed_friction(
     v_krit: float,
     d_k: float,
     c_k: float,
+    v_krit_std: float = 0.0,
+    sliding_covariance: NDArray[np.float64] | None = None,
     derivatives: Derivatives = "measured",
     blend: bool = False,
     omega_f: float = 2 * math.pi * 400.0,
@@ -280,6 +339,10 @@ def identify_low_speed_friction(
         Coulomb friction from S4 [N].
     c_k : float
         Viscous friction from S4 [N·s/m].
+    v_krit_std : float
+        Std of ẋ_krit, propagated (delta method, secant over ±σ).
+    sliding_covariance : ndarray, shape (2, 2), optional
+        Covariance of (d_k, c_k) from S4, propagated likewise.
     derivatives : {"measured", "svf"}
         Recorded ẋ_k, ẍ_k, or the zero-phase SVF of x_k.
     blend : bool
@@ -299,10 +362,17 @@ def identify_low_speed_friction(
     Returns
     -------
     StepResult
-        ``F_haft`` [N] with LS std.
+        ``F_haft`` [N]; covariance LS robust to coloured residuals
+        (Newey–West) plus the propagated inserted values.
     """
     known = check_known(known)
     v_krit = check_positive("v_krit", v_krit, "m/s")
+    v_krit_std = _check_std("v_krit_std", v_krit_std)
+    dc_cov = np.zeros((2, 2)) if sliding_covariance is None else np.asarray(
+        sliding_covariance, dtype=float)
+    if dc_cov.shape != (2, 2) or not np.all(np.isfinite(dc_cov)):
+        raise DataError(f"sliding_covariance must be a finite 2×2 covariance of (d_k, c_k), "
+                        f"got shape {dc_cov.shape}")
     sig = _signals(record, known, derivatives, omega_f, guard, "S5 (low-speed friction)")
     eps = sig.floor
     if v_krit <= eps:
@@ -310,22 +380,51 @@ def identify_low_speed_friction(
                         f"velocity noise), got {v_krit:g} m/s")
     speed = np.abs(sig.v)
     sgn = np.sign(sig.v)
-    sliding = speed >= v_krit
-    low = (speed > eps) & ~sliding
-    w = np.clip((speed - eps) / (v_krit - eps), 0.0, 1.0) if blend else np.zeros_like(speed)
-    known_part = sgn * sliding * (d_k + c_k * speed) + sgn * low * w * (d_k + c_k * v_krit)
-    y = sig.y + sig.filt(known_part)
-    reg = -sig.filt(sgn * low * (1.0 - w))
-    if sig.half_window == 0:
-        rows = sig.whole_window(low)
-    else:
-        rows = sig.whole_window(speed > eps) & (np.abs(reg) > 0.2)
-    _enough(rows, "S5 (low-speed friction)",
-            f"ε = {eps:g} < |ẋ_k| < ẋ_krit = {v_krit:g} m/s")
-    res = lstsq(reg[rows, None], y[rows], ("F_haft",))
-    est = ls_estimate(res, ("F_haft",), ("N",), "ls",
-                      {"v_krit": v_krit, "d_k": d_k, "c_k": c_k, "blend": bool(blend),
-                       "derivatives": derivatives})
+
+    def fit(vk: float, dk: float, ck: float) -> tuple[Any, NDArray[np.bool_],
+                                                      NDArray[np.float64], NDArray[np.float64]]:
+        sliding = speed >= vk
+        low = (speed > eps) & ~sliding
+        w = np.clip((speed - eps) / (vk - eps), 0.0, 1.0) if blend else np.zeros_like(speed)
+        known_part = sgn * sliding * (dk + ck * speed) + sgn * low * w * (dk + ck * vk)
+        y = sig.y + sig.filt(known_part)
+        reg = -sig.filt(sgn * low * (1.0 - w))
+        if sig.half_window == 0:
+            rows = sig.whole_window(low)
+        else:
+            rows = sig.whole_window(speed > eps) & (np.abs(reg) > 0.2)
+        _enough(rows, "S5 (low-speed friction)",
+                f"ε = {eps:g} < |ẋ_k| < ẋ_krit = {vk:g} m/s")
+        return lstsq(reg[rows, None], y[rows], ("F_haft",)), rows, reg[rows, None], y[rows]
+
+    res, rows, phi, y_rows = fit(v_krit, d_k, c_k)
+    lags = max(sig.half_window, newey_west_lags(res.n_rows))
+    cov = hac_covariance([(phi, y_rows - phi @ res.theta, np.flatnonzero(rows))], lags)
+    # inserted ẋ_krit (secant over ±σ: it selects the rows) and (d_k, c_k) with their
+    # joint covariance from S4 (delta method)
+    base = np.array([v_krit, d_k, c_k])
+    steps = [min(v_krit_std, 0.5 * (v_krit - eps)), *np.sqrt(np.diag(dc_cov))]
+    grads = np.zeros(3)
+    for j, h in enumerate(steps):
+        if h > 0.0:
+            up, down = base.copy(), base.copy()
+            up[j] += h
+            down[j] -= h
+            grads[j] = (fit(*up)[0].theta[0] - fit(*down)[0].theta[0]) / (2.0 * h)
+    inserted = np.zeros((3, 3))
+    inserted[0, 0] = v_krit_std**2
+    inserted[1:, 1:] = dc_cov
+    cov = cov + float(grads @ inserted @ grads)
+    est = dataclasses.replace(
+        ls_estimate(res, ("F_haft",), ("N",), "ls",
+                    {"v_krit": v_krit, "d_k": d_k, "c_k": c_k, "blend": bool(blend),
+                     "derivatives": derivatives, "hac_lags": lags,
+                     "white_std": [float(v) for v in res.std],
+                     "d_dinserted": dict(zip(("v_krit", "d_k", "c_k"), grads.tolist(),
+                                             strict=True)),
+                     "covariance": "LS, Newey–West; v_krit, d_k, c_k propagated (delta "
+                                   "method)"}),
+        covariance=np.atleast_2d(cov))
     return StepResult(
         step="S5", title="static friction F_haft", equation=_EQ_S5, record=name,
         estimate=est, mask=rows, method="ls", extra={"derivatives": derivatives,
@@ -387,6 +486,27 @@ def _noise_level(v: NDArray[np.float64]) -> float:
     return float(np.median(est)) if est else 0.0
 
 
+def _best_split(
+    speed: NDArray[np.float64], force: NDArray[np.float64], lo: float, hi: float,
+    min_samples: int,
+) -> tuple[float, list[float], float, NDArray[np.float64], NDArray[np.float64]] | None:
+    """Threshold of least RSS: (value, gap, rss, sorted speeds, forces), None if none."""
+    order = np.argsort(speed, kind="stable")
+    s, f = speed[order], force[order]
+    if s.size < 2:
+        return None
+    rss = _split_rss(s, f)
+    k = np.arange(1, s.size)  # split between s[k−1] and s[k]: k samples below
+    thr = 0.5 * (s[k - 1] + s[k])
+    ok = (thr >= lo) & (thr <= hi) & (k >= min_samples) & (s.size - k >= min_samples) & (
+        s[k] > s[k - 1])
+    if not ok.any():
+        return None
+    best = int(np.flatnonzero(ok)[np.argmin(rss[ok])])
+    gap = [float(s[k[best] - 1]), float(s[k[best]])]
+    return float(thr[best]), gap, float(rss[best]), s, f
+
+
 def _split_rss(s: NDArray[np.float64], f: NDArray[np.float64]) -> NDArray[np.float64]:
     """RSS of (constant below | line above) for every split k = 1..n−1."""
     s = s - s.mean()
@@ -409,6 +529,15 @@ def _split_rss(s: NDArray[np.float64], f: NDArray[np.float64]) -> NDArray[np.flo
         rss_hi = np.where(det > 1e-12 * np.maximum(n_hi * s2, 1e-300), f2 - explained,
                           f2 - f1**2 / n_hi)
     return np.asarray(rss_lo + rss_hi)
+
+
+def _check_std(name: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a real number, got {value!r}")
+    v = float(value)
+    if not (math.isfinite(v) and v >= 0.0):
+        raise DataError(f"{name} must be finite and >= 0, got {v:g}")
+    return v
 
 
 def _enough(rows: NDArray[np.bool_], step: str, what: str) -> None:

@@ -115,19 +115,24 @@ class MultistepResult:
         raise KeyError(f"no identified parameter {name!r}; they are {', '.join(REFINABLE)}")
 
     def table(self) -> list[dict[str, Any]]:
-        """Per parameter: value, std, 95 % CI, unit and the step."""
+        """Per parameter: value, std, 95 % CI, unit, the step and the std's kind.
+
+        ``std_kind`` is "statistical" (every identified parameter: LS, with a
+        Newey–West covariance in S0 p_krit and S2–S5, plus the inserted estimates' std propagated,
+        v_krit by a block bootstrap) or "given" (std 0).
+        """
         rows = []
         for name in REFINABLE:
             step_of = next((s for s in self.steps.values() if name in s.estimate.names), None)
             if step_of is None:
                 value = float(self.given.get(name, getattr(self.parameters, name)))
                 rows.append({"name": name, "value": value, "std": 0.0, "ci95": [value, value],
-                             "unit": UNITS[name], "step": "given"})
+                             "unit": UNITS[name], "step": "given", "std_kind": "given"})
                 continue
             row = next(r for r in step_of.estimate.table() if r.name == name)
             rows.append({"name": name, "value": row.value, "std": row.std,
                          "ci95": [row.ci_low, row.ci_high], "unit": UNITS[name],
-                         "step": step_of.step})
+                         "step": step_of.step, "std_kind": "statistical"})
         return rows
 
     @property
@@ -160,6 +165,9 @@ class MultistepResult:
         if self.refined_validation is not None:
             fits = ", ".join(f"{k} {v:.1f} %" for k, v in self.refined_validation.fit.items())
             lines.append(f"  after refinement: {fits}")
+        lines.append("  ± are 1σ statistical: LS (Newey–West in S0 p_krit, S2–S5) plus the "
+                     "propagated std of inserted estimates (delta method); v_krit by block "
+                     "bootstrap")
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
 
@@ -264,13 +272,17 @@ def identify_multistep(
             steps["S0 p_krit"] = identify_critical_pressure(records["flow"], known,
                                                             mdot_limit=mdot_limit)
             b = steps["S0 p_krit"]["p_krit"]
+            b_std = steps["S0 p_krit"].std("p_krit")
         else:
+            b_std = 0.0
             b = given["p_krit"] = float(p_krit)
         if v_krit is None:
             steps["S0 ẋ_krit"] = identify_critical_velocity(
                 records["friction"], known, derivatives=derivatives, omega_f=friction_omega_f)
             vk = steps["S0 ẋ_krit"]["v_krit"]
+            vk_std = steps["S0 ẋ_krit"].std("v_krit")
         else:
+            vk_std = 0.0
             vk = given["v_krit"] = float(v_krit)
         steps["S1"] = identify_valve(records["valve"], omega_f=valve_omega_f,
                                      u_hold=valve_u_hold)
@@ -279,12 +291,14 @@ def identify_multistep(
                                                    omega_f=thermo_omega_f, mdot_limit=mdot_limit)
         steps["S3"] = identify_flow(records["flow"], known, kappa=s2["kappa"], R=s2["R"],
                                     p_krit=b, kappa_std=s2.std("kappa"), R_std=s2.std("R"),
+                                    p_krit_std=b_std,
                                     mdot_limit=mdot_limit)
         s4 = steps["S4"] = identify_sliding_friction(records["friction"], known, v_krit=vk,
-                                                     derivatives=derivatives,
+                                                     v_krit_std=vk_std, derivatives=derivatives,
                                                      omega_f=friction_omega_f)
         steps["S5"] = identify_low_speed_friction(
             records["friction"], known, v_krit=vk, d_k=s4["d_k"], c_k=s4["c_k"],
+            v_krit_std=vk_std, sliding_covariance=s4.estimate.covariance,
             derivatives=derivatives, blend=blend, omega_f=friction_omega_f)
     notes = [str(w.message) for w in caught if issubclass(w.category, ServoidWarning)]
     for w in caught:  # re-issue so callers see them too

@@ -25,6 +25,7 @@ mass-flow sensor's first-order lag before the SVF, as ṁ did in the sensor.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -42,8 +43,10 @@ from ._common import (
     check_derivatives,
     check_known,
     check_positive,
+    hac_covariance,
     ls_estimate,
     mdot_sensor_lag,
+    newey_west_lags,
     physical_estimate,
     pressures,
     temperature,
@@ -182,7 +185,15 @@ def identify_thermodynamics(
     raw_names = ("kappa*R", "kappa-1")
     res = lstsq(phi, y, raw_names)
     rls = fit_rls(phi, y, forgetting=1.0, history=True, names=raw_names)
-    raw = ls_estimate(res, raw_names, ("J/(kg·K)", "-"), "ls")
+    # the SVF colours the residuals over its memory (12/ω_f) and the anti-alias filter over a
+    # few samples: Newey–West with a bandwidth of at least the filter's memory
+    lags = max(window, newey_west_lags(y.size))
+    groups = []
+    for m, y_c, phi_c in zip(masks, ys, phis, strict=True):
+        resid = y_c - phi_c @ res.theta
+        groups.append((phi_c, resid, np.flatnonzero(m)))
+    raw = dataclasses.replace(ls_estimate(res, raw_names, ("J/(kg·K)", "-"), "ls"),
+                              covariance=hac_covariance(groups, lags))
     t1, t2 = (float(v) for v in res.theta)
     kappa = 1.0 + t2
     if kappa <= 1.0:
@@ -191,7 +202,9 @@ def identify_thermodynamics(
     jac = np.array([[0.0, 1.0], [1.0 / kappa, -t1 / kappa**2]])
     est = physical_estimate((kappa, t1 / kappa), jac, raw, ("kappa", "R"),
                             ("-", "J/(kg·K)"), "svf+ls",
-                            {"omega_f": omega_f, "derivatives": derivatives})
+                            {"omega_f": omega_f, "derivatives": derivatives, "hac_lags": lags,
+                             "white_std": [float(v) for v in res.std],
+                             "covariance": "LS, Newey–West (coloured residuals), delta method"})
     hist = rls.history if rls.history is not None else np.empty((0, 2))
     stride = max(1, hist.shape[0] // 400)
     h_kappa = 1.0 + hist[::stride, 1]

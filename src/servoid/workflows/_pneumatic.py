@@ -34,14 +34,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 from .. import __version__
-from .._atomic import atomic_path
 from .._errors import DataError, OptionError
 from ..actuators import PositionController
 from ..data import Experiment, ExperimentSpec, load_experiment_spec
@@ -52,7 +47,16 @@ from ..multistep import (
     RecordComparison,
     identify_multistep,
 )
-from ..report import Figure, Page, Section, Table, write_html, write_json
+from ..report import (
+    Figure,
+    Page,
+    Section,
+    Table,
+    new_figure,
+    save_figure,
+    write_html,
+    write_json,
+)
 from ._common import check_outputs, sha256
 
 __all__ = ["PneumaticIdentification", "identify_pneumatic_spec"]
@@ -260,7 +264,8 @@ def _write(ident: PneumaticIdentification, folder: Path, overwrite: bool) -> lis
 
 def _plot_comparison(comp: RecordComparison, path: Path, overwrite: bool, title: str) -> None:
     chans = list(comp.measured)
-    fig, axes = plt.subplots(len(chans), 1, figsize=(9, 1.9 * len(chans)), sharex=True)
+    fig = new_figure((9, 1.9 * len(chans)))
+    axes = fig.subplots(len(chans), 1, sharex=True)
     for ax, ch in zip(np.atleast_1d(axes), chans, strict=True):
         label, unit, scale = _LABELS[ch]
         ax.plot(comp.t, comp.measured[ch] * scale, color="0.2", lw=0.9, label="measured")
@@ -272,11 +277,12 @@ def _plot_comparison(comp: RecordComparison, path: Path, overwrite: bool, title:
     np.atleast_1d(axes)[0].set_title(f"{title} on the record {comp.record!r}")
     np.atleast_1d(axes)[-1].set_xlabel("time [s]")
     fig.tight_layout()
-    _save(fig, path, overwrite)
+    save_figure(fig, path, overwrite)
 
 
 def _plot_steps(res: MultistepResult, path: Path, overwrite: bool) -> None:
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    fig = new_figure((12, 3.4))
+    axes = fig.subplots(1, 3)
     s0 = res.steps.get("S0 p_krit")
     if s0 is not None:
         axes[0].semilogy(s0.extra["grid"], np.maximum(s0.extra["grid_rss"], 1e-300), "o-", ms=3)
@@ -302,15 +308,7 @@ def _plot_steps(res: MultistepResult, path: Path, overwrite: bool) -> None:
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.tight_layout()
-    _save(fig, path, overwrite)
-
-
-def _save(fig: Any, path: Path, overwrite: bool) -> None:
-    try:
-        with atomic_path(path, overwrite) as tmp:
-            fig.savefig(tmp, format="png", dpi=100)
-    finally:
-        plt.close(fig)
+    save_figure(fig, path, overwrite)
 
 
 def _page(ident: PneumaticIdentification, files: Mapping[str, Path]) -> Page:
@@ -334,6 +332,10 @@ def _page(ident: PneumaticIdentification, files: Mapping[str, Path]) -> Page:
             ("Multi-step scheme of Hahn & Piepenbrink (IFAC SYSID 1994, Fig. 17): each equation "
             "group is identified from the test that excites it, earlier estimates inserted into "
             f"later equations. Derivatives of the piston motion: {res.derivatives!r}."),
+            ("Every std is statistical (1σ): least squares (Newey–West covariance in S0 p_krit "
+             "and S2–S5, where the rig's coloured noise matters), plus the uncertainty of earlier estimates inserted into "
+             "a step (delta method); ẋ_krit's by a moving-block bootstrap of its threshold "
+             "search. A value given in the campaign file has none."),
         ),
         tables=(Table(cols, tuple(rows), "Assembled parameter set (known constants in the "
                       "results.json)"),),
