@@ -221,3 +221,39 @@ def test_no_traceback_from_the_command(rig, tmp_path):
     assert "Traceback" not in done.stderr
     assert done.stderr.startswith("servoid: error: [loop] F needs den")
     assert json.loads(done.stdout)["ok"] is False
+
+
+PNEUMATIC_CASES = [
+    ("derivatives", '"fast"', "derivatives must be one of 'svf', 'measured'"),
+    ("blend", '"no"', "[identify] blend must be"),
+    ("mdot_limit", '"x"', "[identify] mdot_limit must be"),
+    ("refine", '"yes"', "[identify] refine must be true, false or a list"),
+    ("refine", '["F_haft", "mass"]', "refine must be one of"),
+    ("p_krit", '"a"', "[identify] p_krit must be"),
+]
+
+
+@pytest.fixture(scope="module")
+def pneumatic_campaign(tmp_path_factory):
+    from servoid.bench import write_pneumatic_campaign
+
+    folder = tmp_path_factory.mktemp("pn")
+    write_pneumatic_campaign(folder, duration=0.5)
+    return folder
+
+
+@pytest.mark.parametrize(("key", "value", "message"), PNEUMATIC_CASES)
+def test_pneumatic_bad_identify_values(capsys, pneumatic_campaign, key, value, message):
+    toml = pneumatic_campaign / "pneumatic.toml"
+    text = toml.read_text()
+    bad = pneumatic_campaign / f"bad_{key}.toml"
+    line = re.compile(rf"^{key} = .*$", re.M)
+    if line.search(text):  # the bench wrote this key: change its value
+        text = line.sub(lambda _: f"{key} = {value}", text, count=1)
+    else:
+        text = text.replace("[identify]\n", f"[identify]\n{key} = {value}\n", 1)
+    bad.write_text(text)
+    code = main(["identify", str(bad), "--out", str(pneumatic_campaign / f"out_{key}")])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert message in err and "Traceback" not in err

@@ -59,7 +59,7 @@ RECORDS: tuple[str, ...] = ("valve", "thermo", "flow", "friction", "validation")
 
 @dataclass(frozen=True, eq=False)
 class MultistepResult:
-    """Every step of S0–S6, the assembled parameters and the validation.
+    """Every step of S0–S6, the parameters and the validation.
 
     Attributes
     ----------

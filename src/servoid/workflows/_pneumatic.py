@@ -28,7 +28,6 @@ record) names one experiment file per test of the multi-step scheme
 from __future__ import annotations
 
 import dataclasses
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,7 +36,8 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from .._errors import DataError, OptionError
+from .._checks import as_bool, as_float, as_mapping, as_str, type_error
+from .._errors import DataError, OptionError, check_option
 from ..actuators import PositionController
 from ..data import Experiment, ExperimentSpec, load_experiment_spec
 from ..multistep import (
@@ -57,7 +57,7 @@ from ..report import (
     write_html,
     write_json,
 )
-from ._common import check_outputs, sha256
+from ._common import check_outputs, read_truth, report_options, sha256
 
 __all__ = ["PneumaticIdentification", "identify_pneumatic_spec"]
 
@@ -175,9 +175,10 @@ def identify_pneumatic_spec(
         if test not in table:
             raise DataError(f"[identify] {test} = \"<{test}.toml>\" is needed: the experiment "
                             f"file of the {test} test")
-        sources[test] = base / str(table[test])
+        sources[test] = base / as_str(test, table[test], where="[identify]")
     if "validation" in table:
-        sources["validation"] = base / str(table["validation"])
+        sources["validation"] = base / as_str("validation", table["validation"],
+                                              where="[identify]")
     for test, path in sources.items():
         sub = load_experiment_spec(path)
         records[test] = _named(sub.load(), test)
@@ -185,18 +186,20 @@ def identify_pneumatic_spec(
         records["validation"] = _named(spec.load(), "validation")
         sources["validation"] = spec.data_path
     known = _known(table, spec.loop)
-    refine = table.get("refine", False)
-    if isinstance(refine, tuple):
-        refine = list(refine)
     result = identify_multistep(
-        records, known, derivatives=table.get("derivatives", "svf"), refine=refine,
-        refine_record=str(table.get("refine_record", "thermo")),
+        records, known,
+        derivatives=_choice(table, "derivatives", "svf", ("svf", "measured")),
+        refine=_refine(table.get("refine", False)),
+        refine_record=_choice(table, "refine_record", "thermo", (*_TESTS, "validation")),
         controller=_controller(spec.loop, table.get("known", {})),
-        p_krit=table.get("p_krit"), v_krit=table.get("v_krit"),
-        blend=bool(table.get("blend", False)),
-        mdot_limit=float(table.get("mdot_limit", 4e-3)),
-        valve_u_hold=table.get("valve_u_hold", "zoh"),
+        p_krit=_optional_float(table, "p_krit"),
+        v_krit=_optional_float(table, "v_krit"),
+        blend=as_bool("blend", table.get("blend", False), where="[identify]"),
+        mdot_limit=as_float("mdot_limit", table.get("mdot_limit", 4e-3), positive=True,
+                            where="[identify]"),
+        valve_u_hold=_choice(table, "valve_u_hold", "zoh", ("zoh", "cubic")),
     )
+    report_options(spec.report)
     truth = _truth(spec, base)
     ident = PneumaticIdentification(spec, result, sources, truth)
     if folder is None:
@@ -214,11 +217,35 @@ def _named(exp: Experiment, name: str) -> Experiment:
 
 def _known(table: Mapping[str, Any], loop: Mapping[str, Any]) -> KnownConstants:
     inline = table.get("known")
-    if inline is not None and not isinstance(inline, Mapping):
-        raise DataError(f"[identify] known must be an inline table of constants, got {inline!r}")
-    merged = {k: v for k, v in dict(loop).items() if k in _KNOWN}
-    merged.update({k: v for k, v in dict(inline or {}).items() if k in _KNOWN})
+    if inline is not None:
+        inline = as_mapping("known", inline, where="[identify]")
+    merged = {k: as_float(k, v, where="[loop]") for k, v in dict(loop).items() if k in _KNOWN}
+    merged.update({k: as_float(k, v, where="[identify.known]")
+                   for k, v in dict(inline or {}).items() if k in _KNOWN})
     return KnownConstants.from_mapping(merged)
+
+
+def _choice(table: Mapping[str, Any], key: str, default: str, valid: tuple[str, ...]) -> Any:
+    value = as_str(key, table.get(key, default), where="[identify]")
+    check_option(f"[identify] {key}", value, valid)
+    return value
+
+
+def _optional_float(table: Mapping[str, Any], key: str) -> float | None:
+    value = table.get(key)
+    return None if value is None else as_float(key, value, positive=True, where="[identify]")
+
+
+def _refine(value: Any) -> bool | list[str]:
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, (list, tuple)):
+        names = [as_str(f"refine[{i}]", v, where="[identify]") for i, v in enumerate(value)]
+        for name in names:
+            check_option("[identify] refine", name, REFINABLE)
+        return names
+    raise type_error("refine", value, "true, false or a list of parameter names",
+                     where="[identify]")
 
 
 def _controller(loop: Mapping[str, Any], inline: Any) -> PositionController | None:
@@ -228,17 +255,13 @@ def _controller(loop: Mapping[str, Any], inline: Any) -> PositionController | No
     if set(gains) != {"K_p", "K_d"}:
         raise DataError("give both controller gains K_p [V/m] and K_d [V·s/m] in [loop], "
                         "or neither (then they are reconstructed from the records)")
-    return PositionController(float(gains["K_p"]), float(gains["K_d"]))
+    return PositionController(as_float("K_p", gains["K_p"], positive=True, where="[loop]"),
+                              as_float("K_d", gains["K_d"], where="[loop]"))
 
 
 def _truth(spec: ExperimentSpec, base: Path) -> dict[str, float] | None:
-    name = dict(spec.report).get("truth")
-    if name is None:
-        return None
-    data = json.loads((base / str(name)).read_text(encoding="utf-8"))
-    if isinstance(data.get("parameters"), Mapping):
-        data = data["parameters"]
-    return {k: float(data[k]) for k in REFINABLE if isinstance(data.get(k), (int, float))}
+    name = report_options(spec.report).get("truth")
+    return None if name is None else read_truth(base / name, REFINABLE)
 
 
 def _write(ident: PneumaticIdentification, folder: Path, overwrite: bool) -> list[Path]:
