@@ -136,14 +136,12 @@ def identify(
     method = spec.identify.get("method", "arx")
     check_option("[identify] method", method, METHODS)
     report_options(spec.report)
+    folder = _folder(spec, out) if write else None
     if method == "closedloop":
-        folder = _folder(spec, out) if write else None
         return identify_closed_loop_spec(spec, folder, overwrite=overwrite, truth=truth)
     if method == "inverse-dynamics":
-        folder = _folder(spec, out) if write else None
         return identify_inverse_dynamics_spec(spec, folder, overwrite=overwrite)
     if method == "pneumatic-multistep":
-        folder = _folder(spec, out) if write else None
         return identify_pneumatic_spec(spec, folder, overwrite=overwrite)
     options = _identify_options(spec.identify)
     estimation, validation_data = spec.split_data()
@@ -165,12 +163,10 @@ def identify(
         estimate.model, validation_data, input=options["input"],
         output=estimate.options["output"], horizon=options["horizon"],
     )
-    folder = None
-    files: list[Path] = []
     result = IdentificationResult(spec, estimate, report, None, ())
-    if write:
-        folder = _folder(spec, out)
-        files = _write(result, folder, overwrite, unit=validation_data.unit(report.output))
+    if folder is None:
+        return result
+    files = _write(result, folder, overwrite, unit=validation_data.unit(report.output))
     return IdentificationResult(spec, estimate, report, folder, tuple(files))
 
 
