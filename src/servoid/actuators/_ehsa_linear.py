@@ -35,6 +35,7 @@ from scipy.optimize import brentq
 
 from .._errors import ModelError, check_option
 from ..models import TransferFunction
+from ._common import check_finite, check_instance
 from ._ehsa_params import EhsaParameters
 
 __all__ = [
@@ -306,18 +307,11 @@ def closed_loop_bandwidth(params: EhsaParameters, order: Order = "reduced") -> f
 
 
 def _params(params: object) -> EhsaParameters:
-    if not isinstance(params, EhsaParameters):
-        raise TypeError(f"params must be EhsaParameters, got {type(params).__name__}")
-    return params
+    return check_instance("params", params, EhsaParameters)
 
 
 def _gain(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a real number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ModelError(f"{name} must be finite, got {v}")
-    return v
+    return check_finite(name, value, ModelError)
 
 
 def _tf(num: ArrayLike, den: ArrayLike) -> TransferFunction:

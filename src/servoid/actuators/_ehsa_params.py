@@ -18,12 +18,12 @@ Two named sets: :data:`SET_B` (loaded, 1500 kg reflected mass) and
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
 
 from .._errors import ModelError
+from ._common import Bounds, check_fields, replace_fields
 
 __all__ = ["SET_B", "SET_C", "EhsaParameters"]
 
@@ -32,7 +32,7 @@ _K_DRIVER = 0.050 / 0.023
 _K_FB = 0.010
 
 # name → (lower bound, strict?) for validation; None = any finite value.
-_BOUNDS: dict[str, tuple[float, bool] | None] = {
+_BOUNDS: Bounds = {
     "P_s": (0.0, True),
     "P_T": (0.0, False),
     "beta_e": (0.0, True),
@@ -195,24 +195,7 @@ class EhsaParameters:
     F_ext: float = 0.0
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise TypeError(
-                    f"EhsaParameters.{f.name} must be a real number, got {value!r}"
-                )
-            value = float(value)
-            if not math.isfinite(value):
-                raise ModelError(f"EhsaParameters.{f.name} must be finite, got {value}")
-            bound = _BOUNDS[f.name]
-            if bound is not None:
-                low, strict = bound
-                if (value <= low) if strict else (value < low):
-                    rel = ">" if strict else ">="
-                    raise ModelError(
-                        f"EhsaParameters.{f.name} must be {rel} {low:g}, got {value:g}"
-                    )
-            object.__setattr__(self, f.name, value)
+        check_fields(self, _BOUNDS)
         if self.P_T >= self.P_s:
             raise ModelError(
                 f"EhsaParameters.P_T must be < P_s = {self.P_s:g} Pa, got {self.P_T:g} Pa"
@@ -241,10 +224,7 @@ class EhsaParameters:
         EhsaParameters
             The modified, validated copy.
         """
-        unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(self)})
-        if unknown:
-            raise TypeError(f"EhsaParameters has no parameter(s) {', '.join(unknown)}")
-        return dataclasses.replace(self, **changes)
+        return replace_fields(self, changes)
 
     # -- derived quantities [D] -------------------------------------------
     @property

@@ -31,13 +31,22 @@ locates only to within one step.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import DataError
+from ._common import (
+    check_bool,
+    check_finite,
+    check_instance,
+    check_period,
+    check_signal,
+    check_state,
+    freeze_arrays,
+    integration_step,
+    largest_step,
+)
 from ._ehsa_kernel import integrate, pack
 from ._ehsa_params import EhsaParameters
 
@@ -106,10 +115,8 @@ class EhsaResponse:
     final_state: NDArray[np.float64]
 
     def __post_init__(self) -> None:
-        for name in ("t", "y_r", "y", "y_dot", "P_L", "x_s", "x_f", "P_s", "P_T", "final_state"):
-            arr = np.array(getattr(self, name), dtype=np.float64)
-            arr.setflags(write=False)
-            object.__setattr__(self, name, arr)
+        freeze_arrays(self, ("t", "y_r", "y", "y_dot", "P_L", "x_s", "x_f", "P_s", "P_T",
+                             "final_state"))
 
 
 def default_dt_int(params: EhsaParameters, dt: float) -> float:
@@ -128,10 +135,9 @@ def default_dt_int(params: EhsaParameters, dt: float) -> float:
         The largest ``dt/n`` (n integer) not above
         ``min(2 µs, 0.05/ω_max)`` [s].
     """
-    _check_params(params)
-    dt = _check_positive("dt", dt)
-    limit = min(_DT_INT_MAX, _OMEGA_DT / _omega_max(params))
-    return dt / math.ceil(dt / limit * (1.0 - 1e-12))
+    check_instance("params", params, EhsaParameters)
+    dt = check_period("dt", dt)
+    return largest_step(dt, min(_DT_INT_MAX, _OMEGA_DT / _omega_max(params)))
 
 
 def simulate_ehsa(
@@ -185,31 +191,19 @@ def simulate_ehsa(
     >>> bool(abs(res.y[-1] - 1e-3) < 2.5e-5)  # stiction leaves < 23 µm
     True
     """
-    _check_params(params)
-    dt = _check_positive("dt", dt)
-    ref = _check_reference(y_r)
-    if dt_int is None:
-        h = default_dt_int(params, dt)
-    else:
-        h = _check_positive("dt_int", dt_int)
-        if h > dt * (1.0 + 1e-12):
-            raise DataError(f"dt_int must be <= the sample period dt = {dt:g} s, got {h:g} s")
+    check_instance("params", params, EhsaParameters)
+    dt = check_period("dt", dt)
+    ref = check_signal("y_r", y_r, "m")
+    h = default_dt_int(params, dt) if dt_int is None else integration_step(dt, dt_int)
     decimation = max(1, round(dt / h))
-    if abs(decimation * h - dt) > 1e-9 * dt:
-        raise DataError(
-            f"dt/dt_int must be a whole number of steps, got dt = {dt:g} s, dt_int = {h:g} s "
-            f"(ratio {dt / h:.6g}); try dt_int = {dt / decimation:.6g} s"
-        )
-    h = dt / decimation
-    for name, flag in (("linear", linear), ("friction", friction)):
-        if not isinstance(flag, (bool, np.bool_)):
-            raise TypeError(f"{name} must be a bool, got {flag!r}")
-    state = _check_x0(x0)
-    past = _check_finite("y_r_past", y_r_past)
+    linear = check_bool("linear", linear)
+    friction = check_bool("friction", friction) and not linear
+    state = np.zeros(len(STATE_NAMES)) if x0 is None else check_state(x0, STATE_NAMES)
+    past = check_finite("y_r_past", y_r_past)
     delay = round(params.T_d / h)
     out = np.empty((ref.size, 5))
-    final = integrate(ref, past, decimation, delay, h, pack(params), bool(linear),
-                      bool(friction) and not linear, state, out)
+    final = integrate(ref, past, decimation, delay, h, pack(params), linear, friction, state,
+                      out)
     n = ref.size
     return EhsaResponse(
         t=np.arange(n, dtype=np.float64) * dt,
@@ -224,8 +218,8 @@ def simulate_ehsa(
         dt=dt,
         dt_int=h,
         dead_time=delay * h,
-        linear=bool(linear),
-        friction=bool(friction) and not linear,
+        linear=linear,
+        friction=friction,
         final_state=final,
     )
 
@@ -235,52 +229,3 @@ def simulate_ehsa(
 
 def _omega_max(p: EhsaParameters) -> float:
     return max(p.omega_f, p.omega_sp, p.omega_s1, p.omega_hp, p.B_p / p.M_t)
-
-
-def _check_params(params: object) -> None:
-    if not isinstance(params, EhsaParameters):
-        raise TypeError(f"params must be EhsaParameters, got {type(params).__name__}")
-
-
-def _check_finite(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a real number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise DataError(f"{name} must be finite, got {v}")
-    return v
-
-
-def _check_positive(name: str, value: object) -> float:
-    v = _check_finite(name, value)
-    if v <= 0.0:
-        raise DataError(f"{name} must be > 0 s, got {v:g}")
-    return v
-
-
-def _check_reference(y_r: ArrayLike) -> NDArray[np.float64]:
-    try:
-        ref = np.array(y_r, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"y_r must be an array of real numbers: {exc}") from None
-    if ref.ndim != 1 or ref.size == 0:
-        raise DataError(f"y_r must be a non-empty 1-D array [m], got shape {ref.shape}")
-    bad = np.flatnonzero(~np.isfinite(ref))
-    if bad.size:
-        raise DataError(
-            f"y_r must be finite, got {ref[bad[0]]} at sample {bad[0]} "
-            f"({bad.size} non-finite sample(s))"
-        )
-    return ref
-
-
-def _check_x0(x0: ArrayLike | None) -> NDArray[np.float64]:
-    if x0 is None:
-        return np.zeros(8)
-    state = np.array(x0, dtype=np.float64)
-    if state.shape != (8,):
-        raise DataError(f"x0 must have shape (8,) ({', '.join(STATE_NAMES)}), "
-                        f"got {state.shape}")
-    if not np.all(np.isfinite(state)):
-        raise DataError(f"x0 must be finite, got {state}")
-    return state

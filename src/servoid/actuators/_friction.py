@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._errors import ModelError
+from ._common import check_finite
 
 __all__ = [
     "coulomb_friction",
@@ -278,24 +279,15 @@ def _array(name: str, x: ArrayLike) -> NDArray[np.float64]:
     return a
 
 
-def _real(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a real number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ModelError(f"{name} must be finite, got {v}")
-    return v
-
-
 def _nonneg(name: str, value: object) -> float:
-    v = _real(name, value)
+    v = check_finite(name, value, ModelError)
     if v < 0.0:
         raise ModelError(f"{name} must be >= 0, got {v:g}")
     return v
 
 
 def _pos(name: str, value: object) -> float:
-    v = _real(name, value)
+    v = check_finite(name, value, ModelError)
     if v <= 0.0:
         raise ModelError(f"{name} must be > 0, got {v:g}")
     return v

@@ -17,17 +17,17 @@ assumed constants.  Vary it with :meth:`PneumaticParameters.with_`.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
 
 from .._errors import ModelError
+from ._common import Bounds, check_fields, replace_fields
 
 __all__ = ["PNEUMATIC_NOMINAL", "PneumaticParameters"]
 
 # name → (lower bound, strict?) for validation; None = any finite value.
-_BOUNDS: dict[str, tuple[float, bool] | None] = {
+_BOUNDS: Bounds = {
     "k_v": (0.0, True),
     "xi_v": (0.0, False),
     "omega_v": (0.0, True),
@@ -169,24 +169,7 @@ class PneumaticParameters:
     eps_v: float = 1e-4
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise TypeError(
-                    f"PneumaticParameters.{f.name} must be a real number, got {value!r}"
-                )
-            value = float(value)
-            if not math.isfinite(value):
-                raise ModelError(f"PneumaticParameters.{f.name} must be finite, got {value}")
-            bound = _BOUNDS[f.name]
-            if bound is not None:
-                low, strict = bound
-                if (value <= low) if strict else (value < low):
-                    rel = ">" if strict else ">="
-                    raise ModelError(
-                        f"PneumaticParameters.{f.name} must be {rel} {low:g}, got {value:g}"
-                    )
-            object.__setattr__(self, f.name, value)
+        check_fields(self, _BOUNDS)
         if self.p_krit >= 1.0:
             raise ModelError(f"PneumaticParameters.p_krit must be < 1, got {self.p_krit:g}")
         if self.p_R >= self.p_S:
@@ -216,10 +199,7 @@ class PneumaticParameters:
         PneumaticParameters
             The modified, validated copy.
         """
-        unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(self)})
-        if unknown:
-            raise TypeError(f"PneumaticParameters has no parameter(s) {', '.join(unknown)}")
-        return dataclasses.replace(self, **changes)
+        return replace_fields(self, changes)
 
     # -- derived quantities [D] -------------------------------------------
     @property

@@ -47,6 +47,17 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
 from .._errors import DataError, ModelError, check_option
+from ._common import (
+    check_bool,
+    check_finite,
+    check_instance,
+    check_period,
+    check_signal,
+    check_state,
+    freeze_arrays,
+    integration_step,
+    largest_step,
+)
 from ._flow import FLOW_KINDS, FlowKind, orifice_mass_flow
 from ._pneumatic_kernel import BAD_PRESSURE, integrate, pack
 from ._pneumatic_params import PneumaticParameters
@@ -180,15 +191,9 @@ class PneumaticResponse:
     final_state: NDArray[np.float64]
 
     def __post_init__(self) -> None:
-        for name in ("t", "u", "r", "f_ext", "x_v", "x_v_dot", "p_I", "p_II", "T_I", "T_II",
-                     "m_dot_I", "m_dot_II", "x_k", "x_k_dot", "x_k_ddot", "F_p", "F_fr",
-                     "stuck", "final_state"):
-            value = getattr(self, name)
-            if value is None:
-                continue
-            arr = np.array(value, dtype=bool if name == "stuck" else np.float64)
-            arr.setflags(write=False)
-            object.__setattr__(self, name, arr)
+        freeze_arrays(self, ("t", "u", "r", "f_ext", "x_v", "x_v_dot", "p_I", "p_II", "T_I",
+                             "T_II", "m_dot_I", "m_dot_II", "x_k", "x_k_dot", "x_k_ddot", "F_p",
+                             "F_fr", "stuck", "final_state"), flags=("stuck",), optional=("r",))
 
 
 def pneumatic_dt_int(params: PneumaticParameters, dt: float) -> float:
@@ -207,10 +212,9 @@ def pneumatic_dt_int(params: PneumaticParameters, dt: float) -> float:
         The largest ``dt/n`` (n integer) not above
         ``min(10 µs, 0.02/ω_max)`` [s].
     """
-    _check_params(params)
-    dt = _check_positive("dt", dt)
-    limit = min(_DT_INT_MAX, _OMEGA_DT / _omega_max(params))
-    return dt / math.ceil(dt / limit * (1.0 - 1e-12))
+    check_instance("params", params, PneumaticParameters)
+    dt = check_period("dt", dt)
+    return largest_step(dt, min(_DT_INT_MAX, _OMEGA_DT / _omega_max(params)))
 
 
 def pneumatic_rest_state(
@@ -238,9 +242,9 @@ def pneumatic_rest_state(
     ndarray, shape (6,)
         State in :data:`PNEUMATIC_STATE_NAMES` order.
     """
-    _check_params(params)
-    xk = _check_finite("x_k", x_k)
-    fe = _check_finite("f_ext", f_ext)
+    check_instance("params", params, PneumaticParameters)
+    xk = check_finite("x_k", x_k)
+    fe = check_finite("f_ext", f_ext)
     if abs(xk) > params.stroke / 2.0:
         raise DataError(f"x_k must be within ±{params.stroke / 2:g} m, got {xk:g}")
     pn1 = _null_pressure(params, params.ad_2, params.ad_1)
@@ -319,11 +323,10 @@ def simulate_pneumatic(
     >>> bool(np.max(np.abs(res.x_k - res.r)) < 8e-3)  # stick-slip: within 8 mm
     True
     """
-    _check_params(params)
-    dt = _check_positive("dt", dt)
+    check_instance("params", params, PneumaticParameters)
+    dt = check_period("dt", dt)
     check_option("flow", flow, FLOW_KINDS)
-    if not isinstance(blend, (bool, np.bool_)):
-        raise TypeError(f"blend must be a bool, got {blend!r}")
+    blend = check_bool("blend", blend)
     if controller is not None and not isinstance(controller, PositionController):
         raise TypeError(f"controller must be a PositionController or None, "
                         f"got {type(controller).__name__}")
@@ -331,19 +334,19 @@ def simulate_pneumatic(
     if closed:
         if r is None:
             raise DataError("r (position reference [m]) is required with a controller")
-        ref = _check_signal("r", r, "m")
+        ref = check_signal("r", r, "m")
         n = ref.size
-        uff = np.zeros(n) if u is None else _check_signal("u", u, "V", n)
+        uff = np.zeros(n) if u is None else check_signal("u", u, "V", n)
     else:
         if r is not None:
             raise DataError("r (position reference) needs a controller; pass controller=...")
         if u is None:
             raise DataError("u (valve input [V]) is required without a controller")
-        uff = _check_signal("u", u, "V")
+        uff = check_signal("u", u, "V")
         n = uff.size
         ref = np.zeros(n)
-    fe = np.zeros(n) if f_ext is None else _check_signal("f_ext", f_ext, "N", n)
-    h = _step(params, dt, dt_int)
+    fe = np.zeros(n) if f_ext is None else check_signal("f_ext", f_ext, "N", n)
+    h = pneumatic_dt_int(params, dt) if dt_int is None else integration_step(dt, dt_int)
     decimation = max(1, round(dt / h))
     state = pneumatic_rest_state(params, 0.0, float(fe[0])) if x0 is None else _check_x0(
         params, x0)
@@ -352,7 +355,7 @@ def simulate_pneumatic(
     out = np.empty((n, 13))
     final, _, status, bad = integrate(
         uff, ref, fe, closed, kp, kd, decimation, h, pack(params),
-        FLOW_KINDS.index(flow), bool(blend), state, bool(state[5] == 0.0), out)
+        FLOW_KINDS.index(flow), blend, state, bool(state[5] == 0.0), out)
     if status == BAD_PRESSURE:
         raise ModelError(
             f"a chamber pressure left (0, ∞) at t = {bad * h:.6g} s; the inputs drive the "
@@ -381,7 +384,7 @@ def simulate_pneumatic(
         dt=dt,
         dt_int=h,
         flow=flow,
-        blend=bool(blend),
+        blend=blend,
         final_state=final,
     )
 
@@ -405,67 +408,8 @@ def _null_pressure(p: PneumaticParameters, ad_in: float, ad_out: float) -> float
     return float(brentq(imbalance, p.p_R, p.p_S, xtol=1e-6))
 
 
-def _step(params: PneumaticParameters, dt: float, dt_int: float | None) -> float:
-    if dt_int is None:
-        return pneumatic_dt_int(params, dt)
-    h = _check_positive("dt_int", dt_int)
-    if h > dt * (1.0 + 1e-12):
-        raise DataError(f"dt_int must be <= the sample period dt = {dt:g} s, got {h:g} s")
-    decimation = max(1, round(dt / h))
-    if abs(decimation * h - dt) > 1e-9 * dt:
-        raise DataError(
-            f"dt/dt_int must be a whole number of steps, got dt = {dt:g} s, dt_int = {h:g} s "
-            f"(ratio {dt / h:.6g}); try dt_int = {dt / decimation:.6g} s"
-        )
-    return dt / decimation
-
-
-def _check_params(params: object) -> None:
-    if not isinstance(params, PneumaticParameters):
-        raise TypeError(f"params must be PneumaticParameters, got {type(params).__name__}")
-
-
-def _check_finite(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a real number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise DataError(f"{name} must be finite, got {v}")
-    return v
-
-
-def _check_positive(name: str, value: object) -> float:
-    v = _check_finite(name, value)
-    if v <= 0.0:
-        raise DataError(f"{name} must be > 0 s, got {v:g}")
-    return v
-
-
-def _check_signal(name: str, x: ArrayLike, unit: str, n: int | None = None) -> NDArray[np.float64]:
-    try:
-        arr = np.array(x, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of real numbers: {exc}") from None
-    if arr.ndim != 1 or arr.size == 0:
-        raise DataError(f"{name} must be a non-empty 1-D array [{unit}], got shape {arr.shape}")
-    if n is not None and arr.size != n:
-        raise DataError(f"{name} must have {n} samples like the other inputs, got {arr.size}")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
-        raise DataError(
-            f"{name} must be finite, got {arr[bad[0]]} at sample {bad[0]} "
-            f"({bad.size} non-finite sample(s))"
-        )
-    return arr
-
-
 def _check_x0(params: PneumaticParameters, x0: ArrayLike) -> NDArray[np.float64]:
-    state = np.array(x0, dtype=np.float64)
-    if state.shape != (6,):
-        raise DataError(f"x0 must have shape (6,) ({', '.join(PNEUMATIC_STATE_NAMES)}), "
-                        f"got {state.shape}")
-    if not np.all(np.isfinite(state)):
-        raise DataError(f"x0 must be finite, got {state}")
+    state = check_state(x0, PNEUMATIC_STATE_NAMES)
     if state[2] <= 0.0 or state[3] <= 0.0:
         raise DataError(f"x0 pressures p_I, p_II must be > 0 Pa (absolute), "
                         f"got {state[2]:g}, {state[3]:g}")

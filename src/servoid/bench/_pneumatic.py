@@ -38,10 +38,8 @@ where the SNR is defined.
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from numbers import Integral
 from types import MappingProxyType
 from typing import Any, Literal
 
@@ -49,7 +47,7 @@ import numpy as np
 import scipy.signal as sps
 from numpy.typing import NDArray
 
-from .._errors import DataError, ServoidWarning, check_option
+from .._errors import DataError, check_option
 from ..actuators import (
     PNEUMATIC_NOMINAL,
     PneumaticParameters,
@@ -61,6 +59,7 @@ from ..data import Channel, Experiment
 from ..models import StateSpace, TransferFunction
 from ._analog import butterworth, discrete_sos, discretise, realise
 from ._config import _integer, _positive, _real
+from ._daq import note_warning, quantise, resolve_rng
 
 __all__ = [
     "PNEUMATIC_CHANNELS",
@@ -598,7 +597,7 @@ def run_pneumatic(
             f"test {test.name!r}: {n * bench.oversample} analog samples "
             f"({test.duration:g} s at {bench.oversample}·{bench.f_acq:g} Hz) exceed "
             f"{_MAX_ANALOG_SAMPLES}; shorten the test or lower oversample")
-    gen, seed = _rng(rng)
+    gen, seed = resolve_rng(rng, "run_pneumatic")
     return _run(bench, test, n, gen, seed)
 
 
@@ -611,17 +610,18 @@ def _run(bench: PneumaticBench, test: PneumaticTest, n: int, gen: np.random.Gene
     notes: list[str] = []
     f_v = p.omega_v / (2.0 * np.pi)
     if bench.f_acq < _F_VALVE_SAFE:
-        _warn(notes,
-              f"f_acq = {bench.f_acq:g} Hz is below 10 kHz: the spool (f_v = {f_v:.4g} Hz) "
-              f"wants >= 20·f_v = {20 * f_v:.4g} Hz for its state-variable filter, and the "
-              "SVF bias of omega_v grows from ≈2 % at 10 kHz as 1/f_acq²; raise f_acq")
+        note_warning(notes,
+                     f"f_acq = {bench.f_acq:g} Hz is below 10 kHz: the spool (f_v = {f_v:.4g} Hz) "
+                     f"wants >= 20·f_v = {20 * f_v:.4g} Hz for its state-variable filter, and the "
+                     "SVF bias of omega_v grows from ≈2 % at 10 kHz as 1/f_acq²; raise f_acq")
     sens = bench.sensitivities()
     cal = bench.calibration()
     dt_an = bench.dt / m
     t_acq = np.arange(n, dtype=np.float64) * bench.dt
     cmd = test.signals(t_acq)
     # The DAC plays u and x_ref: quantised volts, held over each acquisition period.
-    dac = {k: None if v is None else np.repeat(_quantise(v * sens[k], bench)[0] / sens[k], m)
+    dac = {k: None if v is None
+           else np.repeat(quantise(v * sens[k], bench.bits, bench.lsb)[0] / sens[k], m)
            for k, v in cmd.items() if k in _COMMANDS}
     force = None if cmd["f_ext"] is None else np.repeat(cmd["f_ext"], m)
     res = simulate_pneumatic(p, dac["u"], dt_an, r=dac["x_ref"], f_ext=force,
@@ -663,11 +663,11 @@ def _run(bench: PneumaticBench, test: PneumaticTest, n: int, gen: np.random.Gene
         tc, qc = target[c], quant[c]
         sensor[c], total[c] = 0.0, qc
         if tc is not None and tc < qc:
-            _warn(notes,
-                  f"test {test.name!r}, channel {c!r}: quantisation alone "
-                  f"({qc:.3g} {PNEUMATIC_CHANNELS[c][1]} rms with {bench.bits} bits) "
-                  f"exceeds its noise budget ({tc:.3g}); the data are noisier than "
-                  "asked: use more bits or a larger signal")
+            note_warning(notes,
+                         f"test {test.name!r}, channel {c!r}: quantisation alone "
+                         f"({qc:.3g} {PNEUMATIC_CHANNELS[c][1]} rms with {bench.bits} bits) "
+                         f"exceeds its noise budget ({tc:.3g}); the data are noisier than "
+                         "asked: use more bits or a larger signal")
         elif tc is not None:
             sensor[c], total[c] = math.sqrt(tc**2 - qc**2) / g_s, tc
     # One noise column per possible channel, drawn in a fixed order whatever is
@@ -681,21 +681,22 @@ def _run(bench: PneumaticBench, test: PneumaticTest, n: int, gen: np.random.Gene
     del noisy_an
     raw = {}
     for j, c in enumerate(names):
-        raw[c], clipped = _quantise(noisy_v[:, j], bench)
+        raw[c], clipped = quantise(noisy_v[:, j], bench.bits, bench.lsb)
         if clipped and c not in _FLOWS:
-            _warn(notes, f"test {test.name!r}: channel {c!r} clipped at ±{bench.adc_range:g} V "
-                         f"on {clipped} of {n} samples; widen its transducer range")
+            note_warning(notes, f"test {test.name!r}: channel {c!r} clipped at "
+                                f"±{bench.adc_range:g} V on {clipped} of {n} samples; "
+                                "widen its transducer range")
     saturation = {c: float(np.mean(np.abs(analog[c][::m]) >= bench.flow_limit))
                   for c in _FLOWS}
     for c, frac in saturation.items():
         if frac and test.name != "valve":
-            _warn(notes, f"test {test.name!r}: the hot-wire {c!r} saturates at "
+            note_warning(notes, f"test {test.name!r}: the hot-wire {c!r} saturates at "
                          f"±{bench.flow_limit * 1e3:g} g/s on {100 * frac:.3g} % of the samples; "
                          "drop them from the flow equations or lower the excitation")
     stop = p.stroke / 2.0
     at_stop = float(np.mean(np.abs(res.x_k[::m]) >= stop * (1 - 1e-9)))
     if at_stop and test.name != "valve":
-        _warn(notes, f"test {test.name!r}: the piston sits at an end stop on "
+        note_warning(notes, f"test {test.name!r}: the piston sits at an end stop on "
                      f"{100 * at_stop:.3g} % of the samples; lower the excitation")
     meta = {"source": "servoid.bench", "rig": "pneumatic", "test": test.name,
             "f_acq": bench.f_acq, "bits": bench.bits,
@@ -765,13 +766,6 @@ def _noise_gain(sos: NDArray[np.float64], m: int) -> float:
     return float(np.sqrt(np.sum(h**2)))
 
 
-def _quantise(v: NDArray[np.float64], bench: PneumaticBench) -> tuple[NDArray[np.float64], int]:
-    top = 2 ** (bench.bits - 1)
-    codes = np.rint(v / bench.lsb)
-    clipped = int(np.count_nonzero((codes < -top) | (codes > top - 1)))
-    return np.clip(codes, -top, top - 1) * bench.lsb, clipped
-
-
 def _experiment(values: dict[str, NDArray[np.float64]], names: list[str],
                 bench: PneumaticBench, notes: dict[str, Any]) -> Experiment:
     channels = tuple(Channel(c, PNEUMATIC_CHANNELS[c][0], values[c], "V")  # type: ignore[arg-type]
@@ -781,19 +775,3 @@ def _experiment(values: dict[str, NDArray[np.float64]], names: list[str],
 
 def _set(obj: PneumaticBench, name: str, value: object) -> None:
     object.__setattr__(obj, name, value)
-
-
-def _warn(notes: list[str], message: str, stacklevel: int = 4) -> None:
-    notes.append(message)
-    warnings.warn(message, ServoidWarning, stacklevel=stacklevel)
-
-
-def _rng(rng: object) -> tuple[np.random.Generator, int | None]:
-    if isinstance(rng, np.random.Generator):
-        return rng, None
-    if isinstance(rng, Integral) and not isinstance(rng, bool):
-        if rng < 0:
-            raise DataError(f"rng seed must be >= 0, got {rng}")
-        return np.random.default_rng(int(rng)), int(rng)
-    raise TypeError("run_pneumatic needs rng=, a numpy.random.Generator or an integer seed, "
-                    f"got {type(rng).__name__}")

@@ -32,10 +32,8 @@ clean position being decimated the same way.  So the SNR refers to the
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from numbers import Integral
 from types import MappingProxyType
 from typing import Any
 
@@ -43,13 +41,14 @@ import numpy as np
 import scipy.signal as sps
 from numpy.typing import NDArray
 
-from .._errors import DataError, ServoidWarning, check_option
+from .._errors import DataError, check_option
 from ..actuators import EhsaParameters, ReducedEhsa, full_order_closed_loop, simulate_ehsa
 from ..data import Channel, Experiment, decimate
 from ..models import StateSpace, TransferFunction
 from ..signals import Excitation
 from ._analog import Hold, discrete_sos, discretise, realise
 from ._config import EhsaBench, Fidelity
+from ._daq import note_warning, quantise, resolve_rng
 
 __all__ = ["CHANNELS", "BenchRun", "EhsaTruth", "digitize", "run"]
 
@@ -264,7 +263,7 @@ def run(
     if not isinstance(bench, EhsaBench):
         raise TypeError(f"bench must be an EhsaBench, got {type(bench).__name__}")
     _check_excitation(bench, excitation)
-    gen, seed = _rng(rng)
+    gen, seed = resolve_rng(rng, "run")
     return _run(bench, excitation, gen, seed)
 
 
@@ -307,9 +306,9 @@ def digitize(
     if not np.all(np.isfinite(x)):
         raise DataError("volts must be finite")
     sos = _anti_alias(bench)[hold]
-    out, clipped = _quantise(_sample(sos, x, bench.oversample), bench)
+    out, clipped = quantise(_sample(sos, x, bench.oversample), bench.bits, bench.lsb)
     if clipped:
-        _warn([], _clip_message("signal", clipped, out.size, bench), stacklevel=3)
+        note_warning([], _clip_message("signal", clipped, out.size, bench), stacklevel=3)
     return out
 
 
@@ -325,12 +324,12 @@ def _run(bench: EhsaBench, ex: Excitation, gen: np.random.Generator,
     dt_an = bench.dt_acq / m
     notes: list[str] = []
     if ex.amplitude > p.v_max / p.loop_gain:
-        _warn(notes,
+        note_warning(notes,
             f"amplitude {ex.amplitude * 1e3:.3g} mm exceeds v_max/(F·K) = "
             f"{p.v_max / p.loop_gain * 1e3:.3g} mm: the spool saturates and the response is "
             f"rate-limited (the {bench.fidelity!r} model "
             f"{'shows it' if bench.fidelity == 'nonlinear' else 'does not'}); lower the amplitude")
-    v_cmd, _ = _quantise(np.repeat(ex.values, q) * s_cmd, bench)
+    v_cmd, _ = quantise(np.repeat(ex.values, q) * s_cmd, bench.bits, bench.lsb)
     command = v_cmd / s_cmd
     y_an = _actuator(bench, np.repeat(command, m), dt_an)
     n_an = y_an.size
@@ -359,7 +358,7 @@ def _run(bench: EhsaBench, ex: Excitation, gen: np.random.Generator,
         if noise_std > quant_std:
             sensor_std = math.sqrt(noise_std**2 - quant_std**2) / g_s
         else:
-            _warn(notes,
+            note_warning(notes,
                 f"quantisation alone ({quant_std * 1e6:.3g} µm rms at f_s with {bench.bits} "
                 f"bits) exceeds the noise of SNR {bench.snr_db:g} dB "
                 f"({noise_std * 1e6:.3g} µm); the data are noisier than asked: use more bits "
@@ -378,9 +377,9 @@ def _run(bench: EhsaBench, ex: Excitation, gen: np.random.Generator,
                                                      strict=True)}}
     raw_values = {}
     for name, values in noisy_values.items():
-        raw_values[name], clipped = _quantise(values, bench)
+        raw_values[name], clipped = quantise(values, bench.bits, bench.lsb)
         if clipped:
-            _warn(notes, _clip_message(name, clipped, values.size, bench))
+            note_warning(notes, _clip_message(name, clipped, values.size, bench))
 
     truth = EhsaTruth(params=p, fidelity=bench.fidelity, c=bench.c, F=bench.F, K=p.K,
                       omega_hp=p.omega_hp, delta_hp=p.delta_hp)
@@ -429,13 +428,6 @@ def _sample(filt: _Filter, x: NDArray[np.float64], m: int) -> NDArray[np.float64
     if isinstance(filt, StateSpace):
         return np.asarray(filt.simulate(x)[::m], dtype=np.float64)
     return np.asarray(sps.sosfilt(filt, x, axis=0)[::m], dtype=np.float64)
-
-
-def _quantise(v: NDArray[np.float64], bench: EhsaBench) -> tuple[NDArray[np.float64], int]:
-    top = 2 ** (bench.bits - 1)
-    codes = np.rint(v / bench.lsb)
-    clipped = int(np.count_nonzero((codes < -top) | (codes > top - 1)))
-    return np.clip(codes, -top, top - 1) * bench.lsb, clipped
 
 
 def _side_sensitivities(bench: EhsaBench) -> dict[str, float]:
@@ -511,20 +503,3 @@ def _check_excitation(bench: EhsaBench, ex: object) -> None:
 def _clip_message(name: str, clipped: int, n: int, bench: EhsaBench) -> str:
     return (f"channel {name!r} clipped at ±{bench.adc_range:g} V on {clipped} of {n} samples; "
             "lower the amplitude or the transducer sensitivity")
-
-
-def _warn(notes: list[str], message: str, stacklevel: int = 4) -> None:
-    notes.append(message)
-    warnings.warn(message, ServoidWarning, stacklevel=stacklevel)
-
-
-def _rng(rng: object) -> tuple[np.random.Generator, int | None]:
-    if isinstance(rng, np.random.Generator):
-        return rng, None
-    if isinstance(rng, Integral) and not isinstance(rng, bool):
-        if rng < 0:
-            raise DataError(f"rng seed must be >= 0, got {rng}")
-        return np.random.default_rng(int(rng)), int(rng)
-    raise TypeError(
-        "run needs rng=, a numpy.random.Generator or an integer seed (so the record can be "
-        f"reproduced), got {type(rng).__name__}")

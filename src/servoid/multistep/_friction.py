@@ -27,8 +27,10 @@ Derivatives.  ``"measured"`` takes ẋ_k, ẍ_k from the ``v_k``, ``a_k``
 channels, sample by sample; a sample counts as moving above max(ε, 4σ_v), σ_v the
 velocity noise from second differences, so a stuck piston's noisy velocity does
 not enter (4.2), and only samples at least ``guard`` (0.5 ms) away from a change
-of regime are used, since the sensors' anti-alias filter smears the friction
-jump there.  ``"svf"`` filters x_k and every term of the
+of regime are used: the sensors and the rig's anti-alias filter smear the
+friction jump at a change (85 → 67 N at ẋ_krit) over a few samples, which
+biased c_k by −2 % on the virtual rig; 0.5 ms covers a 2 kHz anti-alias
+filter.  ``"svf"`` filters x_k and every term of the
 equation by one zero-phase state-variable filter G = F(−s)F(s) (no lag),
 so ``m_k s²G x_k − G F_p = −G[friction]`` holds exactly; the regime of
 each sample comes from the filtered velocity sG x_k, and only samples
@@ -145,10 +147,7 @@ def identify_critical_velocity(
         Zero-phase filter bandwidth for ``"svf"`` [rad/s].
     guard : float
         With measured derivatives: samples closer than this to a change of
-        regime are left out [s].  The sensors and the rig's anti-alias
-        filter smear the friction jump at a change (85 → 67 N at ẋ_krit)
-        over a few samples, which biased c_k by −2 % on the virtual rig;
-        0.5 ms covers a 2 kHz anti-alias filter.
+        regime are left out [s] (module notes).
     min_samples : int
         Fewest samples on each side of the threshold.
     n_boot : int
@@ -264,10 +263,7 @@ def identify_sliding_friction(
         Zero-phase filter bandwidth for ``"svf"`` [rad/s].
     guard : float
         With measured derivatives: samples closer than this to a change of
-        regime are left out [s].  The sensors and the rig's anti-alias
-        filter smear the friction jump at a change (85 → 67 N at ẋ_krit)
-        over a few samples, which biased c_k by −2 % on the virtual rig;
-        0.5 ms covers a 2 kHz anti-alias filter.
+        regime are left out [s] (module notes).
     name : str
         Record name for the result.
 
@@ -352,10 +348,7 @@ def identify_low_speed_friction(
         Zero-phase filter bandwidth for ``"svf"`` [rad/s].
     guard : float
         With measured derivatives: samples closer than this to a change of
-        regime are left out [s].  The sensors and the rig's anti-alias
-        filter smear the friction jump at a change (85 → 67 N at ẋ_krit)
-        over a few samples, which biased c_k by −2 % on the virtual rig;
-        0.5 ms covers a 2 kHz anti-alias filter.
+        regime are left out [s] (module notes).
     name : str
         Record name for the result.
 
