@@ -55,7 +55,7 @@ def _isort_key(name: str) -> tuple[int, str]:
 
 
 def test_exports_are_pinned_and_sorted() -> None:
-    assert actuators.__all__ == EXPECTED
+    assert set(actuators.__all__) == set(EXPECTED)  # a public name is removed only on purpose
     assert sorted(actuators.__all__, key=_isort_key) == actuators.__all__
     for name in EXPECTED:
         assert hasattr(actuators, name)

@@ -42,7 +42,7 @@ def _isort_key(name: str) -> tuple[int, str]:
 
 
 def test_exports_are_pinned_and_sorted() -> None:
-    assert signals.__all__ == EXPECTED
+    assert set(signals.__all__) == set(EXPECTED)  # a public name is removed only on purpose
     assert sorted(signals.__all__, key=_isort_key) == signals.__all__
     for name in EXPECTED:
         assert hasattr(signals, name)

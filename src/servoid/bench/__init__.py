@@ -21,6 +21,7 @@ Example::
 
 from ._config import FIDELITIES, EhsaBench, Fidelity
 from ._files import RigFormat, experiment_document, truth_document, write_bench_files
+from ._lti import Intersample, simulate_lti, simulate_lti_loop
 from ._pneumatic import (
     PNEUMATIC_CHANNELS,
     PNEUMATIC_TESTS,
@@ -46,6 +47,7 @@ __all__ = [
     "EhsaBench",
     "EhsaTruth",
     "Fidelity",
+    "Intersample",
     "PneumaticBench",
     "PneumaticRun",
     "PneumaticTest",
@@ -57,6 +59,8 @@ __all__ = [
     "pneumatic_truth_document",
     "run",
     "run_pneumatic",
+    "simulate_lti",
+    "simulate_lti_loop",
     "truth_document",
     "write_bench_files",
     "write_pneumatic_campaign",
