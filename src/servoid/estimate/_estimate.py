@@ -12,6 +12,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
+from .._errors import DataError, ModelError
+
 __all__ = ["Estimate", "ParameterRow"]
 
 
@@ -53,6 +55,13 @@ class Estimate:
         The settings used (orders, solver route, ...), JSON-friendly.
     units : tuple of str
         A unit per parameter ('' when dimensionless or unknown).
+    residual_function : callable, optional
+        ``() -> residuals``, called once on first access of :attr:`residuals`.
+    model_function : callable, optional
+        ``theta -> model``: the model at another parameter vector (same order
+        as `parameters`).  It carries the covariance to anything computed
+        from the model (frequency response bands, poles, gains) by the delta
+        method; see :meth:`model_at`.
     """
 
     model: Any
@@ -68,6 +77,7 @@ class Estimate:
     residual_function: Callable[[], NDArray[np.float64]] | None = field(
         default=None, repr=False
     )
+    model_function: Callable[[NDArray[np.float64]], Any] | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         for name in ("parameters", "covariance"):
@@ -111,6 +121,27 @@ class Estimate:
                 self.names, self.parameters, self.std, ci, self.units, strict=True
             )
         ]
+
+    def model_at(self, theta: NDArray[np.float64]) -> Any:
+        """Return the model at parameter vector ``theta``.
+
+        Parameters
+        ----------
+        theta : ndarray, shape (n,)
+            Parameters in the order of :attr:`names`.
+
+        Raises
+        ------
+        ModelError
+            The estimator did not record how the model depends on θ.
+        """
+        if self.model_function is None:
+            raise ModelError(f"this {self.method} estimate does not say how its model depends on "
+                             "its parameters, so no uncertainty can be carried to the model")
+        theta = np.asarray(theta, dtype=float)
+        if theta.shape != self.parameters.shape:
+            raise DataError(f"theta must have shape {self.parameters.shape}, got {theta.shape}")
+        return self.model_function(theta)
 
     def __getitem__(self, name: str) -> float:
         try:
