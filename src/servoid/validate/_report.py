@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -14,8 +15,16 @@ from .._errors import DataError, check_option
 from ..data import Experiment
 from ._metrics import fit_percent, nrmse, relative_error, rmse, vaf
 from ._residuals import ResidualAnalysis, residual_analysis
+from ._simulate import (
+    Initial,
+    Intersample,
+    discrete_model,
+    has_noise_model,
+    is_arx,
+    simulate_model,
+)
 
-__all__ = ["ValidationReport", "simulate_from_data", "validate"]
+__all__ = ["ValidationReport", "compare", "simulate_from_data", "validate"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -23,11 +32,14 @@ class ValidationReport:
     """Plain-data result of validating a model on one experiment.
 
     Simulation metrics compare the measured output with the model simulated
-    from the input alone (from sample ``first`` on, with the samples before
-    it used as initial conditions); prediction metrics use the k-step-ahead
-    predictor from sample ``prediction_first`` on (for an ARX model
-    ``first + horizon − 1``, where its FIR predictor needs no sample before
-    the record); residual tests use one-step prediction errors.
+    from the input alone, from sample ``first`` on: the samples before it
+    either set the initial conditions (``initial = "measured"``, ARX) or
+    are a start-up transient the user chose to exclude; with
+    ``initial = "estimate"`` the initial state is fitted to the record
+    (MATLAB's ``compare``).  Prediction metrics use the k-step-ahead
+    predictor from sample ``prediction_first`` on; residual tests use
+    one-step prediction errors (for a model without a noise model, the
+    simulation error).
     """
 
     output: str
@@ -46,13 +58,46 @@ class ValidationReport:
     residuals: ResidualAnalysis
     experiment: str = ""
     prediction_first: int = 0
+    initial: str = "measured"
+    clipped: int = 0
+    unit: str = ""
+
+    def notes(self) -> tuple[str, ...]:
+        """Verdicts in plain words: what the data say about the model."""
+        out = []
+        r = self.residuals
+        if self.fit_percent < 0:
+            out.append(
+                f"the simulation fit on {self.experiment or 'the validation data'} is "
+                f"{self.fit_percent:.1f} % (negative): the model predicts the output worse "
+                "than its mean value; the model structure is rejected by the data"
+            )
+        if not r.is_independent:
+            out.append(
+                f"the residuals correlate with the input (p = {r.independence_pvalue:.3g}): the "
+                "model structure is rejected by the data; the dynamics from the input are not "
+                "captured (try other orders or delays), or the data were taken in closed loop"
+            )
+        if not r.is_white:
+            out.append(
+                f"the residuals are not white (Ljung–Box p = {r.whiteness_pvalue:.3g}): the "
+                "noise model is rejected by the data; parameter intervals that assume white "
+                "residuals are too narrow — a noise model (ARMAX, BJ) or a higher order helps"
+            )
+        if self.clipped:
+            out.append(f"{self.clipped} simulated samples were clipped to the declared limits of "
+                       f"{self.output!r}")
+        return tuple(out)
 
     def summary(self) -> dict[str, Any]:
         """Scalars and residual tests as plain data (no time series)."""
         return {
             "experiment": self.experiment,
             "output": self.output,
+            "unit": self.unit,
             "n_samples": int(self.measured.size - self.first),
+            "first": self.first,
+            "initial": self.initial,
             "fit_percent": self.fit_percent,
             "nrmse": self.nrmse,
             "rmse": self.rmse,
@@ -61,7 +106,9 @@ class ValidationReport:
             "prediction_horizon": self.horizon,
             "prediction_fit_percent": self.prediction_fit_percent,
             "prediction_first": self.prediction_first,
+            "clipped": self.clipped,
             "residuals": self.residuals.to_dict(),
+            "notes": list(self.notes()),
         }
 
     def __str__(self) -> str:
@@ -85,51 +132,77 @@ def validate(
     horizon: int = 5,
     max_lag: int = 25,
     confidence: float = 0.99,
+    initial: Initial = "auto",
+    transient: int = 0,
+    intersample: Intersample = "zoh",
+    limits: tuple[float, float] | None = None,
 ) -> ValidationReport:
-    """Validate a discrete model on an experiment.
+    """Validate a model on an experiment it was not fitted to.
 
     Parameters
     ----------
-    model : PolynomialModel
-        A discrete model with ``simulate``, ``predict`` and ``residuals``.
+    model : PolynomialModel, TransferFunction, StateSpace or Estimate
+        Discrete at the experiment's rate, or continuous (discretised with
+        `intersample`); an Estimate's model is used with its options.
     experiment : Experiment
         Validation data (not used for fitting).
     input : {"u", "r"}
         Role that drives the model.
     output : str, optional
-        Output channel when there are several.
+        Output channel when there are several; a state-space model with
+        several outputs is validated on the matching row.
     horizon : int
         k of the k-step-ahead prediction fit.
     max_lag : int
         Largest lag of the residual correlations [samples].
     confidence : float
         Level of the correlation bands and verdicts.
+    initial : {"auto", "estimate", "zero", "measured"}
+        Initial state of the simulation: fitted to the record
+        (``"estimate"``), from rest, or (ARX) from the first samples;
+        ``"auto"`` takes measured for ARX and estimated otherwise.
+    transient : int
+        Samples at the start excluded from the metrics [samples].
+    intersample : {"zoh", "foh", "bandlimited"}
+        Hold for a continuous model.
+    limits : (float, float), optional
+        Declared range of the output sensor [output unit]: the simulation
+        and prediction are clipped to it as the measurement was.
+
+    Returns
+    -------
+    ValidationReport
+        Metrics, residual tests and the signals.
     """
     check_option("input", input, ("u", "r"))
     if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)):
         raise type_error("horizon", horizon, "an integer (samples)")
     if horizon < 1:
         raise DataError(f"horizon must be >= 1 sample, got {horizon}")
-    dt = getattr(model, "dt", None)
-    if dt is not None and not np.isclose(dt, experiment.dt, rtol=1e-9, atol=0.0):
-        raise DataError(
-            f"the model has dt = {dt} s but the experiment {experiment.dt} s; "
-            "resample the data or discretise the model at the data rate"
-        )
     outputs = experiment.names_of("y") if output is None else (output,)
     if len(outputs) != 1:
         experiment.signal("y")
         raise DataError(f"several outputs ({', '.join(outputs)}): pass output=<name>")
+    model = _one_output(discrete_model(model, experiment.dt, intersample), experiment, outputs[0])
     y = experiment[outputs[0]]
     u = experiment.signal(input)
-    y_sim, first = simulate_from_data(model, y, u)
-    y_pred = np.asarray(model.predict(y, u, horizon=horizon), dtype=float)
-    eps = np.asarray(model.residuals(y, u), dtype=float)
+    y_sim, first, initial_used = simulate_model(model, y, u, initial=initial,
+                                                transient=transient)
+    if has_noise_model(model):
+        y_pred = np.asarray(model.predict(y, u, horizon=horizon), dtype=float)
+        eps = np.asarray(model.residuals(y, u), dtype=float)
+        # The k-step predictor takes unknown samples before the record as zero. For an ARX
+        # model it is an FIR in y and u reaching back k − 1 + first samples, so from there on
+        # it is exact, as the simulation is from `first` on (measured initial conditions).
+        p0 = min(first + horizon - 1, len(y) - 2) if first > 0 else 0
+    else:  # output error: every predictor is the simulation, with its initial state
+        y_pred, eps, p0 = y_sim, y - y_sim, first
+    clipped = 0
+    if limits is not None:
+        lo, hi = _limits(limits)
+        clipped = int(np.count_nonzero((y_sim[first:] < lo) | (y_sim[first:] > hi)))
+        y_sim, y_pred = np.clip(y_sim, lo, hi), np.clip(y_pred, lo, hi)
     ys, ss = y[first:], y_sim[first:]
-    # The k-step predictor takes unknown samples before the record as zero. For an ARX
-    # model it is an FIR in y and u reaching back k − 1 + first samples, so from there on
-    # it is exact, as the simulation is from `first` on (measured initial conditions).
-    p0 = min(first + horizon - 1, len(y) - 2) if first > 0 else 0
     return ValidationReport(
         output=outputs[0],
         time=experiment.time,
@@ -147,7 +220,36 @@ def validate(
         residuals=residual_analysis(eps[first:], u[first:], max_lag, confidence),
         experiment=experiment.name,
         prediction_first=p0,
+        initial=initial_used,
+        clipped=clipped,
+        unit=experiment.unit(outputs[0]),
     )
+
+
+def compare(
+    models: Mapping[str, Any],
+    experiment: Experiment,
+    **options: Any,
+) -> dict[str, ValidationReport]:
+    """Validate several models on the same record.
+
+    Parameters
+    ----------
+    models : mapping of str to model or Estimate
+        A label per model.
+    experiment : Experiment
+        The record.
+    **options
+        Passed to :func:`validate` (``initial``, ``input``, ``output``, …).
+
+    Returns
+    -------
+    dict of str to ValidationReport
+        In the order of `models`.
+    """
+    if not isinstance(models, Mapping) or not models:
+        raise type_error("models", models, "a non-empty mapping of label to model")
+    return {label: validate(m, experiment, **options) for label, m in models.items()}
 
 
 def simulate_from_data(
@@ -167,7 +269,7 @@ def simulate_from_data(
         First simulated sample.
     """
     u = np.asarray(u, dtype=float).reshape(len(y), -1)
-    if _is_arx(model):
+    if is_arx(model):
         a = np.asarray(model.a)
         v = np.zeros(len(y))
         m = a.size - 1
@@ -189,8 +291,24 @@ def simulate_from_data(
     return np.asarray(model.simulate(u if u.shape[1] > 1 else u[:, 0]), dtype=float), 0
 
 
-def _is_arx(model: Any) -> bool:
-    if not all(hasattr(model, n) for n in ("a", "b", "nk", "f", "c", "d")):
-        return False
-    trivial = [np.asarray(model.c), np.asarray(model.d), *map(np.asarray, model.f)]
-    return all(p.size == 1 for p in trivial)
+def _one_output(model: Any, experiment: Experiment, output: str) -> Any:
+    """The row of a multi-output state-space model that matches ``output``."""
+    n_out = getattr(model, "n_outputs", 1)
+    if n_out == 1:
+        return model
+    names = experiment.names_of("y")
+    if len(names) != n_out:
+        raise DataError(f"the model has {n_out} outputs but the experiment {len(names)} "
+                        f"({', '.join(names)}); give the experiment the model's outputs in order")
+    k = names.index(output)
+    return type(model)(model.A, model.B, model.C[k : k + 1], model.D[k : k + 1], model.dt)
+
+
+def _limits(limits: Any) -> tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in limits)
+    except (TypeError, ValueError):
+        raise type_error("limits", limits, "a pair (low, high) of numbers") from None
+    if not lo < hi:
+        raise DataError(f"limits must be (low, high) with low < high, got {limits!r}")
+    return lo, hi

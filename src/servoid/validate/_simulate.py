@@ -1,0 +1,182 @@
+"""Simulating any identified model on a record: discretisation and initial state.
+
+A fair comparison of a model with a measurement (MATLAB's ``compare``)
+simulates it from the input alone, at the record's sample rate, from the
+initial state that best explains the start of the record — otherwise a
+slow model is judged by its start-up transient, not its dynamics.
+
+- A continuous model is discretised at the record's ``dt`` with the hold
+  that matches the logged input: ``"zoh"`` for a staircase (a DAC), ``"foh"``
+  (also ``"bandlimited"``) for a smooth input.
+- ``initial="estimate"``: the free responses of the model's n states are
+  fitted to the record by linear least squares together with the forced
+  response (the output is linear in the initial state).
+- ``initial="measured"``: an ARX model takes its initial conditions from
+  the first measured samples, which are then excluded from the metrics.
+- ``initial="zero"``: from rest; ``transient`` samples may be excluded.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import signal as sps
+
+from .._checks import type_error
+from .._errors import DataError, ModelError, check_option
+
+__all__ = ["INITIALS", "INTERSAMPLES", "Initial", "Intersample", "discrete_model",
+           "has_noise_model", "is_arx", "simulate_model"]
+
+Initial = Literal["auto", "estimate", "zero", "measured"]
+Intersample = Literal["zoh", "foh", "bandlimited"]
+INITIALS: tuple[Initial, ...] = ("auto", "estimate", "zero", "measured")
+INTERSAMPLES: tuple[Intersample, ...] = ("zoh", "foh", "bandlimited")
+
+
+def discrete_model(model: Any, dt: float, intersample: Intersample = "zoh") -> Any:
+    """Return ``model`` as a discrete model at ``dt``.
+
+    Parameters
+    ----------
+    model : PolynomialModel, TransferFunction, StateSpace or Estimate
+        An identified model (an Estimate's model is used, with its
+        ``intersample`` option when it was fitted in continuous time).
+    dt : float
+        Sample period of the record [s].
+    intersample : {"zoh", "foh", "bandlimited"}
+        Hold used to discretise a continuous model.
+
+    Returns
+    -------
+    PolynomialModel, TransferFunction or StateSpace
+        Discrete at ``dt``.
+    """
+    from ..models import PolynomialModel, StateSpace, TransferFunction, c2d
+
+    check_option("intersample", intersample, INTERSAMPLES)
+    if hasattr(model, "model") and hasattr(model, "covariance"):  # an Estimate
+        intersample = model.options.get("intersample", intersample)
+        model = model.model
+    if not isinstance(model, (PolynomialModel, TransferFunction, StateSpace)):
+        raise type_error("model", model, "a PolynomialModel, TransferFunction, StateSpace or "
+                         "an Estimate of one")
+    if model.dt is None:
+        method = "zoh" if intersample == "zoh" else "foh"
+        return c2d(model, dt, method)
+    if not np.isclose(model.dt, dt, rtol=1e-9, atol=0.0):
+        raise DataError(
+            f"the model has dt = {model.dt} s but the experiment {dt} s; "
+            "resample the data or discretise the model at the data rate"
+        )
+    return model
+
+
+def is_arx(model: Any) -> bool:
+    """Return True for a polynomial model with only A and B."""
+    if not all(hasattr(model, n) for n in ("a", "b", "nk", "f", "c", "d")):
+        return False
+    trivial = [np.asarray(model.c), np.asarray(model.d), *map(np.asarray, model.f)]
+    return all(p.size == 1 for p in trivial)
+
+
+def has_noise_model(model: Any) -> bool:
+    """Return True unless the one-step predictor is the simulation (H = 1)."""
+    if not hasattr(model, "c"):  # transfer functions and state space: output error
+        return False
+    return any(np.asarray(p).size > 1 for p in (model.a, model.c, model.d))
+
+
+def simulate_model(
+    model: Any,
+    y: NDArray[np.float64],
+    u: NDArray[np.float64],
+    *,
+    initial: Initial = "auto",
+    transient: int = 0,
+) -> tuple[NDArray[np.float64], int, str]:
+    """Simulate a discrete model from the input with a chosen initial state.
+
+    Parameters
+    ----------
+    model : PolynomialModel, TransferFunction or StateSpace
+        Discrete, at the record's rate (see :func:`discrete_model`); one output.
+    y : ndarray, shape (N,)
+        Measured output (used only for the initial state).
+    u : ndarray, shape (N,) or (N, n_inputs)
+        Input.
+    initial : {"auto", "estimate", "zero", "measured"}
+        ``"auto"``: measured for an ARX model, else estimated.
+    transient : int
+        Samples at the start excluded from the metrics [samples] (added
+        to those a measured initial condition uses).
+
+    Returns
+    -------
+    y_sim : ndarray, shape (N,)
+        Simulated output (equal to the measurement before ``first`` for
+        measured initial conditions).
+    first : int
+        First sample the metrics use.
+    initial : str
+        The initial-state rule applied.
+    """
+    from ._report import simulate_from_data
+
+    check_option("initial", initial, INITIALS)
+    if isinstance(transient, bool) or not isinstance(transient, (int, np.integer)):
+        raise type_error("transient", transient, "an integer number of samples")
+    if not 0 <= transient < y.size - 2:
+        raise DataError(f"transient must lie in [0, {y.size - 3}] samples for {y.size} samples, "
+                        f"got {transient}")
+    if initial == "auto":
+        initial = "measured" if is_arx(model) else "estimate"
+    if initial == "measured":
+        if not is_arx(model):
+            raise ModelError('initial="measured" sets the state from past samples, which only an '
+                             'ARX model allows; use initial="estimate" for this model')
+        y_sim, first = simulate_from_data(model, y, u)
+        return y_sim, first + int(transient), "measured"
+    uu = u if u.ndim == 1 or u.shape[1] > 1 else u[:, 0]
+    forced = np.asarray(model.simulate(uu), dtype=float)
+    if forced.ndim != 1:
+        raise ModelError("the model has several outputs; validate one output at a time")
+    if initial == "zero":
+        return forced, int(transient), "zero"
+    free = _free_responses(model, y.size)
+    if free.shape[1] == 0:
+        return forced, int(transient), "estimate"
+    x0, *_ = np.linalg.lstsq(free, y - forced, rcond=None)
+    return forced + free @ x0, int(transient), "estimate"
+
+
+def _free_responses(model: Any, n: int) -> NDArray[np.float64]:
+    """Return (N, n_states) independent free responses of the model's output."""
+    from ..models import StateSpace
+
+    if isinstance(model, StateSpace):
+        states = model.n_states
+        zero = np.zeros((n, model.n_inputs))
+        cols = [np.asarray(model.simulate(zero, x0=np.eye(states)[j]), dtype=float)
+                for j in range(states)]
+        return np.column_stack(cols) if cols else np.empty((n, 0))
+    den = _denominator(model)
+    order = den.size - 1
+    impulse_free = np.zeros(n)
+    cols = []
+    for j in range(order):
+        zi = np.zeros(order)
+        zi[j] = 1.0
+        cols.append(sps.lfilter([1.0], den, impulse_free, zi=zi)[0])
+    return np.column_stack(cols) if cols else np.empty((n, 0))
+
+
+def _denominator(model: Any) -> NDArray[np.float64]:
+    """Return the simulation's denominator in q⁻¹ (its n coefficients give n states)."""
+    if hasattr(model, "_common_denominator"):  # PolynomialModel: A·ΠF_i
+        den = model._common_denominator()[0]
+    else:  # discrete TransferFunction in z: same coefficients read in q⁻¹
+        den = np.asarray(model.den, dtype=float)
+    return np.asarray(den, dtype=float)
