@@ -8,7 +8,8 @@ range raises :class:`FileFormatError` naming the table and key.
 Schema::
 
     [data]                    # required
-    file = "bench.tdms"       # required: the rig file, relative to this file
+    file = "bench.tdms"       # required: the rig file, relative to this file; an array of
+                              # files is an estimation set (segments never joined)
     format = "tdms"           # csv | tdms | mat; default from the extension
     group = "Measurements"    # TDMS group; only for TDMS files
     time = "t"                # time column / channel / variable [s]
@@ -21,13 +22,20 @@ Schema::
     offset = 0.0              # default 0
     unit = "m"                # unit after calibration; default: the file's unit when
                               # gain = 1 and offset = 0, else "" (unknown)
+    limits = [-0.1, 0.1]      # the sensor's range [unit]: simulations are clipped to it
 
     [preprocess]              # applied in this order: lowpass, decimate, detrend
     lowpass = 200.0           # [Hz], zero-phase 4th-order Butterworth, at the file's rate
     decimate = 5              # integer factor >= 1, anti-aliased (FIR, zero phase)
-    detrend = "mean"          # none | mean | linear (r, u, y channels); default "none"
+    detrend = "mean"          # none | mean | linear (r, u, y channels); default "none";
+                              # the estimation data's means are reused on validation data
 
-    [split]                   # default: halves
+    [validation]              # separate validation record(s): then [data] is all estimation
+    file = "run02.tdms"       # or an array; same channels, calibration and preprocessing
+    initial = "auto"          # auto | estimate | zero | measured: initial state of the simulation
+    transient = 0             # samples at the start excluded from the metrics
+
+    [split]                   # default: halves (not with [validation])
     fraction = 0.5            # in (0, 1); or
     index = 10000             # sample index after decimation and skipped periods
     period = 2047             # whole excitation periods [samples after decimation]
@@ -58,24 +66,29 @@ from typing import Any, Literal
 from .._atomic import atomic_path
 from .._errors import ChannelError, FileFormatError, OptionError, check_option
 from ._columns import existing_file
-from ._experiment import ROLES, Channel, Experiment, Role
+from ._experiment import ROLES, Channel, Experiment, ExperimentSet, Role
 from ._io import FORMATS, Format, format_of, read_experiment
-from ._preprocess import decimate, detrend, lowpass, split
+from ._preprocess import decimate, lowpass, split
+from ._preprocess import detrend as _detrend
 
 __all__ = [
     "ChannelSpec",
     "ExperimentSpec",
     "PreprocessSpec",
     "SplitSpec",
+    "ValidationSpec",
     "load_experiment_spec",
     "write_experiment_spec",
 ]
 
 DetrendSpec = Literal["none", "mean", "linear"]
 _DETRENDS: tuple[DetrendSpec, ...] = ("none", "mean", "linear")
-_TOP_KEYS = ("data", "channels", "preprocess", "split", "loop", "identify", "report")
+_TOP_KEYS = ("data", "channels", "preprocess", "split", "validation", "loop", "identify",
+             "report")
 _DATA_KEYS = ("file", "format", "group", "time", "dt")
-_CHANNEL_KEYS = ("source", "role", "gain", "offset", "unit")
+_CHANNEL_KEYS = ("source", "role", "gain", "offset", "unit", "limits")
+_VALIDATION_KEYS = ("file", "initial", "transient")
+_INITIALS = ("auto", "estimate", "zero", "measured")
 _PREPROCESS_KEYS = ("lowpass", "decimate", "detrend")
 _SPLIT_KEYS = ("fraction", "index", "period", "skip_periods")
 _FREE_KEYS = ("loop", "identify", "report")
@@ -100,6 +113,9 @@ class ChannelSpec:
         Calibration offset [unit after calibration].
     unit : str or None
         Unit after calibration; None: the file's unit if uncalibrated, else "".
+    limits : (float, float) or None
+        The sensor's range after calibration [unit]; simulations of this
+        channel are clipped to it.
     """
 
     name: str
@@ -108,6 +124,7 @@ class ChannelSpec:
     gain: float = 1.0
     offset: float = 0.0
     unit: str | None = None
+    limits: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -152,6 +169,26 @@ class SplitSpec:
 
 
 @dataclass(frozen=True)
+class ValidationSpec:
+    """Separate validation records and how to simulate on them.
+
+    Parameters
+    ----------
+    files : tuple of str
+        Validation rig files, relative to ``base_dir`` unless absolute; read
+        with the experiment's channels, calibration and preprocessing.
+    initial : {"auto", "estimate", "zero", "measured"}
+        Initial state of the simulation (see :func:`servoid.validate.validate`).
+    transient : int
+        Samples at the start of each record excluded from the metrics.
+    """
+
+    files: tuple[str, ...] = ()
+    initial: str = "auto"
+    transient: int = 0
+
+
+@dataclass(frozen=True)
 class ExperimentSpec:
     """A validated TOML experiment file.
 
@@ -173,6 +210,11 @@ class ExperimentSpec:
         Preprocessing steps.
     split : SplitSpec
         Estimation/validation split.
+    validation : ValidationSpec
+        Separate validation records (then no split).
+    files : tuple of str
+        Every estimation file (``file`` is the first); several make an
+        estimation set.
     loop, identify, report : mapping
         Free-form read-only tables.
     base_dir : pathlib.Path
@@ -189,11 +231,19 @@ class ExperimentSpec:
     dt: float | None = None
     preprocess: PreprocessSpec = PreprocessSpec()
     split: SplitSpec = SplitSpec()
+    validation: ValidationSpec = ValidationSpec()
+    files: tuple[str, ...] = ()
     loop: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     identify: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     report: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     base_dir: Path = field(default=Path("."), compare=False)
     source: Path | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        if not self.files:
+            object.__setattr__(self, "files", (self.file,))
+        elif self.files[0] != self.file:
+            raise FileFormatError(f"files must start with file {self.file!r}, got {self.files!r}")
 
     @classmethod
     def from_dict(
@@ -223,13 +273,17 @@ class ExperimentSpec:
         where = f"{origin}: [data]"
         data = table["data"]
         _check_keys(origin, "[data]", data, _DATA_KEYS, required=("file",))
-        file = _string(where, "file", data["file"])
+        files = _file_list(where, "file", data["file"])
+        file = files[0]
         fmt = data.get("format")
         if fmt is not None:
             _string(where, "format", fmt)
             check_option(f"{where} format", fmt, FORMATS)
         try:
             fmt = format_of(file, fmt)
+            for other in files[1:]:
+                if format_of(other, data.get("format")) != fmt:
+                    raise OptionError(f"every file must have one format; {other!r} is not {fmt}")
         except OptionError as exc:
             raise OptionError(f"{where}: {exc}") from None
         group = _optional(where, "group", data.get("group"), _string)
@@ -238,8 +292,23 @@ class ExperimentSpec:
         time = _optional(where, "time", data.get("time"), _string)
         dt = _optional(where, "dt", data.get("dt"), _positive)
         channels = _channels(origin, table["channels"])
+        validation = _validation(origin, table.get("validation", {}), fmt)
+        split_table = table.get("split", {})
+        if validation.files and split_table:
+            raise FileFormatError(
+                f"{origin}: [split] and [validation] file both say what the validation data "
+                "are; with a separate validation record the whole [data] is for estimation: "
+                "remove [split]"
+            )
+        if len(files) > 1 and not validation.files:
+            raise FileFormatError(
+                f"{origin}: [data] names {len(files)} estimation files but no validation "
+                "record; add [validation] file = \"<record>\""
+            )
         return cls(
             file=file,
+            files=files,
+            validation=validation,
             format=fmt,
             channels=channels,
             group=group,
@@ -259,9 +328,27 @@ class ExperimentSpec:
         """The rig file's path (``file`` resolved against ``base_dir``)."""
         return self.base_dir / self.file
 
+    @property
+    def data_paths(self) -> tuple[Path, ...]:
+        """Every estimation file's path."""
+        return tuple(self.base_dir / f for f in self.files)
+
+    @property
+    def validation_paths(self) -> tuple[Path, ...]:
+        """Every separate validation file's path (empty: the record is split)."""
+        return tuple(self.base_dir / f for f in self.validation.files)
+
+    def limits(self, name: str) -> tuple[float, float] | None:
+        """Declared range of channel ``name`` [its unit], or None."""
+        for ch in self.channels:
+            if ch.name == name:
+                return ch.limits
+        return None
+
     def to_dict(self) -> dict[str, Any]:
         """The spec as a plain TOML-shaped dictionary (defaults omitted)."""
-        data: dict[str, Any] = {"file": self.file, "format": self.format}
+        data: dict[str, Any] = {"file": self.file if len(self.files) == 1 else list(self.files),
+                                "format": self.format}
         for key in ("group", "time", "dt"):
             if getattr(self, key) is not None:
                 data[key] = getattr(self, key)
@@ -272,6 +359,8 @@ class ExperimentSpec:
                 entry.update(gain=ch.gain, offset=ch.offset)
             if ch.unit is not None:
                 entry["unit"] = ch.unit
+            if ch.limits is not None:
+                entry["limits"] = list(ch.limits)
             channels[ch.name] = entry
         out: dict[str, Any] = {"data": data, "channels": channels}
         pre = {k: getattr(self.preprocess, k) for k in _PREPROCESS_KEYS}
@@ -282,13 +371,31 @@ class ExperimentSpec:
         spl = {k: v for k, v in spl.items() if v is not None and (k != "skip_periods" or v)}
         if spl:
             out["split"] = spl
+        val = self.validation
+        if val.files:
+            out["validation"] = {"file": val.files[0] if len(val.files) == 1 else list(val.files)}
+            if val.initial != "auto":
+                out["validation"]["initial"] = val.initial
+            if val.transient:
+                out["validation"]["transient"] = val.transient
         for key in _FREE_KEYS:
             if getattr(self, key):
                 out[key] = _thaw(getattr(self, key))
         return out
 
-    def load(self) -> Experiment:
+    def load(self, path: str | os.PathLike[str] | None = None, *,
+             detrend: bool = True) -> Experiment:
         """Read the rig file, calibrate and preprocess it.
+
+        Parameters
+        ----------
+        path : path-like, optional
+            Another rig file with the same channels (a validation record);
+            default the first ``[data]`` file.
+        detrend : bool
+            Apply ``[preprocess] detrend`` to this record alone (False:
+            leave it to :meth:`records`, which reuses the estimation data's
+            means).
 
         Returns
         -------
@@ -301,7 +408,7 @@ class ExperimentSpec:
         ChannelError
             A listed source channel is not in the file.
         """
-        path = self.data_path
+        path = self.data_path if path is None else Path(path)
         raw = read_experiment(path, self.format, **self._reader_options())
         channels = []
         for ch in self.channels:
@@ -318,15 +425,18 @@ class ExperimentSpec:
             if unit is None:
                 unit = src.unit if (ch.gain == 1.0 and ch.offset == 0.0) else ""
             channels.append(Channel(ch.name, ch.role, calibrated, unit))
-        name = self.source.stem if self.source is not None else Path(self.file).stem
+        if path == self.data_path and len(self.files) == 1:
+            name = self.source.stem if self.source is not None else Path(self.file).stem
+        else:
+            name = path.stem
         exp = Experiment(tuple(channels), raw.dt, t0=raw.t0, name=name, notes=raw.notes)
         pre = self.preprocess
         if pre.lowpass is not None:
             exp = lowpass(exp, pre.lowpass, zero_phase=True)
         if pre.decimate > 1:
             exp = decimate(exp, pre.decimate)
-        if pre.detrend != "none":
-            exp = detrend(exp, pre.detrend)
+        if detrend and pre.detrend != "none":
+            exp = _detrend(exp, pre.detrend)
         return exp
 
     def split_data(self, exp: Experiment | None = None) -> tuple[Experiment, Experiment]:
@@ -342,12 +452,63 @@ class ExperimentSpec:
         tuple of Experiment
             ``(estimation, validation)``.
         """
-        exp = self.load() if exp is None else exp
+        given = exp is not None
+        exp = self.load(detrend=False) if exp is None else exp
         spl = self.split
         if spl.skip_periods and spl.period is not None:
             exp = exp.slice(spl.skip_periods * spl.period)
         at: float | int = spl.index if spl.index is not None else (spl.fraction or 0.5)
-        return split(exp, at, period=spl.period)
+        estimation, validation = split(exp, at, period=spl.period)
+        if given:  # the caller's record is already preprocessed
+            return estimation, validation
+        estimation, (validation,) = self._detrended(estimation, (validation,))
+        return estimation, validation
+
+    def records(self) -> tuple[Experiment | ExperimentSet, tuple[Experiment, ...]]:
+        """Estimation data and validation records as the file describes.
+
+        With ``[validation] file`` every ``[data]`` file is estimation data
+        (several make an :class:`ExperimentSet`) and each validation file
+        is read with the same channels, calibration and preprocessing;
+        otherwise the one ``[data]`` file is split by ``[split]``.  A
+        ``"mean"`` detrend takes the means of the estimation data and
+        subtracts the same values from the validation data, so a model is
+        never helped by knowing the validation record's operating point.
+
+        Returns
+        -------
+        tuple
+            ``(estimation, validations)``.
+        """
+        if not self.validation.files:
+            estimation, validation = self.split_data()
+            return estimation, (validation,)
+        parts = tuple(self.load(p, detrend=False) for p in self.data_paths)
+        validations = tuple(self.load(p, detrend=False) for p in self.validation_paths)
+        for v in validations:
+            _check_like(parts[0], v)
+        est_parts, validations = self._detrended(parts, validations)
+        est = est_parts[0] if len(est_parts) == 1 else ExperimentSet(est_parts)
+        return est, validations
+
+    def _detrended(
+        self, estimation: Experiment | tuple[Experiment, ...], validations: tuple[Experiment, ...]
+    ) -> tuple[Any, tuple[Experiment, ...]]:
+        kind = self.preprocess.detrend
+        single = isinstance(estimation, Experiment)
+        parts = (estimation,) if single else tuple(estimation)
+        if kind == "none":
+            return (parts[0] if single else parts), validations
+        if kind == "linear":  # a drift belongs to its record: each loses its own line
+            parts = tuple(_detrend(p, "linear") for p in parts)
+            return (parts[0] if single else parts), tuple(_detrend(v, "linear")
+                                                          for v in validations)
+        names = [ch.name for ch in parts[0].channels if ch.role != "side"]
+        total = sum(p.n_samples for p in parts)
+        means = {n: float(sum(p[n].sum() for p in parts) / total) for n in names}
+        parts = tuple(_detrend(p, "offset", offsets=means) for p in parts)
+        validations = tuple(_detrend(v, "offset", offsets=means) for v in validations)
+        return (parts[0] if single else parts), validations
 
     def _reader_options(self) -> dict[str, Any]:
         options: dict[str, Any] = {"dt": self.dt}
@@ -414,12 +575,19 @@ def write_experiment_spec(
     if not isinstance(spec, ExperimentSpec):
         spec = ExperimentSpec.from_dict(spec, base_dir=target.parent)
     doc = spec.to_dict()
-    file = Path(spec.file)
-    if not file.is_absolute() and spec.base_dir.resolve() != target.parent.resolve():
-        # Keep pointing at the same rig file from the new folder.
-        doc["data"]["file"] = Path(
-            os.path.relpath(spec.data_path.resolve(), target.parent.resolve())
-        ).as_posix()
+    if spec.base_dir.resolve() != target.parent.resolve():
+        # Keep pointing at the same rig files from the new folder.
+        def moved(name: str) -> str:
+            if Path(name).is_absolute():
+                return name
+            return Path(os.path.relpath((spec.base_dir / name).resolve(),
+                                        target.parent.resolve())).as_posix()
+
+        files = [moved(f) for f in spec.files]
+        doc["data"]["file"] = files[0] if len(files) == 1 else files
+        if spec.validation.files:
+            vals = [moved(f) for f in spec.validation.files]
+            doc["validation"]["file"] = vals[0] if len(vals) == 1 else vals
     text = _emit_document(doc)
     with atomic_path(target, overwrite) as tmp:
         tmp.write_text(text, encoding="utf-8")
@@ -510,9 +678,59 @@ def _channels(origin: str, table: Any) -> tuple[ChannelSpec, ...]:
                 gain=gain,
                 offset=_number(where, "offset", entry.get("offset", 0.0)),
                 unit=unit,
+                limits=_limits(where, entry.get("limits")),
             )
         )
     return tuple(out)
+
+
+def _file_list(where: str, key: str, value: Any) -> tuple[str, ...]:
+    if isinstance(value, (list, tuple)):
+        if not value:
+            raise FileFormatError(f"{where} {key} must name at least one file, got []")
+        return tuple(_string(where, key, v) for v in value)
+    return (_string(where, key, value),)
+
+
+def _validation(origin: str, table: Any, fmt: str) -> ValidationSpec:
+    _check_keys(origin, "[validation]", table, _VALIDATION_KEYS)
+    where = f"{origin}: [validation]"
+    if not table:
+        return ValidationSpec()
+    if "file" not in table:
+        raise FileFormatError(f"{where} needs file = \"<validation record>\" (or an array)")
+    files = _file_list(where, "file", table["file"])
+    for f in files:
+        try:
+            other = format_of(f, None)
+        except OptionError as exc:
+            raise OptionError(f"{where}: {exc}") from None
+        if other != fmt:
+            raise FileFormatError(f"{where} file {f!r} is {other}, but [data] is {fmt}: the "
+                                  "validation record must be written like the estimation one")
+    initial = table.get("initial", "auto")
+    check_option(f"{where} initial", initial, _INITIALS)
+    transient = _integer(where, "transient", table.get("transient", 0), 0)
+    return ValidationSpec(files, initial, transient)
+
+
+def _check_like(estimation: Experiment, validation: Experiment) -> None:
+    if not math.isclose(estimation.dt, validation.dt, rel_tol=1e-9):
+        raise FileFormatError(
+            f"the validation record {validation.name!r} has dt = {validation.dt:g} s but the "
+            f"estimation data {estimation.dt:g} s: record both at one rate, or resample one"
+        )
+
+
+def _limits(where: str, value: Any) -> tuple[float, float] | None:
+    if value is None:
+        return None
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise FileFormatError(f"{where} limits must be [low, high], got {_kind(value)}")
+    lo, hi = (_number(where, "limits", v) for v in value)
+    if not lo < hi:
+        raise FileFormatError(f"{where} limits must be [low, high] with low < high, got {value!r}")
+    return lo, hi
 
 
 def _preprocess(origin: str, table: Any) -> PreprocessSpec:
@@ -589,7 +807,7 @@ def _emit_document(doc: Mapping[str, Any]) -> str:
     parts = [_emit_table(["data"], doc["data"])]
     for name, entry in doc["channels"].items():
         parts.append(_emit_table(["channels", name], entry))
-    for key in ("preprocess", "split", *_FREE_KEYS):
+    for key in ("preprocess", "split", "validation", *_FREE_KEYS):
         if key in doc:
             parts.append(_emit_table([key], doc[key]))
     return "\n".join(parts)
