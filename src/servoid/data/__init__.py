@@ -10,6 +10,7 @@ from ._spec import (
     ExperimentSpec,
     PreprocessSpec,
     SplitSpec,
+    ValidationSpec,
     load_experiment_spec,
     write_experiment_spec,
 )
@@ -27,6 +28,7 @@ __all__ = [
     "PreprocessSpec",
     "Role",
     "SplitSpec",
+    "ValidationSpec",
     "as_segments",
     "calibrate",
     "decimate",
