@@ -179,6 +179,13 @@ def fit_arx(
     def residuals() -> NDArray[np.float64]:
         return np.concatenate([_equation_error(z, a, b_list, orders.nk)[start:] for z in signals])
 
+    def model_at(theta: NDArray[np.float64]) -> PolynomialModel:
+        bounds = np.cumsum([orders.na, *orders.nb])
+        return PolynomialModel.arx(np.concatenate([[1.0], theta[: orders.na]]),
+                                   np.split(theta[orders.na :], bounds[1:-1] - orders.na),
+                                   list(orders.nk), first.dt,
+                                   noise_variance=result.noise_variance)
+
     return Estimate(
         model=model,
         parameters=np.concatenate([a[1:], *b_list]),
@@ -200,6 +207,7 @@ def fit_arx(
             "segments": len(segments),
         },
         residual_function=residuals,
+        model_function=model_at,
     )
 
 
