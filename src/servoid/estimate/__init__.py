@@ -1,6 +1,7 @@
 """Estimators: least squares, ARX and order selection."""
 
 from ._arx import ArxOrders, fit_arx
+from ._band import FrequencyBand, frequency_band
 from ._estimate import Estimate, ParameterRow
 from ._greybox import GreyboxModel, GreyboxParameter, fit_greybox
 from ._inverse import (
@@ -22,6 +23,7 @@ __all__ = [
     "ArxOrders",
     "Estimate",
     "FilteredSignal",
+    "FrequencyBand",
     "GreyboxModel",
     "GreyboxParameter",
     "InverseDynamicsRegression",
@@ -38,6 +40,7 @@ __all__ = [
     "fit_rls",
     "fit_separable",
     "fit_tf_greybox",
+    "frequency_band",
     "inverse_dynamics_regression",
     "lstsq",
     "select_arx_order",
