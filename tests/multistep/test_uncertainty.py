@@ -21,7 +21,7 @@ import pytest
 from servoid.bench import write_pneumatic_campaign
 from servoid.data import load_experiment_spec
 from servoid.multistep import REFINABLE, KnownConstants, identify_multistep
-from servoid.workflows import identify_pneumatic_spec
+from servoid.workflows import identify
 
 FAST_SEEDS = (0, 1, 2)  # seed 0: the worst before (ad_2 −10σ, ẋ_krit +25σ, κ +2.6σ)
 SLOW_SEEDS = tuple(range(3, 11))
@@ -31,7 +31,7 @@ def _normalised_errors(folder, seed):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         write_pneumatic_campaign(folder, seed=seed)
-        ident = identify_pneumatic_spec(load_experiment_spec(folder / "pneumatic.toml"), None)
+        ident = identify(load_experiment_spec(folder / "pneumatic.toml"), write=False)
     truth = json.loads((folder / "truth.json").read_text(encoding="utf-8"))
     rows = {r["name"]: r for r in ident.result.table()}
     assert set(rows) == set(REFINABLE)

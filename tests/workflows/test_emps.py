@@ -11,7 +11,7 @@ import pytest
 
 from servoid import DataError, OptionError, OptionTypeError, OutputExistsError
 from servoid.data import ExperimentSpec, load_experiment_spec
-from servoid.workflows import controller_from_table, identify_inverse_dynamics_spec
+from servoid.workflows import controller_from_table, identify
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "emps"
 
@@ -24,7 +24,7 @@ def spec() -> ExperimentSpec:
 @pytest.fixture(scope="module")
 def written(spec, tmp_path_factory):
     folder = tmp_path_factory.mktemp("emps") / "results"
-    return identify_inverse_dynamics_spec(spec, folder)
+    return identify(spec, folder)
 
 
 def test_the_example_file_points_inside_the_repository(spec):
@@ -74,7 +74,7 @@ def test_refinement_and_linear_model_are_reported_honestly(written):
 
 def test_refuses_to_overwrite(spec, written):
     with pytest.raises(OutputExistsError):
-        identify_inverse_dynamics_spec(spec, written.folder)
+        identify(spec, written.folder)
 
 
 def test_compute_only_without_extras(spec):
@@ -82,14 +82,14 @@ def test_compute_only_without_extras(spec):
     table["identify"] = {"method": "inverse-dynamics", "model": "symmetric", "refine": False,
                          "linear": False, "holdout": False}
     quick = ExperimentSpec.from_dict(table, base_dir=spec.base_dir)
-    result = identify_inverse_dynamics_spec(quick, None)
+    result = identify(quick, write=False)
     assert list(result.estimates) == ["idim-ls symmetric"]
     assert result.files == () and result.linear is None and result.holdout is None
     assert result.to_dict()["published"] is None
 
 
 @pytest.mark.parametrize(
-    ("identify", "error", "match"),
+    ("keys", "error", "match"),
     [
         ({"model": "stribeck"}, OptionError, "model"),
         ({"refine_output": "velocity"}, OptionError, "refine_output"),
@@ -98,12 +98,12 @@ def test_compute_only_without_extras(spec):
         ({"linear_orders": [2, 2]}, DataError, "linear_orders"),
     ],
 )
-def test_bad_identify_keys(spec, identify, error, match):
+def test_bad_identify_keys(spec, keys, error, match):
     table = spec.to_dict()
-    table["identify"] = {"method": "inverse-dynamics", **identify}
+    table["identify"] = {"method": "inverse-dynamics", **keys}
     bad = ExperimentSpec.from_dict(table, base_dir=spec.base_dir)
     with pytest.raises(error, match=match):
-        identify_inverse_dynamics_spec(bad, None)
+        identify(bad, write=False)
 
 
 def test_loop_table_falls_back_on_file_scalars():
@@ -132,8 +132,8 @@ def test_sign_integrator_refinement_agrees_with_exact(spec, tmp_path):
     table["identify"] = {**table["identify"], "integration": "sign", "linear": False,
                          "holdout": False, "model": "symmetric"}
     slow = ExperimentSpec.from_dict(table, base_dir=spec.base_dir)
-    exact = identify_inverse_dynamics_spec(spec, None)
-    sign = identify_inverse_dynamics_spec(slow, None)
+    exact = identify(spec, write=False)
+    sign = identify(slow, write=False)
     a = exact.estimates["closed-loop-oe symmetric"].parameters
     b = sign.estimates["closed-loop-oe symmetric"].parameters
     assert abs(b / a - 1).max() < 0.01

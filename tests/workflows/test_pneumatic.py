@@ -12,7 +12,7 @@ from servoid import DataError, OptionError
 from servoid.actuators import PNEUMATIC_NOMINAL, PositionController, simulate_pneumatic
 from servoid.data import Experiment, load_experiment_spec, write_experiment_spec, write_tdms
 from servoid.multistep import KnownConstants
-from servoid.workflows._pneumatic import PneumaticIdentification, identify_pneumatic_spec
+from servoid.workflows import PneumaticIdentification, identify
 
 TRUTH = PNEUMATIC_NOMINAL
 DT = 1e-4
@@ -91,7 +91,7 @@ def write_campaign(folder, tables, identify=None, loop=None):
 def test_campaign_writes_results_and_report(campaign, tmp_path):
     folder, tables = campaign
     spec = write_campaign(folder, tables)
-    out = identify_pneumatic_spec(spec, tmp_path / "out")
+    out = identify(spec, tmp_path / "out")
     assert isinstance(out, PneumaticIdentification)
     assert {p.name for p in out.files} >= {"results.json", "report.html", "validation.png",
                                            "steps.png", "validation_refined.png"}
@@ -109,8 +109,8 @@ def test_campaign_writes_results_and_report(campaign, tmp_path):
     # starts at the truth; moves only to absorb the other estimates' ~1e-7 errors
     assert abs(out.result.refinement.parameters.c_k / 120.0 - 1) < 1e-4
     with pytest.raises(FileExistsError):
-        identify_pneumatic_spec(spec, tmp_path / "out")
-    identify_pneumatic_spec(spec, tmp_path / "out", overwrite=True)
+        identify(spec, tmp_path / "out")
+    identify(spec, tmp_path / "out", overwrite=True)
 
 
 def test_known_in_loop_and_validation_from_data(campaign):
@@ -121,7 +121,7 @@ def test_known_in_loop_and_validation_from_data(campaign):
                                     "thermo": "thermo.toml", "flow": "flow.toml",
                                     "friction": "friction.toml", "derivatives": "measured"},
                           loop=known)  # no gains: the controller is reconstructed
-    out = identify_pneumatic_spec(spec, None)
+    out = identify(spec, write=False)
     assert out.files == () and out.folder is None
     assert out.result.validation.notes  # "controller reconstructed ..."
     assert out.result.validation.fit["p_II"] > 99
@@ -131,13 +131,12 @@ def test_campaign_errors(campaign):
     folder, tables = campaign
     bad = {"method": "pneumatic-multistep", "valve": "valve.toml", "colour": "red"}
     with pytest.raises(OptionError, match="colour"):
-        identify_pneumatic_spec(write_campaign(folder, tables, identify=bad), None)
+        identify(write_campaign(folder, tables, identify=bad), write=False)
     lacking = {"method": "pneumatic-multistep", "valve": "valve.toml", "thermo": "thermo.toml",
                "flow": "flow.toml"}
     with pytest.raises(DataError, match="friction"):
-        identify_pneumatic_spec(write_campaign(folder, tables, identify=lacking), None)
+        identify(write_campaign(folder, tables, identify=lacking), write=False)
     no_known = {"method": "pneumatic-multistep", "valve": "valve.toml", "thermo": "thermo.toml",
                 "flow": "flow.toml", "friction": "friction.toml"}
     with pytest.raises(DataError, match="known constants lack"):
-        identify_pneumatic_spec(write_campaign(folder, tables, identify=no_known, loop={}),
-                                None)
+        identify(write_campaign(folder, tables, identify=no_known, loop={}), write=False)

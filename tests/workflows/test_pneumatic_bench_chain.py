@@ -26,7 +26,7 @@ from servoid.multistep import (
     identify_critical_pressure,
     identify_sliding_friction,
 )
-from servoid.workflows import identify_pneumatic_spec
+from servoid.workflows import identify
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +36,7 @@ def chain(tmp_path_factory):
         warnings.simplefilter("error")  # the default campaign must raise no rig warning
         write_pneumatic_campaign(folder, seed=0)
     spec = load_experiment_spec(folder / "pneumatic.toml")
-    ident = identify_pneumatic_spec(spec, None)
+    ident = identify(spec, write=False)
     truth = json.loads((folder / "truth.json").read_text(encoding="utf-8"))
     return folder, ident, truth
 

@@ -68,8 +68,9 @@ def _parser() -> argparse.ArgumentParser:
     identify = commands.add_parser(
         "identify", help="identify a model from an experiment file",
         description="Load the rig file an experiment TOML names, preprocess and split it, fit "
-        "the model of its [identify] table, validate on the held-back part, and write "
-        "results.json with figures.",
+        "the model of its [identify] table, validate on the held-back part or the [validation] "
+        "records, and write results.json, figures and report.html. 'servoid methods' lists "
+        "the methods and their [identify] keys.",
     )
     identify.add_argument("experiment", type=Path, help="experiment file (.toml)")
     identify.add_argument("--out", type=Path, help="results folder (default: [report] folder, "
@@ -78,6 +79,16 @@ def _parser() -> argparse.ArgumentParser:
                           help="replace results of an earlier run (inputs are never overwritten)")
     _json_flag(identify)
     identify.set_defaults(run=_run_identify)
+
+    methods = commands.add_parser(
+        "methods", help="list the identification methods and their [identify] keys",
+        description="Without a name: every method [identify] method = ... can name, with one "
+        "line each. With a name: that method's [identify] keys, defaults and the other tables "
+        "it reads.",
+    )
+    methods.add_argument("name", nargs="?", help="a method name, e.g. oe")
+    _json_flag(methods)
+    methods.set_defaults(run=_run_methods)
 
     from ._bench import add_bench
     from ._excite import add_excite
@@ -96,6 +107,19 @@ def _run_demo(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
     result = run_demo(args.out, seed=args.seed, overwrite=args.overwrite)
     return result.to_dict(), str(result)
+
+
+def _run_methods(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from ..workflows import get_method, method_names
+
+    if args.name:
+        method = get_method(args.name)
+        return method.to_dict(), method.describe()
+    listed = [get_method(n) for n in method_names()]
+    width = max(len(m.name) for m in listed)
+    text = "\n".join(f"{m.name:<{width}}  {m.summary}" for m in listed)
+    text += "\n\n'servoid methods NAME' shows a method's [identify] keys."
+    return {"methods": [m.to_dict() for m in listed]}, text
 
 
 def _run_identify(args: argparse.Namespace) -> tuple[dict[str, Any], str]:

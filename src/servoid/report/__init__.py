@@ -4,6 +4,7 @@ from ._figures import new_figure, plot_residuals, plot_validation, save_figure
 from ._html import Figure, Page, Section, Table, render_html, write_html
 from ._json import to_jsonable, write_json
 from ._lti_figures import plot_bode, plot_poles
+from ._model_figures import plot_bode_bands, plot_pole_zero, plot_singular_values
 from ._rigid_figures import plot_force_fit, plot_friction, plot_linear, plot_loop
 
 __all__ = [
@@ -13,12 +14,15 @@ __all__ = [
     "Table",
     "new_figure",
     "plot_bode",
+    "plot_bode_bands",
     "plot_force_fit",
     "plot_friction",
     "plot_linear",
     "plot_loop",
+    "plot_pole_zero",
     "plot_poles",
     "plot_residuals",
+    "plot_singular_values",
     "plot_validation",
     "render_html",
     "save_figure",

@@ -22,12 +22,22 @@ def new_figure(figsize: tuple[float, float]) -> Figure:
 def plot_validation(
     report: ValidationReport, path: str | os.PathLike[str], unit: str = "", overwrite: bool = False
 ) -> None:
-    """Save measured vs simulated and predicted output."""
+    """Save measured vs simulated and predicted output.
+
+    The samples before ``report.first`` (measured initial conditions or an
+    excluded transient) are shaded; ``unit`` defaults to the report's.
+    """
     t = report.time
     first = report.first
     fig = new_figure((9, 5.5))
     ax, ax_err = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    unit = unit or getattr(report, "unit", "")
     label_unit = f" [{unit}]" if unit else ""
+    if first > 0:
+        why = "initial conditions" if report.initial == "measured" else "excluded transient"
+        for axis in (ax, ax_err):
+            axis.axvspan(t[0], t[first], color="0.85", lw=0,
+                         label=f"{why} ({first} samples)" if axis is ax else None)
     ax.plot(t, report.measured, color="0.2", lw=1.0, label="measured")
     ax.plot(t[first:], report.simulated[first:], color="C1", lw=1.0,
             label=f"simulated (fit {report.fit_percent:.1f} %)")

@@ -1,26 +1,33 @@
-"""Workflows: end-to-end runs that the command line exposes one to one."""
+"""Workflows: end-to-end runs that the command line exposes one to one.
 
-from ._closedloop import ClosedLoopIdentification, identify_closed_loop_spec, loop_from_table
+:func:`identify` runs the method an experiment file names; every method is
+registered in one place (:func:`get_method`, :func:`method_names`) with its
+``[identify]`` options, its run and its report.
+"""
+
+from ._closedloop import ClosedLoopIdentification, loop_from_table
 from ._demo import DemoResult, run_demo
-from ._identify import IdentificationResult, identify
-from ._inverse import (
-    InverseDynamicsIdentification,
-    controller_from_table,
-    identify_inverse_dynamics_spec,
-)
-from ._pneumatic import PneumaticIdentification, identify_pneumatic_spec
+from ._inverse import InverseDynamicsIdentification, controller_from_table
+from ._lti import IdentificationResult, OrderRow
+from ._pneumatic import PneumaticIdentification
+from ._registry import Identification, Method, Option
+from ._run import get_method, identify, method_names, write_results
 
 __all__ = [
     "ClosedLoopIdentification",
     "DemoResult",
+    "Identification",
     "IdentificationResult",
     "InverseDynamicsIdentification",
+    "Method",
+    "Option",
+    "OrderRow",
     "PneumaticIdentification",
     "controller_from_table",
+    "get_method",
     "identify",
-    "identify_closed_loop_spec",
-    "identify_inverse_dynamics_spec",
-    "identify_pneumatic_spec",
     "loop_from_table",
+    "method_names",
     "run_demo",
+    "write_results",
 ]

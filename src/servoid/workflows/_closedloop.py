@@ -5,14 +5,15 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .. import __version__
-from .._checks import as_float, as_float_list, as_int, type_error
-from .._errors import DataError, OptionError, ServoidWarning, check_option
+from .._checks import as_float, as_float_list, type_error
+from .._errors import DataError, OptionError, ServoidWarning
 from ..closedloop import (
     APPROACHES,
     ClosedLoopResult,
@@ -31,22 +32,15 @@ from ..report import (
     plot_poles,
     plot_residuals,
     plot_validation,
-    write_html,
-    write_json,
 )
 from ..validate import ValidationReport, validate
-from ._common import (
-    check_outputs,
-    parameter_table,
-    read_truth,
-    report_options,
-    sha256,
-    validation_section,
-)
+from ._arx import HORIZON
+from ._common import parameter_table, read_truth, report_options, sha256, validation_section
+from ._options import choice, choices, integer, number, optional
+from ._registry import FigureWriter, Method, Option
 
-__all__ = ["ClosedLoopIdentification", "identify_closed_loop_spec", "loop_from_table"]
+__all__ = ["METHOD", "ClosedLoopIdentification", "loop_from_table"]
 
-_KEYS = ("method", "approach", "na", "nb", "nk", "horizon", "prefilter", "discretization")
 _NAMES = ("K", "omega_hp", "delta_hp")
 _DISCRETIZATIONS = ("tustin", "prewarp", "zoh")
 _F_KEYS = ("num", "den", "dt")
@@ -109,6 +103,28 @@ class ClosedLoopIdentification:
             "notes": list(self.notes),
         }
 
+    def inputs(self) -> tuple[Path, ...]:
+        """Every file the run read."""
+        spec = self.spec
+        out = [*spec.data_paths, *spec.validation_paths]
+        if spec.source:
+            out.append(Path(spec.source))
+            truth = report_options(spec.report).get("truth")
+            if truth:
+                out.append(spec.source.parent / truth)
+        return tuple(out)
+
+    def figures(self) -> dict[str, FigureWriter]:
+        """Validation, residuals, Bode of the plant, pole maps."""
+        return {"validation.png": partial(_plot_validation, self),
+                "residuals.png": partial(_plot_residuals, self),
+                "bode.png": partial(_plot_bode, self),
+                "poles.png": partial(_plot_poles, self)}
+
+    def page(self, files: Mapping[str, Path]) -> Page:
+        """The report page."""
+        return _page(self, files)
+
     def __str__(self) -> str:
         approaches = list(self.results)
         head = f"  {'param':<9} {'truth':>10}" + "".join(
@@ -170,25 +186,18 @@ def _feedback(value: Any) -> float | TransferFunction:
     return as_float("F", value, where="[loop]")
 
 
-def identify_closed_loop_spec(
-    spec: ExperimentSpec,
-    folder: Path | None,
-    *,
-    overwrite: bool = False,
-    truth: Mapping[str, float] | None = None,
-) -> ClosedLoopIdentification:
+def run(spec: ExperimentSpec, options: Mapping[str, Any],
+        truth: Mapping[str, float] | None) -> ClosedLoopIdentification:
     """Run the closed-loop approaches an experiment file asks for.
 
-    ``[identify]`` keys: ``method = "closedloop"``, ``approach`` (one of
-    ``"indirect"``, ``"one-step"``, ``"direct"`` or a list; default both
-    indirect and one-step, the last being the primary result), ``na``,
-    ``nb``, ``nk`` (the ARX stage, default 3, 4, 0), ``prefilter`` [Hz]
-    (zero-phase low-pass for the two-step ARX), ``discretization`` of the
-    one-step model (``"tustin"``, ``"prewarp"``, ``"zoh"``) and ``horizon``.
+    ``[identify]`` keys: ``approach`` (one of ``"indirect"``, ``"one-step"``,
+    ``"direct"`` or a list; default both indirect and one-step, the last
+    being the primary result), ``na``, ``nb``, ``nk`` (the ARX stage),
+    ``prefilter`` [Hz] (zero-phase low-pass for the two-step ARX),
+    ``discretization`` of the one-step model and ``horizon``.
     """
-    options = _options(spec.identify)
     loop = loop_from_table(spec.loop)
-    estimation, validation_data = spec.split_data()
+    estimation, (validation_data, *_) = spec.records()
     if truth is None:
         truth = _truth_from_spec(spec)
     results: dict[str, ClosedLoopResult] = {}
@@ -209,44 +218,8 @@ def identify_closed_loop_spec(
         notes += [f"{_LABEL[approach]}: {n}" for n in result.notes()]
     validations = {a: _validate(r, validation_data, options["horizon"]) for a, r in results.items()}
     primary = options["approach"][-1]
-    ident = ClosedLoopIdentification(spec, loop, results, validations, primary, truth,
-                                     notes=tuple(notes))
-    if folder is None:
-        return ident
-    files = _write(ident, folder, overwrite)
-    return ClosedLoopIdentification(spec, loop, results, validations, primary, truth, folder,
-                                    tuple(files), tuple(notes))
-
-
-def _options(table: Mapping[str, Any]) -> dict[str, Any]:
-    unknown = sorted(set(table) - set(_KEYS))
-    if unknown:
-        raise OptionError(f"unknown key(s) in [identify]: {', '.join(unknown)}; valid keys for "
-                          f"method = \"closedloop\" are {', '.join(_KEYS)}")
-    options = {"approach": ["indirect", "one-step"], "na": 3, "nb": 4, "nk": 0, "horizon": 5,
-               "prefilter": None, "discretization": "tustin"}
-    options.update(table)
-    approach = options["approach"]
-    if isinstance(approach, str):
-        approaches = [approach]
-    elif isinstance(approach, (list, tuple)):
-        approaches = list(approach)
-    else:
-        raise type_error("approach", approach, "a string or a list of strings",
-                         where="[identify]")
-    if not approaches:
-        raise OptionError(f"[identify] approach is empty; choose from {', '.join(APPROACHES)}")
-    for a in approaches:
-        check_option("[identify] approach", a, APPROACHES)
-    options["approach"] = approaches
-    for key, minimum in (("na", 0), ("nb", 1), ("nk", 0)):
-        options[key] = as_int(key, options[key], minimum=minimum, where="[identify]")
-    options["horizon"] = as_int("horizon", options["horizon"], minimum=1, where="[identify]")
-    if options["prefilter"] is not None:
-        options["prefilter"] = as_float("prefilter", options["prefilter"], positive=True,
-                                        unit="Hz", where="[identify]")
-    check_option("[identify] discretization", options["discretization"], _DISCRETIZATIONS)
-    return options
+    return ClosedLoopIdentification(spec, loop, results, validations, primary, truth,
+                                    notes=tuple(notes))
 
 
 def _validate(result: ClosedLoopResult, data: Any, horizon: int) -> ValidationReport:
@@ -267,30 +240,32 @@ def _f_text(loop: FeedbackLoop) -> str:
     return f"{loop.F:g}" if isinstance(loop.F, (int, float)) else "a transfer function"
 
 
-def _write(ident: ClosedLoopIdentification, folder: Path, overwrite: bool) -> list[Path]:
-    names = ("results.json", "report.html", "validation.png", "residuals.png", "bode.png",
-             "poles.png")
-    targets = {n: folder / n for n in names}
-    inputs = [ident.spec.data_path] + ([Path(ident.spec.source)] if ident.spec.source else [])
-    check_outputs(list(targets.values()), inputs, overwrite)
-    folder.mkdir(parents=True, exist_ok=True)
-    primary = ident.validation
-    val_data_unit = ""
-    plot_validation(primary, targets["validation.png"], unit=val_data_unit, overwrite=overwrite)
-    plot_residuals(primary, targets["residuals.png"], overwrite=overwrite)
+def _plot_validation(ident: ClosedLoopIdentification, path: Path, overwrite: bool) -> None:
+    plot_validation(ident.validation, path, overwrite=overwrite)
+
+
+def _plot_residuals(ident: ClosedLoopIdentification, path: Path, overwrite: bool) -> None:
+    plot_residuals(ident.validation, path, overwrite=overwrite)
+
+
+def _plot_bode(ident: ClosedLoopIdentification, path: Path, overwrite: bool) -> None:
+    plot_bode(_plants(ident), path, f_min=0.1, f_max=0.5 / next(iter(ident.results.values())).dt,
+              title="identified plant G0(s)", overwrite=overwrite)
+
+
+def _plot_poles(ident: ClosedLoopIdentification, path: Path, overwrite: bool) -> None:
+    closed = {_LABEL[a]: r.closed_loop for a, r in ident.results.items()
+              if r.closed_loop is not None}
+    plot_poles(_plants(ident), closed, path, overwrite=overwrite)
+
+
+def _plants(ident: ClosedLoopIdentification) -> dict[str, TransferFunction]:
     plants: dict[str, TransferFunction] = {}
     if ident.truth and all(k in ident.truth for k in _NAMES):
         plants["truth"] = reduced_plant(tuple(ident.truth[k] for k in _NAMES))
     for approach, result in ident.results.items():
         plants[_LABEL[approach]] = result.plant_continuous
-    dt = next(iter(ident.results.values())).dt
-    plot_bode(plants, targets["bode.png"], f_min=0.1, f_max=0.5 / dt,
-              title="identified plant G0(s)", overwrite=overwrite)
-    closed = {_LABEL[a]: r.closed_loop for a, r in ident.results.items() if r.closed_loop is not None}
-    plot_poles(plants, closed, targets["poles.png"], overwrite=overwrite)
-    write_html(_page(ident, targets), targets["report.html"], overwrite=overwrite)
-    write_json(ident.to_dict(), targets["results.json"], overwrite=overwrite)
-    return list(targets.values())
+    return plants
 
 
 def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
@@ -353,3 +328,24 @@ def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
     )
 
 
+
+
+METHOD = Method(
+    name="closedloop",
+    summary="physical parameters K, ω_hp, δ_hp of the reduced electro-hydraulic plant inside "
+            "its known loop ([loop] c, F): two-step indirect, one-step OE, direct",
+    options=(
+        Option("approach", ["indirect", "one-step"], choices(APPROACHES),
+               "approach or list of approaches; the last is the primary result"),
+        Option("na", 3, integer(minimum=0), "poles of the two-step ARX of the closed loop"),
+        Option("nb", 4, integer(minimum=1), "B coefficients of the two-step ARX"),
+        Option("nk", 0, integer(minimum=0), "delay of the two-step ARX [samples]"),
+        Option("prefilter", None, optional(number(positive=True, unit="Hz")),
+               "zero-phase low-pass before the two-step ARX [Hz]"),
+        Option("discretization", "tustin", choice(_DISCRETIZATIONS),
+               "discretisation of the one-step model"),
+        HORIZON,
+    ),
+    run=run,
+    tables=("loop", "validation"),
+)

@@ -22,7 +22,7 @@ from .._errors import OutputExistsError
 from ..bench import BenchRun, EhsaBench, run, write_bench_files
 from ..signals import prbs
 from ._closedloop import ClosedLoopIdentification
-from ._identify import identify
+from ._run import identify
 
 __all__ = ["DemoResult", "run_demo"]
 

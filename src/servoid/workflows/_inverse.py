@@ -16,23 +16,15 @@ import math
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .. import __version__
-from .._checks import (
-    as_bool,
-    as_float,
-    as_int,
-    as_int_list,
-    as_mapping,
-    as_str,
-    read_json,
-    type_error,
-)
-from .._errors import DataError, FileFormatError, OptionError, ServoidWarning, check_option
+from .._checks import as_float, as_int_list, as_mapping, read_json
+from .._errors import DataError, FileFormatError, OptionError, ServoidWarning
 from ..actuators import CascadeController, RigidAxis, simulate_rigid_loop
 from ..data import Experiment, ExperimentSpec
 from ..estimate import (
@@ -52,26 +44,15 @@ from ..report import (
     plot_friction,
     plot_linear,
     plot_loop,
-    write_html,
-    write_json,
 )
 from ..validate import relative_error, simulate_from_data
-from ._common import check_outputs, parameter_table, report_options, sha256
+from ._common import parameter_table, report_options, sha256
+from ._options import boolean, choice, choices, integer, number, optional, text
+from ._registry import FigureWriter, Method, Option
 
-__all__ = ["InverseDynamicsIdentification", "controller_from_table",
-           "identify_inverse_dynamics_spec"]
+__all__ = ["METHOD", "InverseDynamicsIdentification", "controller_from_table"]
 
-_KEYS = ("method", "model", "position", "force", "reference", "cutoff", "order", "decimation",
-         "decimation_filter", "differentiation", "trim", "refine", "refine_output", "integration",
-         "linear", "linear_orders", "holdout")
 _LOOP_KEYS = ("kp", "kv", "gtau", "saturation")
-_W = "[identify]"
-_DEFAULTS: dict[str, Any] = {
-    "model": ["symmetric", "asymmetric"], "position": None, "force": None, "reference": None,
-    "cutoff": 100.0, "order": 4, "decimation": 10, "decimation_filter": "fir",
-    "differentiation": "central", "trim": 1, "refine": True, "refine_output": "both",
-    "integration": "exact", "linear": True, "linear_orders": [2, 2, 1], "holdout": True,
-}
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,6 +81,10 @@ class InverseDynamicsIdentification:
         The files written.
     notes : tuple of str
         Remarks for the reader.
+    data : Experiment or None
+        The record identified (for the figures).
+    options : mapping
+        The ``[identify]`` options used.
     """
 
     spec: ExperimentSpec
@@ -112,6 +97,8 @@ class InverseDynamicsIdentification:
     folder: Path | None = None
     files: tuple[Path, ...] = ()
     notes: tuple[str, ...] = field(default=())
+    data: Experiment | None = None
+    options: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def estimate(self) -> Estimate:
@@ -129,7 +116,8 @@ class InverseDynamicsIdentification:
                            "gtau": self.controller.gtau,
                            "saturation": self.controller.saturation},
             "estimates": {},
-            "linear": dict(self.linear) if self.linear else None,
+            "linear": {k: v for k, v in self.linear.items() if k != "simulated"}
+            if self.linear else None,
             "holdout": {k: dict(v) for k, v in self.holdout.items()} if self.holdout else None,
             "published": dict(self.published) if self.published else None,
             "notes": list(self.notes),
@@ -140,6 +128,31 @@ class InverseDynamicsIdentification:
             entry["comparison"] = self._compare(key, est)
             out["estimates"][key] = entry
         return out
+
+    def inputs(self) -> tuple[Path, ...]:
+        """Every file the run read."""
+        out = [self.spec.data_path]
+        if self.spec.source:
+            out.append(Path(self.spec.source))
+        truth = report_options(self.spec.report).get("truth")
+        if truth:
+            out.append(self.spec.base_dir / truth)
+        return tuple(out)
+
+    def figures(self) -> dict[str, FigureWriter]:
+        """Force fit, friction, closed loop and the linear comparison."""
+        out: dict[str, FigureWriter] = {
+            "force_fit.png": partial(_plot_force_fit, self),
+            "friction.png": partial(_plot_friction, self),
+            "closed_loop.png": partial(_plot_loop, self),
+        }
+        if self.linear:
+            out["linear.png"] = partial(_plot_linear, self)
+        return out
+
+    def page(self, files: Mapping[str, Path]) -> Page:
+        """The report page."""
+        return _page(self, files)
 
     def _compare(self, key: str, est: Estimate) -> dict[str, Any] | None:
         ref = (self.published or {}).get(key.split(" ")[-1])
@@ -223,49 +236,19 @@ def controller_from_table(
     return CascadeController(values["kp"], values["kv"], values["gtau"], values["saturation"])
 
 
-def identify_inverse_dynamics_spec(
-    spec: ExperimentSpec,
-    folder: Path | None,
-    *,
-    overwrite: bool = False,
-    published: Mapping[str, Any] | None = None,
-) -> InverseDynamicsIdentification:
+def run(spec: ExperimentSpec, options: Mapping[str, Any],
+        truth: Mapping[str, Any] | None) -> InverseDynamicsIdentification:
     """Run the rigid-axis identification an experiment file asks for.
 
-    ``[identify]`` keys (``method = "inverse-dynamics"``): ``model``
-    (``"symmetric"``, ``"asymmetric"`` or a list, default both, the first
-    primary), ``position``, ``force``, ``reference`` (channel names),
-    ``cutoff`` [Hz], ``order``, ``decimation``, ``decimation_filter``,
-    ``differentiation``, ``trim`` (see
-    :func:`~servoid.estimate.fit_inverse_dynamics`), ``refine`` (closed-loop
-    OE, default true), ``refine_output`` (``"position"``, ``"force"``,
-    ``"both"``), ``integration`` (``"exact"`` or ``"sign"``), ``linear``
-    (a linear ARX model from u to the position, default true) with
-    ``linear_orders = [na, nb, nk]``, and ``holdout`` (fit on the estimation
-    part of ``[split]``, simulate the rest; default true). ``[loop]``: see
-    :func:`controller_from_table`.
-
-    Parameters
-    ----------
-    spec : ExperimentSpec
-        The experiment file.
-    folder : pathlib.Path or None
-        Results folder (None: compute only).
-    overwrite : bool
-        Replace the files of an earlier run.
-    published : mapping, optional
-        Reference results to compare with; default ``[report] truth`` (a JSON file).
-
-    Returns
-    -------
-    InverseDynamicsIdentification
-        Estimates, closed-loop errors, and the files written.
+    ``[identify]`` keys: see :data:`METHOD` (``servoid methods
+    inverse-dynamics``); ``[loop]``: see :func:`controller_from_table`.
+    ``truth`` (or ``[report] truth``, a JSON file) holds published
+    reference results to compare with.
     """
-    options = _options(spec.identify)
+    options = _checked(options)
     data = spec.load()
     controller = controller_from_table(spec.loop, data.notes)
-    if published is None:
-        published = _published_from_spec(spec)
+    published = truth if truth is not None else _published_from_spec(spec)
     channels = {k: options[k] for k in ("position", "force")}
     idim = {k: options[k] for k in ("cutoff", "order", "decimation", "decimation_filter",
                                     "differentiation", "trim")}
@@ -285,60 +268,24 @@ def identify_inverse_dynamics_spec(
     holdout = _holdout(spec, data, controller, options, channels, idim) \
         if options["holdout"] else None
     notes += _notes(estimates, loop_errors)
-    ident = InverseDynamicsIdentification(spec, controller, estimates, loop_errors, linear,
-                                          holdout, published, notes=tuple(notes))
-    if folder is None:
-        return ident
-    files = _write(ident, data, folder, overwrite, options)
     return InverseDynamicsIdentification(spec, controller, estimates, loop_errors, linear,
-                                         holdout, published, folder, tuple(files), tuple(notes))
+                                         holdout, published, notes=tuple(notes), data=data,
+                                         options=options)
 
 
 # -- steps ------------------------------------------------------------------------------------
 
 
-def _options(table: Mapping[str, Any]) -> dict[str, Any]:
-    unknown = sorted(set(table) - set(_KEYS))
-    if unknown:
-        raise OptionError(f"unknown key(s) in [identify]: {', '.join(unknown)}; valid keys for "
-                          f"method = \"inverse-dynamics\" are {', '.join(_KEYS)}")
-    options = dict(_DEFAULTS)
-    options.update({k: v for k, v in table.items() if k != "method"})
-    models = options["model"]
-    if isinstance(models, str):
-        models = [models]
-    elif isinstance(models, (list, tuple)):
-        models = list(models)
-    else:
-        raise type_error("model", models, "a string or a list of strings", where=_W)
-    if not models:
-        raise OptionError(f"[identify] model is empty; choose from {', '.join(FRICTION_MODELS)}")
-    for m in models:
-        check_option("[identify] model", m, FRICTION_MODELS)
-    options["model"] = list(dict.fromkeys(models))
-    for key in ("position", "force", "reference"):
-        if options[key] is not None:
-            as_str(key, options[key], where=_W)
-    options["cutoff"] = as_float("cutoff", options["cutoff"], positive=True, unit="Hz", where=_W)
-    options["order"] = as_int("order", options["order"], minimum=1, where=_W)
-    options["decimation"] = as_int("decimation", options["decimation"], minimum=1, where=_W)
-    options["trim"] = as_int("trim", options["trim"], minimum=0, where=_W)
-    check_option("[identify] decimation_filter", options["decimation_filter"], ("fir", "iir"))
-    check_option("[identify] differentiation", options["differentiation"],
-                 ("central", "backward"))
-    check_option("[identify] refine_output", options["refine_output"],
-                 ("position", "force", "both"))
-    check_option("[identify] integration", options["integration"], ("exact", "sign"))
-    for key in ("refine", "linear", "holdout"):
-        as_bool(key, options[key], where=_W)
-    orders = options["linear_orders"]
+def _checked(options: Mapping[str, Any]) -> dict[str, Any]:
+    out = dict(options)
+    orders = out["linear_orders"]
     if isinstance(orders, (list, tuple)) and len(orders) != 3:
         raise DataError(f"[identify] linear_orders must be [na, nb, nk], got {list(orders)!r}")
-    orders = as_int_list("linear_orders", orders, length=3, minimum=0, where=_W)
+    orders = as_int_list("linear_orders", orders, length=3, minimum=0, where="[identify]")
     if orders[1] < 1:
         raise DataError(f"[identify] linear_orders = [na, nb, nk] needs nb >= 1, got {orders!r}")
-    options["linear_orders"] = orders
-    return options
+    out["linear_orders"] = orders
+    return out
 
 
 def _simulate(data: Experiment, controller: CascadeController, axis: RigidAxis,
@@ -466,38 +413,40 @@ def _check_published(data: Mapping[str, Any], where: str) -> None:
 # -- output -----------------------------------------------------------------------------------
 
 
-def _write(ident: InverseDynamicsIdentification, data: Experiment, folder: Path,
-           overwrite: bool, options: Mapping[str, Any]) -> list[Path]:
-    names = ("results.json", "report.html", "force_fit.png", "friction.png", "closed_loop.png")
-    if ident.linear:
-        names += ("linear.png",)
-    targets = {n: folder / n for n in names}
-    inputs = [ident.spec.data_path] + ([Path(ident.spec.source)] if ident.spec.source else [])
-    check_outputs(list(targets.values()), inputs, overwrite)
-    folder.mkdir(parents=True, exist_ok=True)
+def _regressions(ident: InverseDynamicsIdentification) -> tuple[dict[str, Any], dict[str, Any]]:
     idim = {k: v for k, v in ident.estimates.items() if v.method == "idim-ls"}
     regressions = {
         key: inverse_dynamics_regression(
-            data, **{k: est.options[k] for k in ("position", "force", "model", "cutoff", "order",
-                                                 "decimation", "decimation_filter",
-                                                 "differentiation", "trim")})
+            ident.data, **{k: est.options[k] for k in ("position", "force", "model", "cutoff",
+                                                       "order", "decimation",
+                                                       "decimation_filter", "differentiation",
+                                                       "trim")})
         for key, est in idim.items()
     }
-    plot_force_fit(regressions, idim, targets["force_fit.png"], overwrite)
-    plot_friction(regressions, idim, targets["friction.png"], overwrite)
+    return regressions, idim
+
+
+def _plot_force_fit(ident: InverseDynamicsIdentification, path: Path, overwrite: bool) -> None:
+    plot_force_fit(*_regressions(ident), path, overwrite)
+
+
+def _plot_friction(ident: InverseDynamicsIdentification, path: Path, overwrite: bool) -> None:
+    plot_friction(*_regressions(ident), path, overwrite)
+
+
+def _plot_loop(ident: InverseDynamicsIdentification, path: Path, overwrite: bool) -> None:
+    data, options = ident.data, ident.options
     sims = {key: _simulate(data, ident.controller, est.model, options)[0]
             for key, est in ident.estimates.items()}
     _, _, q_name, f_name = _simulate(data, ident.controller, ident.estimate.model, options)
-    plot_loop(data.time, data[q_name], data[f_name], sims, targets["closed_loop.png"], overwrite)
-    if ident.linear:
-        plot_linear(data.time, data[q_name], ident.linear["simulated"], ident.linear["structure"],
-                    targets["linear.png"], overwrite)
-    write_html(_page(ident, targets), targets["report.html"], overwrite=overwrite)
-    payload = ident.to_dict()
-    if payload["linear"]:
-        payload["linear"].pop("simulated", None)
-    write_json(payload, targets["results.json"], overwrite=overwrite)  # last: a complete run
-    return list(targets.values())
+    plot_loop(data.time, data[q_name], data[f_name], sims, path, overwrite)
+
+
+def _plot_linear(ident: InverseDynamicsIdentification, path: Path, overwrite: bool) -> None:
+    data, linear = ident.data, ident.linear
+    q_name = _simulate(data, ident.controller, ident.estimate.model, ident.options)[2]
+    plot_linear(data.time, data[q_name], linear["simulated"], linear["structure"], path,
+                overwrite)
 
 
 def _fmt(x: float | None, digits: int = 6) -> str:
@@ -583,3 +532,38 @@ def _page(ident: InverseDynamicsIdentification, files: Mapping[str, Path]) -> Pa
         meta=(("servoid", __version__), ("experiment file", str(spec.source or "")),
               ("data file", str(spec.data_path))),
     )
+
+
+METHOD = Method(
+    name="inverse-dynamics",
+    summary="rigid axis with friction in its known cascade loop ([loop] kp, kv, gtau): "
+            "IDIM-LS of M, Fv, Fc, closed-loop OE refinement, hold-out check",
+    options=(
+        Option("model", ["symmetric", "asymmetric"], choices(FRICTION_MODELS),
+               "friction model or list; the first is primary"),
+        Option("position", None, optional(text()), "position channel (default: the y channel)"),
+        Option("force", None, optional(text()),
+               "force channel (default: 'force', else the u channel)"),
+        Option("reference", None, optional(text()), "reference channel (default: the r channel)"),
+        Option("cutoff", 100.0, number(positive=True, unit="Hz"),
+               "zero-phase low-pass before differentiation [Hz]"),
+        Option("order", 4, integer(minimum=1), "Butterworth order of that low-pass"),
+        Option("decimation", 10, integer(minimum=1), "decimation of the regression"),
+        Option("decimation_filter", "fir", choice(("fir", "iir")), "decimation filter"),
+        Option("differentiation", "central", choice(("central", "backward")),
+               "numerical derivative"),
+        Option("trim", 1, integer(minimum=0), "samples trimmed at each end [decimated samples]"),
+        Option("refine", True, boolean(), "closed-loop output-error refinement"),
+        Option("refine_output", "both", choice(("position", "force", "both")),
+               "signals the refinement fits"),
+        Option("integration", "exact", choice(("exact", "sign")),
+               "friction integration in the loop simulation"),
+        Option("linear", True, boolean(), "also fit a linear ARX from u to the position"),
+        Option("linear_orders", [2, 2, 1], lambda v, w, n: as_int_list(n, v, minimum=0, where=w),
+               "[na, nb, nk] of that ARX"),
+        Option("holdout", True, boolean(),
+               "fit on the estimation part of [split], simulate the rest"),
+    ),
+    run=run,
+    tables=("loop",),
+)

@@ -30,14 +30,15 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .. import __version__
-from .._checks import as_bool, as_float, as_mapping, as_str, type_error
-from .._errors import DataError, OptionError, check_option
+from .._checks import as_float, as_mapping, as_str, type_error
+from .._errors import DataError, check_option
 from ..actuators import PositionController
 from ..data import Experiment, ExperimentSpec, load_experiment_spec
 from ..multistep import (
@@ -47,23 +48,14 @@ from ..multistep import (
     RecordComparison,
     identify_multistep,
 )
-from ..report import (
-    Figure,
-    Page,
-    Section,
-    Table,
-    new_figure,
-    save_figure,
-    write_html,
-    write_json,
-)
-from ._common import check_outputs, read_truth, report_options, sha256
+from ..report import Figure, Page, Section, Table, new_figure, save_figure
+from ._common import read_truth, report_options, sha256
+from ._options import boolean, choice, number, optional, text
+from ._registry import FigureWriter, Method, Option
 
-__all__ = ["PneumaticIdentification", "identify_pneumatic_spec"]
+__all__ = ["METHOD", "PneumaticIdentification"]
 
 _TESTS = ("valve", "thermo", "flow", "friction")
-_KEYS = ("method", *_TESTS, "validation", "known", "derivatives", "refine", "refine_record",
-         "p_krit", "v_krit", "blend", "mdot_limit", "valve_u_hold")
 _KNOWN = tuple(f.name for f in dataclasses.fields(KnownConstants))
 _LABELS = {"p_I": ("p_I", "bar", 1e-5), "p_II": ("p_II", "bar", 1e-5),
            "mdot_I": ("ṁ_I", "g/s", 1e3), "mdot_II": ("ṁ_II", "g/s", 1e3),
@@ -119,6 +111,36 @@ class PneumaticIdentification:
             **{k: v for k, v in self.result.to_dict().items() if k != "parameters"},
         }
 
+    def inputs(self) -> tuple[Path, ...]:
+        """Every file the run read: each test's experiment file and rig file."""
+        out = list(self.sources.values())
+        for path in self.sources.values():
+            if path.suffix == ".toml":
+                out.append(_data_file(path))
+        if self.spec.source:
+            out.append(Path(self.spec.source))
+            truth = report_options(self.spec.report).get("truth")
+            if truth:
+                out.append(self.spec.source.parent / truth)
+        return tuple(out)
+
+    def figures(self) -> dict[str, FigureWriter]:
+        """S6 validation (and refined), the steps' fits."""
+        res = self.result
+        out: dict[str, FigureWriter] = {
+            "validation.png": partial(_plot_comparison, res.validation,
+                                      title="S6: multi-step model"),
+            "steps.png": partial(_plot_steps, res),
+        }
+        if res.refined_validation is not None:
+            out["validation_refined.png"] = partial(_plot_comparison, res.refined_validation,
+                                                    title="S6: refined model")
+        return out
+
+    def page(self, files: Mapping[str, Path]) -> Page:
+        """The report page."""
+        return _page(self, files)
+
     def __str__(self) -> str:
         lines = [str(self.result)]
         if self.truth:
@@ -130,12 +152,8 @@ class PneumaticIdentification:
         return "\n".join(lines)
 
 
-def identify_pneumatic_spec(
-    spec: ExperimentSpec,
-    folder: Path | None,
-    *,
-    overwrite: bool = False,
-) -> PneumaticIdentification:
+def run(spec: ExperimentSpec, options: Mapping[str, Any],
+        truth: Mapping[str, float] | None) -> PneumaticIdentification:
     """Run the multi-step scheme a campaign file describes.
 
     Parameters
@@ -143,69 +161,53 @@ def identify_pneumatic_spec(
     spec : ExperimentSpec
         The campaign (``[identify] method = "pneumatic-multistep"``; keys
         in the module notes).
-    folder : Path or None
-        Results folder (results.json, report.html, figures); None only
-        computes.
-    overwrite : bool
-        Replace files of an earlier run.
+    options : mapping
+        The checked ``[identify]`` options.
+    truth : mapping or None
+        True parameters (virtual bench); default ``[report] truth``.
 
     Returns
     -------
     PneumaticIdentification
-        The result and the files written.
+        The result.
 
     Raises
     ------
-    OptionError
-        Unknown keys in ``[identify]``.
     DataError
         A test file or a known constant is missing.
     """
-    if not isinstance(spec, ExperimentSpec):
-        raise TypeError(f"spec must be an ExperimentSpec, got {type(spec).__name__}")
-    table = dict(spec.identify)
-    unknown = sorted(set(table) - set(_KEYS))
-    if unknown:
-        raise OptionError(f"unknown key(s) in [identify]: {', '.join(unknown)}; valid keys for "
-                          f"method = \"pneumatic-multistep\" are {', '.join(_KEYS)}")
     base = spec.source.parent if spec.source else spec.base_dir
     sources: dict[str, Path] = {}
     records: dict[str, Experiment] = {}
     for test in _TESTS:
-        if test not in table:
+        if options[test] is None:
             raise DataError(f"[identify] {test} = \"<{test}.toml>\" is needed: the experiment "
                             f"file of the {test} test")
-        sources[test] = base / as_str(test, table[test], where="[identify]")
-    if "validation" in table:
-        sources["validation"] = base / as_str("validation", table["validation"],
-                                              where="[identify]")
+        sources[test] = base / options[test]
+    if options["validation"] is not None:
+        sources["validation"] = base / options["validation"]
     for test, path in sources.items():
         sub = load_experiment_spec(path)
         records[test] = _named(sub.load(), test)
     if "validation" not in records:
         records["validation"] = _named(spec.load(), "validation")
         sources["validation"] = spec.data_path
-    known = _known(table, spec.loop)
+    known = _known(spec.identify, spec.loop)
     result = identify_multistep(
         records, known,
-        derivatives=_choice(table, "derivatives", "svf", ("svf", "measured")),
-        refine=_refine(table.get("refine", False)),
-        refine_record=_choice(table, "refine_record", "thermo", (*_TESTS, "validation")),
-        controller=_controller(spec.loop, table.get("known", {})),
-        p_krit=_optional_float(table, "p_krit"),
-        v_krit=_optional_float(table, "v_krit"),
-        blend=as_bool("blend", table.get("blend", False), where="[identify]"),
-        mdot_limit=as_float("mdot_limit", table.get("mdot_limit", 4e-3), positive=True,
-                            where="[identify]"),
-        valve_u_hold=_choice(table, "valve_u_hold", "zoh", ("zoh", "cubic")),
+        derivatives=options["derivatives"],
+        refine=options["refine"],
+        refine_record=options["refine_record"],
+        controller=_controller(spec.loop, spec.identify.get("known", {})),
+        p_krit=options["p_krit"],
+        v_krit=options["v_krit"],
+        blend=options["blend"],
+        mdot_limit=options["mdot_limit"],
+        valve_u_hold=options["valve_u_hold"],
     )
-    report_options(spec.report)
-    truth = _truth(spec, base)
-    ident = PneumaticIdentification(spec, result, sources, truth)
-    if folder is None:
-        return ident
-    files = _write(ident, Path(folder), overwrite)
-    return dataclasses.replace(ident, folder=Path(folder), files=tuple(files))
+    if truth is None:
+        truth = _truth(spec, base)
+    return PneumaticIdentification(spec, result, sources, truth)
 
 
 # -- helpers --------------------------------------------------------------------------------
@@ -225,18 +227,7 @@ def _known(table: Mapping[str, Any], loop: Mapping[str, Any]) -> KnownConstants:
     return KnownConstants.from_mapping(merged)
 
 
-def _choice(table: Mapping[str, Any], key: str, default: str, valid: tuple[str, ...]) -> Any:
-    value = as_str(key, table.get(key, default), where="[identify]")
-    check_option(f"[identify] {key}", value, valid)
-    return value
-
-
-def _optional_float(table: Mapping[str, Any], key: str) -> float | None:
-    value = table.get(key)
-    return None if value is None else as_float(key, value, positive=True, where="[identify]")
-
-
-def _refine(value: Any) -> bool | list[str]:
+def _refine(value: Any, where: str = "[identify]", name: str = "refine") -> bool | list[str]:
     if isinstance(value, bool):
         return value
     if isinstance(value, (list, tuple)):
@@ -264,28 +255,7 @@ def _truth(spec: ExperimentSpec, base: Path) -> dict[str, float] | None:
     return None if name is None else read_truth(base / name, REFINABLE)
 
 
-def _write(ident: PneumaticIdentification, folder: Path, overwrite: bool) -> list[Path]:
-    res = ident.result
-    names = ["results.json", "report.html", "validation.png", "steps.png"]
-    if res.refined_validation is not None:
-        names.append("validation_refined.png")
-    targets = {n: folder / n for n in names}
-    inputs = list(ident.sources.values()) + ([Path(ident.spec.source)] if ident.spec.source
-                                             else [])
-    check_outputs(list(targets.values()), inputs, overwrite)
-    folder.mkdir(parents=True, exist_ok=True)
-    _plot_comparison(res.validation, targets["validation.png"], overwrite,
-                     "S6: multi-step model")
-    if res.refined_validation is not None:
-        _plot_comparison(res.refined_validation, targets["validation_refined.png"], overwrite,
-                         "S6: refined model")
-    _plot_steps(res, targets["steps.png"], overwrite)
-    write_html(_page(ident, targets), targets["report.html"], overwrite=overwrite)
-    write_json(ident.to_dict(), targets["results.json"], overwrite=overwrite)
-    return list(targets.values())
-
-
-def _plot_comparison(comp: RecordComparison, path: Path, overwrite: bool, title: str) -> None:
+def _plot_comparison(comp: RecordComparison, path: Path, overwrite: bool, *, title: str) -> None:
     chans = list(comp.measured)
     fig = new_figure((9, 1.9 * len(chans)))
     axes = fig.subplots(len(chans), 1, sharex=True)
@@ -432,3 +402,37 @@ def _validation_section(comp: RecordComparison, fig: Path, title: str) -> Sectio
         tables=(Table(("channel", "fit"), rows, "fit = 100(1 − ‖y − ŷ‖/‖y − ȳ‖)"),),
         figures=(Figure.from_file(fig, "Predicted vs measured"),),
     )
+
+
+def _known_table(value: Any, where: str, name: str) -> Mapping[str, Any]:
+    return as_mapping(name, value, where=where)
+
+
+METHOD = Method(
+    name="pneumatic-multistep",
+    summary="servopneumatic actuator, equation group by equation group (S0–S6) from a "
+            "campaign of experiment files, validated on pressures and mass flows",
+    options=(
+        *(Option(test, None, optional(text()), f"experiment file of the {test} test")
+          for test in _TESTS),
+        Option("validation", None, optional(text()),
+               "experiment file of the S6 validation record (default: this file's [data])"),
+        Option("known", None, optional(_known_table),
+               "known constants A_I, A_II, V_0I, … (or in [loop])"),
+        Option("derivatives", "svf", choice(("svf", "measured")),
+               "state-variable filters or the measured v_k, a_k"),
+        Option("refine", False, _refine, "grey-box refinement: true, false or parameter names"),
+        Option("refine_record", "thermo", choice((*_TESTS, "validation")),
+               "record the refinement fits"),
+        Option("p_krit", None, optional(number(positive=True)),
+               "fixed critical pressure ratio (skips S0)"),
+        Option("v_krit", None, optional(number(positive=True)),
+               "fixed critical velocity [m/s] (skips its step)"),
+        Option("blend", False, boolean(), "blend the friction regimes"),
+        Option("mdot_limit", 4e-3, number(positive=True), "mass-flow sensor range [kg/s]"),
+        Option("valve_u_hold", "zoh", choice(("zoh", "cubic")),
+               "how the valve input is held between samples"),
+    ),
+    run=run,
+    tables=("loop",),
+)

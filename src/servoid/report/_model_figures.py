@@ -1,0 +1,182 @@
+"""Figures of identified models: Bode with ±2σ bands, measured FRF, pole–zero maps, orders."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._figures import new_figure, save_figure
+
+__all__ = ["plot_bode_bands", "plot_pole_zero", "plot_singular_values"]
+
+
+def plot_bode_bands(
+    bands: Mapping[str, Any],
+    path: str | os.PathLike[str],
+    *,
+    measured: Any | None = None,
+    sigmas: float = 2.0,
+    unit: str = "",
+    title: str = "",
+    overwrite: bool = False,
+) -> None:
+    """Save a Bode diagram of models with ±kσ bands and a measured FRF.
+
+    Parameters
+    ----------
+    bands : mapping of label to FrequencyBand
+        Each model's response on a frequency grid [Hz] with the standard
+        deviations of magnitude [dB] and phase [deg].
+    path : path
+        Output image.
+    measured : FrequencyResponseData, optional
+        A measured FRF (``frequency`` [Hz], complex ``response``, and
+        ``coherence`` when known), drawn as points with a coherence panel.
+    sigmas : float
+        Width of the bands in standard deviations.
+    unit : str
+        Unit of the gain (output unit / input unit), for the axis label.
+    title : str
+        Figure title.
+    overwrite : bool
+        Replace an existing file.
+    """
+    coherence = None if measured is None else getattr(measured, "coherence", None)
+    rows = 3 if coherence is not None else 2
+    fig = new_figure((8, 2.6 * rows + 0.6))
+    axes = fig.subplots(rows, 1, sharex=True,
+                        gridspec_kw={"height_ratios": [3, 2, 1][:rows]})
+    ax_m, ax_p = axes[0], axes[1]
+    if measured is not None:
+        f = np.asarray(measured.frequency, dtype=float)
+        h = np.asarray(measured.response, dtype=complex)
+        keep = f > 0
+        ax_m.semilogx(f[keep], 20 * np.log10(np.abs(h[keep])), ".", color="0.35", ms=3,
+                      label="measured FRF")
+        ax_p.semilogx(f[keep], np.degrees(np.unwrap(np.angle(h[keep]))), ".", color="0.35",
+                      ms=3)
+    for k, (label, band) in enumerate(bands.items()):
+        color = f"C{k}"
+        mag, phase = band.magnitude_db, band.phase_deg
+        f = band.frequency
+        ax_m.semilogx(f, mag, color=color, lw=1.3, label=f"{label} (±{sigmas:g}σ)")
+        ax_m.fill_between(f, mag - sigmas * band.magnitude_std_db,
+                          mag + sigmas * band.magnitude_std_db, color=color, alpha=0.2, lw=0)
+        ax_p.semilogx(f, phase, color=color, lw=1.3)
+        ax_p.fill_between(f, phase - sigmas * band.phase_std_deg,
+                          phase + sigmas * band.phase_std_deg, color=color, alpha=0.2, lw=0)
+    ax_m.set_ylabel(f"magnitude [dB{' re 1 ' + unit if unit else ''}]")
+    ax_p.set_ylabel("phase [°]")
+    if coherence is not None:
+        ax_c = axes[2]
+        f = np.asarray(measured.frequency, dtype=float)
+        ax_c.semilogx(f[f > 0], np.asarray(coherence)[f > 0], color="0.35", lw=1.0)
+        ax_c.set_ylim(0, 1.05)
+        ax_c.set_ylabel("coherence")
+    for ax in axes:
+        ax.grid(alpha=0.3, which="both")
+    axes[-1].set_xlabel("frequency [Hz]")
+    ax_m.legend(fontsize=8, loc="best")
+    if title:
+        ax_m.set_title(title)
+    fig.tight_layout()
+    save_figure(fig, path, overwrite)
+
+
+def plot_pole_zero(
+    models: Mapping[str, Any],
+    path: str | os.PathLike[str],
+    *,
+    title: str = "",
+    overwrite: bool = False,
+) -> None:
+    """Save a pole–zero map of discrete or continuous models.
+
+    Parameters
+    ----------
+    models : mapping of label to model
+        Transfer functions (or anything with ``poles()``/``zeros()`` and
+        ``dt``); discrete models are drawn in the z-plane with the unit
+        circle, continuous ones in the s-plane [rad/s].
+    path : path
+        Output image.
+    title : str
+        Figure title.
+    overwrite : bool
+        Replace an existing file.
+    """
+    discrete = {k: m for k, m in models.items() if m.dt is not None}
+    continuous = {k: m for k, m in models.items() if m.dt is None}
+    panels = [(name, group) for name, group in (("z", discrete), ("s", continuous)) if group]
+    fig = new_figure((5.2 * len(panels), 4.8))
+    axes = np.atleast_1d(fig.subplots(1, len(panels)))
+    for ax, (plane, group) in zip(axes, panels, strict=True):
+        if plane == "z":
+            theta = np.linspace(0, 2 * np.pi, 400)
+            ax.plot(np.cos(theta), np.sin(theta), color="0.4", lw=0.8)
+            ax.set_aspect("equal")
+        ax.axhline(0, color="0.6", lw=0.6)
+        ax.axvline(0, color="0.6", lw=0.6)
+        for k, (label, model) in enumerate(group.items()):
+            p, z = _roots(model)
+            ax.plot(p.real, p.imag, "x", color=f"C{k}", ms=9, mew=1.6, label=f"{label} poles")
+            if z.size:
+                ax.plot(z.real, z.imag, "o", color=f"C{k}", ms=7, mfc="none",
+                        label=f"{label} zeros")
+        unit = "" if plane == "z" else " [rad/s]"
+        ax.set_xlabel(f"Re {plane}{unit}")
+        ax.set_ylabel(f"Im {plane}{unit}")
+        ax.set_title(f"{plane}-plane" + (f": {title}" if title else ""))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, path, overwrite)
+
+
+def plot_singular_values(
+    values: Sequence[float],
+    order: int,
+    path: str | os.PathLike[str],
+    *,
+    overwrite: bool = False,
+) -> None:
+    """Save the subspace singular values with the chosen order marked.
+
+    Parameters
+    ----------
+    values : sequence of float
+        Singular values, largest first.
+    order : int
+        The chosen model order (the number of values kept).
+    path : path
+        Output image.
+    overwrite : bool
+        Replace an existing file.
+    """
+    sv = np.asarray(values, dtype=float)
+    fig = new_figure((7, 3.6))
+    ax = fig.subplots()
+    idx = np.arange(1, sv.size + 1)
+    ax.semilogy(idx, np.maximum(sv, np.finfo(float).tiny), "o-", color="C0", ms=4)
+    ax.semilogy(idx[:order], np.maximum(sv[:order], np.finfo(float).tiny), "o", color="C3",
+                ms=7, label=f"kept: order {order}")
+    ax.axvline(order + 0.5, color="C3", lw=0.8, ls="--")
+    ax.set_xlabel("index")
+    ax.set_ylabel("singular value")
+    ax.set_title("subspace singular values")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, path, overwrite)
+
+
+def _roots(model: Any) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+    if hasattr(model, "transfer_function"):  # a polynomial model: its first input
+        model = model.transfer_function(0)
+    p = np.asarray(model.poles(), dtype=complex)
+    z = np.asarray(model.zeros(), dtype=complex) if hasattr(model, "zeros") else np.empty(0)
+    return p, z

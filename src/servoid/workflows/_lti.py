@@ -1,0 +1,480 @@
+"""The black-box result every linear method shares, and its run flow.
+
+ARX, OE, ARMAX, BJ, continuous transfer functions and subspace models all
+end the same way: an :class:`~servoid.estimate.Estimate` validated on each
+validation record, an optional order-search table, a measured frequency
+response to compare with, and notes in plain words.  This module turns
+that into the console text, ``results.json`` and the report page.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from .._errors import ServoidWarning
+from ..data import Experiment, ExperimentSet, ExperimentSpec
+from ..estimate import Estimate, frequency_band
+from ..report import (
+    Figure,
+    Page,
+    Section,
+    Table,
+    plot_bode_bands,
+    plot_pole_zero,
+    plot_residuals,
+    plot_singular_values,
+    plot_validation,
+)
+from ..validate import ValidationReport, validate
+from ._common import parameter_table, read_truth, report_options, sha256, validation_section
+from ._registry import FigureWriter
+
+__all__ = ["IdentificationResult", "OrderRow", "gain_unit", "lti_result", "model_dict",
+           "n_inputs", "on_edge", "order_grid"]
+
+
+@dataclass(frozen=True)
+class OrderRow:
+    """One candidate of an order search, scored."""
+
+    orders: Mapping[str, Any]
+    n_parameters: int
+    loss: float
+    scores: Mapping[str, float]
+    fit: float
+    status: str = "ok"
+
+
+@dataclass(frozen=True, eq=False)
+class IdentificationResult:
+    """A linear model identified from an experiment file, validated.
+
+    Attributes
+    ----------
+    spec : ExperimentSpec
+        The experiment file.
+    method : str
+        The registered method (``"arx"``, ``"oe"``, ``"tf"``, …).
+    estimate : Estimate
+        The model with its covariance.
+    validations : tuple of ValidationReport
+        One per validation record (the held-back part, or each
+        ``[validation] file``).
+    title : str
+        The structure in words, e.g. ``"OE (nb = 2, nf = 2, nk = 1)"``.
+    orders : tuple of OrderRow
+        Every candidate of an order search, best first (empty without one).
+    criterion : str
+        The criterion that ranked them.
+    characteristics : tuple
+        Derived rows (gain, ω_n, ζ, time constants) with their std.
+    measured : FrequencyResponseData or None
+        A measured FRF of the same data, drawn under the model's Bode.
+    truth : mapping or None
+        Known values by name (``[report] truth``).
+    notes : tuple of str
+        Verdicts and warnings in words.
+    gain_unit : str
+        Output unit per input unit (for gains and Bode magnitudes).
+    folder, files
+        Where the results were written.
+    """
+
+    spec: ExperimentSpec
+    method: str
+    estimate: Estimate
+    validations: tuple[ValidationReport, ...]
+    title: str
+    orders: tuple[OrderRow, ...] = ()
+    criterion: str = ""
+    characteristics: tuple[Any, ...] = ()
+    measured: Any = None
+    singular_values: tuple[float, ...] = ()
+    truth: Mapping[str, float] | None = None
+    notes: tuple[str, ...] = ()
+    gain_unit: str = ""
+    folder: Path | None = None
+    files: tuple[Path, ...] = field(default=())
+
+    @property
+    def validation(self) -> ValidationReport:
+        """Validation on the first validation record."""
+        return self.validations[0]
+
+    # -- console and JSON ---------------------------------------------------------------
+    def __str__(self) -> str:
+        est = self.estimate
+        o = est.options
+        lines = [f"{self.title}: output {o.get('output')!r} from {', '.join(o.get('inputs', []))}"
+                 f" ({o.get('input', 'u')}); {est.parameters.size} parameters on "
+                 f"{est.n_samples} samples, σ̂² = {est.noise_variance:.4g}"]
+        lines += str(est).splitlines()[1:]
+        if self.characteristics:
+            lines.append("  characteristics (± std):")
+            for row in self.characteristics:
+                truth = self._truth(row.name)
+                lines.append(f"    {row.name:<10} {row.value: .6g} ± {row.std:.2g} {row.unit}"
+                             + (f"   truth {truth:.6g}" if truth is not None else ""))
+        if self.orders:
+            lines.append(f"  order search by {self.criterion} ({len(self.orders)} candidates, "
+                         "best first):")
+            lines += ["    " + line for line in _order_lines(self.orders, self.criterion)[:11]]
+        for v in self.validations:
+            lines.append(f"  {v}")
+        for note in self.notes:
+            lines.append(f"  note: {note}")
+        if self.folder:
+            lines.append(f"  report: {self.folder / 'report.html'}")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Everything in ``results.json``."""
+        return {
+            "servoid_version": __version__,
+            "method": self.method,
+            "experiment_file": str(self.spec.source) if self.spec.source else None,
+            "data_file": str(self.spec.data_path),
+            "data_sha256": sha256(self.spec.data_path),
+            "data_files": [{"path": str(p), "sha256": sha256(p)} for p in self.spec.data_paths],
+            "validation_files": [{"path": str(p), "sha256": sha256(p)}
+                                 for p in self.spec.validation_paths],
+            "structure": self.title,
+            "estimate": self.estimate.to_dict(),
+            "model": model_dict(self.estimate.model),
+            "characteristics": [row.__dict__ for row in self.characteristics],
+            "order_search": {"criterion": self.criterion,
+                             "candidates": [_row_dict(r) for r in self.orders]}
+            if self.orders else None,
+            "singular_values": list(self.singular_values) or None,
+            "measured_frf": self.measured.to_dict() if self.measured is not None else None,
+            "truth": dict(self.truth) if self.truth else None,
+            "validation": self.validation.summary(),
+            "validations": [v.summary() for v in self.validations],
+            "notes": list(self.notes),
+        }
+
+    # -- files ------------------------------------------------------------------------------
+    def inputs(self) -> tuple[Path, ...]:
+        """Every file the run read."""
+        spec = self.spec
+        out = [*spec.data_paths, *spec.validation_paths]
+        if spec.source:
+            out.append(Path(spec.source))
+            truth = report_options(spec.report).get("truth")
+            if truth:
+                out.append(spec.source.parent / truth)
+        return tuple(out)
+
+    def figures(self) -> dict[str, FigureWriter]:
+        """Validation and residual plots per record, Bode, pole–zero map."""
+        out: dict[str, FigureWriter] = {}
+        for k, v in enumerate(self.validations):
+            suffix = "" if k == 0 else f"-{k + 1}"
+            out[f"validation{suffix}.png"] = partial(_plot_validation, v)
+            out[f"residuals{suffix}.png"] = partial(_plot_residuals, v)
+        if _has_frequency_response(self.estimate):
+            out["bode.png"] = partial(_plot_bode, self)
+            out["poles.png"] = partial(_plot_poles, self)
+        if self.singular_values:
+            order = int(self.estimate.options.get("order", 0))
+            out["singular_values.png"] = partial(_plot_sv, self.singular_values, order)
+        return out
+
+    def page(self, files: Mapping[str, Path]) -> Page:
+        """The report page."""
+        spec, est = self.spec, self.estimate
+        o = est.options
+        data_files = ", ".join(f"{p.name} (sha256 {sha256(p)[:16]}…)" for p in spec.data_paths)
+        val_files = ", ".join(p.name for p in spec.validation_paths)
+        experiment = Section("Experiment", paragraphs=(
+            f"Estimation data: {data_files}; input {', '.join(o.get('inputs', []))} "
+            f"({o.get('input', 'u')}), output {o.get('output')}.",
+            (f"Validation records: {val_files}." if val_files else
+             "Validation: the held-back part of the record ([split])."),
+        ))
+        tables = [parameter_table(est)]
+        if self.characteristics:
+            tables.append(_characteristics_table(self.characteristics, self.truth))
+        model = Section("Model", paragraphs=(_model_text(self),), tables=tuple(tables),
+                        figures=tuple(_model_figures(files)))
+        sections = [experiment, model]
+        if self.orders:
+            sections.append(Section(
+                "Order search",
+                paragraphs=(f"{len(self.orders)} candidates ranked by {self.criterion} "
+                            "(lower is better; fit: higher is better).",),
+                tables=(_order_table(self.orders, self.criterion),),
+                figures=tuple(Figure.from_file(files[n], "Subspace singular values and the "
+                                               "chosen order") for n in files
+                              if n == "singular_values.png")))
+        elif "singular_values.png" in files:
+            sections.append(Section("Order", figures=(Figure.from_file(
+                files["singular_values.png"], "Subspace singular values and the chosen order"),)))
+        for k, v in enumerate(self.validations):
+            suffix = "" if k == 0 else f"-{k + 1}"
+            section = validation_section(v, files[f"validation{suffix}.png"],
+                                         files[f"residuals{suffix}.png"])
+            title = section.title + (f": {v.experiment}" if v.experiment else "")
+            sections.append(Section(title, section.paragraphs, section.tables, section.figures))
+        sections.append(Section("Notes", paragraphs=self.notes or
+                                ("The validation data do not reject the model.",)))
+        name = spec.source.name if spec.source else "experiment"
+        return Page(
+            title=f"Identification report: {name}",
+            subtitle=f"{self.title} with parameter uncertainty, validated on data not used for "
+                     "fitting",
+            sections=tuple(sections),
+            meta=(("servoid", __version__), ("experiment file", str(spec.source or "")),
+                  ("data file", ", ".join(str(p) for p in spec.data_paths))),
+        )
+
+    def _truth(self, name: str) -> float | None:
+        return None if not self.truth else self.truth.get(name)
+
+
+# -- the run flow shared by the black-box methods --------------------------------------------
+
+
+def order_grid(options: Mapping[str, Any], keys: Sequence[str],
+               n_inputs: int) -> tuple[dict[str, Any], dict[str, list[int]]]:
+    """Split order options into fixed values and a grid to search.
+
+    A list is a grid for single-input data and one value per input for
+    several inputs.
+    """
+    fixed: dict[str, Any] = {}
+    grid: dict[str, list[int]] = {}
+    for key in keys:
+        value = options[key]
+        if isinstance(value, list) and n_inputs == 1 and len(value) > 1:
+            grid[key] = value
+        elif isinstance(value, list) and n_inputs == 1:
+            fixed[key] = value[0]
+        else:
+            fixed[key] = value
+    return fixed, grid
+
+
+def on_edge(chosen: Mapping[str, int], grid: Mapping[str, Sequence[int]],
+            lowest: Mapping[str, int]) -> list[str]:
+    """Orders whose chosen value is the largest of its grid, or the smallest above its floor."""
+    return [k for k, values in grid.items()
+            if chosen[k] == max(values) or (chosen[k] == min(values) and chosen[k] > lowest[k])]
+
+
+def lti_result(
+    spec: ExperimentSpec,
+    method: str,
+    estimate: Estimate,
+    title: str,
+    validations: Sequence[Experiment],
+    options: Mapping[str, Any],
+    *,
+    orders: Sequence[OrderRow] = (),
+    criterion: str = "",
+    edge: Sequence[str] = (),
+    characteristics: Sequence[Any] = (),
+    measured: Any = None,
+    singular_values: Sequence[float] = (),
+    truth: Mapping[str, float] | None = None,
+    notes: Sequence[str] = (),
+) -> IdentificationResult:
+    """Validate an estimate on each record and assemble the result.
+
+    Verdicts (a negative fit, a structure the residual tests reject, an
+    order on the edge of its grid) become notes and are also warned, so a
+    script sees them as :class:`~servoid.ServoidWarning`.
+    """
+    output = estimate.options.get("output")
+    reports = tuple(
+        validate(estimate, v, input=estimate.options.get("input", "u"), output=output,
+                 horizon=options.get("horizon", 5), initial=spec.validation.initial,
+                 transient=spec.validation.transient,
+                 limits=spec.limits(output) if output else None)
+        for v in validations)
+    all_notes = list(notes)
+    if edge:
+        all_notes.append(f"the chosen {', '.join(edge)} sits on the edge of the searched grid; "
+                         "widen the grid to be sure the best order is inside it")
+    for report in reports:
+        all_notes += [f"{report.experiment or 'validation'}: {n}" for n in report.notes()]
+    for note in all_notes:
+        warnings.warn(note, ServoidWarning, stacklevel=4)  # lti_result ← run ← identify ← user
+    if truth is None:
+        truth = _truth_from_spec(spec, [*estimate.names, *(r.name for r in characteristics)])
+    return IdentificationResult(
+        spec, method, estimate, reports, title, tuple(orders), criterion,
+        tuple(characteristics), measured, tuple(float(s) for s in singular_values), truth,
+        tuple(all_notes), gain_unit(validations[0], estimate))
+
+
+def gain_unit(exp: Experiment, estimate: Estimate) -> str:
+    """``output unit/input unit`` of an estimate's first input, or ''."""
+    out = estimate.options.get("output")
+    inputs = estimate.options.get("inputs") or []
+    y = exp.unit(out) if out in exp.names else ""
+    u = exp.unit(inputs[0]) if inputs and inputs[0] in exp.names else ""
+    if not y and not u:
+        return ""
+    return f"{y or '1'}/{u or '1'}"
+
+
+def n_inputs(data: Experiment | ExperimentSet, role: str) -> int:
+    """Number of channels of ``role`` in the estimation data."""
+    first = data if isinstance(data, Experiment) else data[0]
+    return max(len(first.names_of(role)), 1)  # type: ignore[arg-type]
+
+
+def model_dict(model: Any) -> dict[str, Any]:
+    """A model's structure and coefficients as plain data."""
+    if hasattr(model, "transfer_function"):  # PolynomialModel
+        tf = model.transfer_function(0)
+        return {
+            "type": "polynomial", "structure": model.structure, "dt": model.dt,
+            "a": model.a, "b": [list(b) for b in model.b], "c": model.c, "d": model.d,
+            "f": [list(f) for f in model.f], "nk": list(model.nk),
+            "poles": _complex_list(tf.poles()), "zeros": _complex_list(tf.zeros()),
+        }
+    if hasattr(model, "num"):  # TransferFunction
+        return {"type": "transfer_function", "dt": model.dt, "num": model.num,
+                "den": model.den, "delay": float(getattr(model, "delay", 0.0)),
+                "poles": _complex_list(model.poles()), "zeros": _complex_list(model.zeros())}
+    if hasattr(model, "A"):  # StateSpace
+        return {"type": "state_space", "dt": model.dt, "A": model.A, "B": model.B,
+                "C": model.C, "D": model.D, "poles": _complex_list(model.poles())}
+    return {"type": type(model).__name__}
+
+
+# -- private ------------------------------------------------------------------------------
+
+
+def _complex_list(values: Any) -> list[dict[str, float]]:
+    return [{"re": float(v.real), "im": float(v.imag)} for v in np.asarray(values)]
+
+
+def _truth_from_spec(spec: ExperimentSpec, names: Sequence[str]) -> dict[str, float] | None:
+    name = report_options(spec.report).get("truth")
+    if name is None:
+        return None
+    base = spec.source.parent if spec.source else Path.cwd()
+    return read_truth(base / name, list(names)) or None
+
+
+def _row_dict(row: OrderRow) -> dict[str, Any]:
+    return {"orders": dict(row.orders), "n_parameters": row.n_parameters, "loss": row.loss,
+            **dict(row.scores), "fit_percent": None if math.isnan(row.fit) else row.fit,
+            "status": row.status}
+
+
+def _order_lines(rows: Sequence[OrderRow], criterion: str) -> list[str]:
+    table = _order_table(rows, criterion)
+    widths = [max(len(c), *(len(r[i]) for r in table.rows)) for i, c in enumerate(table.columns)]
+    head = "  ".join(c.rjust(w) for c, w in zip(table.columns, widths, strict=True))
+    body = ["  ".join(cell.rjust(w) for cell, w in zip(r, widths, strict=True))
+            for r in table.rows]
+    return [head, *body]
+
+
+def _order_table(rows: Sequence[OrderRow], criterion: str) -> Table:
+    keys = list(rows[0].orders)
+    score_names = list(rows[0].scores)
+    columns = (*keys, "parameters", "loss", *score_names, "validation fit %", "status")
+    body = []
+    for r in rows:
+        body.append((*(_order_text(r.orders[k]) for k in keys), str(r.n_parameters),
+                     _num(r.loss), *(_num(r.scores[s]) for s in score_names),
+                     "—" if math.isnan(r.fit) else f"{r.fit:.2f}", r.status))
+    return Table(columns, tuple(body), f"Ranked by {criterion}; the first row was chosen")
+
+
+def _order_text(value: Any) -> str:
+    return ", ".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)
+
+
+def _num(x: float) -> str:
+    return "—" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.5g}"
+
+
+def _characteristics_table(rows: Sequence[Any], truth: Mapping[str, float] | None) -> Table:
+    body = tuple(
+        (r.name, f"{r.value:.6g}", f"{r.std:.3g}", f"[{r.ci_low:.6g}, {r.ci_high:.6g}]", r.unit,
+         "—" if not truth or r.name not in truth else f"{truth[r.name]:.6g}")
+        for r in rows)
+    return Table(("quantity", "estimate", "std", "95 % CI", "unit", "truth"), body,
+                 "Continuous-time characteristics, std by the delta method")
+
+
+def _model_text(result: IdentificationResult) -> str:
+    est = result.estimate
+    o = est.options
+    how = {"arx": "linear least squares", "oe": "prediction error (Gauss–Newton on the exact "
+           "gradient)", "armax": "prediction error (Gauss–Newton on the exact gradient)",
+           "bj": "prediction error (Gauss–Newton on the exact gradient)",
+           "tf": "refined instrumental variables (SRIVC)", "n4sid": "subspace projection"}
+    parts = [f"{result.title} by {how.get(result.method, result.method)} on {est.n_samples} "
+             f"samples; residual variance {est.noise_variance:.4g}; status {est.status}."]
+    if "condition" in o:
+        parts.append(f"Scaled condition number {o['condition']:.3g} ({o.get('solver')} route).")
+    if "iterations" in o:
+        parts.append(f"{o['iterations']} iterations.")
+    parts.append("Bode bands are ±2σ from the parameter covariance (delta method).")
+    return " ".join(parts)
+
+
+def _model_figures(files: Mapping[str, Path]) -> list[Figure]:
+    out = []
+    if "bode.png" in files:
+        out.append(Figure.from_file(files["bode.png"], "Bode diagram of the identified model "
+                                    "with ±2σ bands, over the measured frequency response"))
+    if "poles.png" in files:
+        out.append(Figure.from_file(files["poles.png"], "Poles (×) and zeros (○)"))
+    return out
+
+
+def _has_frequency_response(est: Estimate) -> bool:
+    model = est.model
+    return hasattr(model, "freqresp") or hasattr(model, "transfer_function")
+
+
+def _frequency_grid(result: IdentificationResult) -> np.ndarray:
+    dt = result.validation.time[1] - result.validation.time[0]
+    nyquist = 0.5 / dt
+    lowest = nyquist / max(result.validation.measured.size, 1000)
+    return np.logspace(np.log10(lowest), np.log10(nyquist * 0.999), 400)
+
+
+def _plot_validation(report: ValidationReport, path: Path, overwrite: bool) -> None:
+    plot_validation(report, path, overwrite=overwrite)
+
+
+def _plot_residuals(report: ValidationReport, path: Path, overwrite: bool) -> None:
+    plot_residuals(report, path, overwrite=overwrite)
+
+
+def _plot_bode(result: IdentificationResult, path: Path, overwrite: bool) -> None:
+    est = result.estimate
+    f = _frequency_grid(result)
+    bands = {}
+    inputs = est.options.get("inputs", ["u"])
+    for i, name in enumerate(inputs):
+        label = result.method if len(inputs) == 1 else f"{result.method}: {name}"
+        bands[label] = frequency_band(est, f, input=i)
+    plot_bode_bands(bands, path, measured=result.measured, unit=result.gain_unit,
+                    title=f"{result.title}", overwrite=overwrite)
+
+
+def _plot_poles(result: IdentificationResult, path: Path, overwrite: bool) -> None:
+    plot_pole_zero({result.method: result.estimate.model}, path, overwrite=overwrite)
+
+
+def _plot_sv(values: Sequence[float], order: int, path: Path, overwrite: bool) -> None:
+    plot_singular_values(values, order, path, overwrite=overwrite)
