@@ -9,12 +9,13 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from .. import __version__
-from .._errors import ServoidError
+from .._errors import ServoidError, ServoidWarning
 
 __all__ = ["main"]
 
@@ -27,20 +28,34 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as stop:  # argparse exits on --help/--version (0) or usage errors (2)
         return int(stop.code or 0)
     try:
-        payload, text = args.run(args)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ServoidWarning)
+            payload, text = args.run(args)
     except (ServoidError, OSError) as exc:
         message = str(exc) or type(exc).__name__
         if getattr(args, "json", False):
             print(json.dumps({"ok": False, "error": message, "type": type(exc).__name__}))
         print(f"servoid: error: {message}", file=sys.stderr)
         return 1
+    said = _warnings(caught)
     if getattr(args, "json", False):
         from ..report import to_jsonable
 
-        print(json.dumps({"ok": True, **to_jsonable(payload)}, indent=2))
+        print(json.dumps({"ok": True, **to_jsonable(payload), "warnings": said}, indent=2))
     else:
         print(text)
+    for message in said:  # a result's notes already print them; say the others once
+        if message not in text:
+            print(f"servoid: warning: {message}", file=sys.stderr)
     return 0
+
+
+def _warnings(caught: list[warnings.WarningMessage]) -> list[str]:
+    messages = [str(w.message) for w in caught if issubclass(w.category, ServoidWarning)]
+    for w in caught:  # anything else keeps Python's own display
+        if not issubclass(w.category, ServoidWarning):
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    return list(dict.fromkeys(messages))
 
 
 def _parser() -> argparse.ArgumentParser:

@@ -91,10 +91,10 @@ def validation_section(report: ValidationReport, fig_sim: Path, fig_res: Path) -
     return Section(
         "Validation",
         paragraphs=(
-            ("The model is simulated from the input alone on the held-back data (the first "
-            f"{report.first} samples set the initial conditions) and compared with the "
-            f"measurement. Residual correlations are tested at {100 * res.confidence:.0f} % "
-            "confidence."),
+            (f"The model is simulated from the input alone on data not used for fitting "
+             f"({_initial_text(report)}) and compared with the measurement. Residual "
+             f"correlations are tested at {100 * res.confidence:.0f} % confidence."),
+            *report.notes(),
         ),
         tables=(metrics,),
         figures=(
@@ -103,6 +103,19 @@ def validation_section(report: ValidationReport, fig_sim: Path, fig_res: Path) -
                              "cross-correlation with confidence band"),
         ),
     )
+
+
+def _initial_text(report: ValidationReport) -> str:
+    initial = getattr(report, "initial", "measured")
+    if initial == "measured":
+        return f"the first {report.first} samples set the initial conditions"
+    if initial == "estimate":
+        head = "from the initial state that fits the record best (least squares)"
+    else:
+        head = "from rest"
+    if report.first:
+        head += f"; the first {report.first} samples are excluded as a transient"
+    return head
 
 
 def sha256(path: Path) -> str:

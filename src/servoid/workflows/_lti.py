@@ -205,7 +205,7 @@ class IdentificationResult:
         if self.characteristics:
             tables.append(_characteristics_table(self.characteristics, self.truth))
         model = Section("Model", paragraphs=(_model_text(self),), tables=tuple(tables),
-                        figures=tuple(_model_figures(files)))
+                        figures=tuple(_model_figures(files, self.measured is not None)))
         sections = [experiment, model]
         if self.orders:
             sections.append(Section(
@@ -430,11 +430,12 @@ def _model_text(result: IdentificationResult) -> str:
     return " ".join(parts)
 
 
-def _model_figures(files: Mapping[str, Path]) -> list[Figure]:
+def _model_figures(files: Mapping[str, Path], measured: bool) -> list[Figure]:
     out = []
     if "bode.png" in files:
+        over = ", over the measured frequency response and its coherence" if measured else ""
         out.append(Figure.from_file(files["bode.png"], "Bode diagram of the identified model "
-                                    "with ±2σ bands, over the measured frequency response"))
+                                    f"with ±2σ bands from its covariance{over}"))
     if "poles.png" in files:
         out.append(Figure.from_file(files["poles.png"], "Poles (×) and zeros (○)"))
     return out
