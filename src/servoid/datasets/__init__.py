@@ -4,8 +4,13 @@
 Gautier, Brunot, *Data Set and Reference Models of EMPS*, Workshop on
 Nonlinear System Identification Benchmarks, 2019): a real ball-screw
 axis with friction, recorded in closed loop.
+
+:func:`load_daisy` — three real records of the DaISy database (De Moor
+et al., 1997): a flexible robot arm and a hair dryer (open loop), a ball
+and beam (closed loop, controller unknown).
 """
 
+from ._daisy import DAISY_RECORDS, DaisyRecord, daisy_path, load_daisy
 from ._emps import emps_path, load_emps
 
-__all__ = ["emps_path", "load_emps"]
+__all__ = ["DAISY_RECORDS", "DaisyRecord", "daisy_path", "emps_path", "load_daisy", "load_emps"]
