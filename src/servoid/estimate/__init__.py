@@ -1,4 +1,4 @@
-"""Estimators: least squares, ARX and order selection."""
+"""Estimators: least squares, ARX, prediction error, IV, subspace, continuous time, FRF."""
 
 from ._arx import ArxOrders, fit_arx
 from ._band import FrequencyBand, frequency_band
@@ -11,9 +11,12 @@ from ._inverse import (
     fit_inverse_dynamics,
     inverse_dynamics_regression,
 )
+from ._iv import fit_iv
 from ._ls import LeastSquaresResult, lstsq, solve_gram
 from ._order import OrderCandidate, OrderSelection, select_arx_order
+from ._pem import fit_armax, fit_bj, fit_oe, fit_pem
 from ._rls import RecursiveLeastSquaresResult, fit_rls
+from ._search import StructureCandidate, StructureSelection, select_order
 from ._separable import fit_separable
 from ._svf import FilteredSignal, filter_product, state_variable_filter
 from ._tf_greybox import fit_tf_greybox
@@ -32,11 +35,18 @@ __all__ = [
     "OrderSelection",
     "ParameterRow",
     "RecursiveLeastSquaresResult",
+    "StructureCandidate",
+    "StructureSelection",
     "filter_product",
+    "fit_armax",
     "fit_arx",
+    "fit_bj",
     "fit_closed_loop_oe",
     "fit_greybox",
     "fit_inverse_dynamics",
+    "fit_iv",
+    "fit_oe",
+    "fit_pem",
     "fit_rls",
     "fit_separable",
     "fit_tf_greybox",
@@ -44,6 +54,7 @@ __all__ = [
     "inverse_dynamics_regression",
     "lstsq",
     "select_arx_order",
+    "select_order",
     "solve_gram",
     "state_variable_filter",
 ]

@@ -56,7 +56,7 @@ class FrequencyBand:
 
 def frequency_band(estimate: Estimate, frequency: ArrayLike, *, input: int = 0,
                    output: int = 0) -> FrequencyBand:
-    """Return the frequency response of an estimate with ±σ from its covariance.
+    """Return an estimate's frequency response with ±σ bands.
 
     Parameters
     ----------

@@ -24,7 +24,7 @@ def plot_bode_bands(
     title: str = "",
     overwrite: bool = False,
 ) -> None:
-    """Save a Bode diagram of models with ±kσ bands and a measured FRF.
+    """Save a Bode diagram with ±kσ bands and a measured FRF.
 
     Parameters
     ----------

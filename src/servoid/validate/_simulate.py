@@ -97,7 +97,7 @@ def simulate_model(
     initial: Initial = "auto",
     transient: int = 0,
 ) -> tuple[NDArray[np.float64], int, str]:
-    """Simulate a discrete model from the input with a chosen initial state.
+    """Simulate a discrete model from a chosen initial state.
 
     Parameters
     ----------

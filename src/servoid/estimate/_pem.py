@@ -1,0 +1,621 @@
+"""Prediction-error methods: OE, ARMAX, Box–Jenkins and the general structure.
+
+``A(q) y(t) = Σ_i B_i(q)/F_i(q) u_i(t − nk_i) + C(q)/D(q) e(t)`` is fitted
+by minimising ``Σ ε(t)²``, the one-step prediction errors ``ε = (D/C)(A y −
+Σ B_i/F_i u_i)`` (Ljung, *System Identification*, 2nd ed., ch. 7 and 10).
+
+The search
+----------
+* **Start**: a consistent estimate from instrumental variables and
+  Hannan–Rissanen (:mod:`servoid.estimate._pem_start`), a model or vector
+  you give (``init``), plus ``multistart`` random stable starts.
+* **Steps**: Gauss–Newton on the exact gradient ψ = −∂ε/∂θ, formed by
+  filtering the data (:mod:`servoid.estimate._pem_predictor`; no finite
+  differences), damped Levenberg–Marquardt style (λ·diag(ΨᵀΨ)) whenever a
+  full step does not lower the cost.
+* **Stability**: a root of F_i, C or D that leaves the unit circle is
+  reflected to 1/conj(z), as MATLAB's System Identification Toolbox does;
+  C and D then describe the same noise spectrum, F a different (stable)
+  system from which the search continues.  Every reflection is counted in
+  ``options["reflected"]`` and named in ``status``.
+* **Stop**: when the Gauss–Newton step would lower the cost by less than
+  ``tol`` relative (or change the predictions by less than 1e-12 of the
+  output's RMS); at ``max_iter`` steps with a :class:`ServoidWarning`.
+* **Covariance**: ``σ̂² (ΨᵀΨ)⁻¹`` at the minimum with the exact Ψ and
+  ``σ̂² = Σε²/(N − d)`` (Ljung §9.3); with estimated initial values the
+  Schur complement that accounts for them (see the predictor module).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import linalg
+
+from .._checks import as_float, as_int
+from .._errors import (
+    ConvergenceError,
+    DataError,
+    IdentifiabilityError,
+    ModelError,
+    OptionTypeError,
+    ServoidWarning,
+    check_option,
+)
+from ..data import Experiment, ExperimentSet
+from ..models import PolynomialModel
+from ._arx import _warn_if_unstable
+from ._estimate import Estimate
+from ._pem_orders import PemOrders, Polys, SignalData, check_record, prepare
+from ._pem_predictor import Problem, initial_sizes
+from ._pem_start import iv_start, random_start, stabilize
+
+__all__ = ["fit_armax", "fit_bj", "fit_oe", "fit_pem"]
+
+Initial = Literal["zero", "estimate"]
+InputRole = Literal["u", "r"]
+Init = PolynomialModel | ArrayLike | None
+
+#: Damping increases (×10 each, from λ = 1e-4) tried before a step is given up.
+_MAX_DAMPING = 15
+#: The search has converged when a step would change the predictions by less
+#: than this fraction of the output's RMS (the floor of double-precision data).
+_PREDICTION_FLOOR = 1e-12
+#: Two starts reached "the same minimum" when their costs agree this closely.
+_SAME_MINIMUM = 1e-6
+
+
+@dataclass(frozen=True, eq=False)
+class _Search:
+    theta: NDArray[np.float64]
+    cost: float
+    h: NDArray[np.float64]
+    iterations: int
+    converged: bool
+    reflected: int
+    note: str
+
+
+def fit_pem(
+    data: Experiment | ExperimentSet,
+    *,
+    na: int = 0,
+    nb: int | Sequence[int],
+    nc: int = 0,
+    nd: int = 0,
+    nf: int | Sequence[int] = 0,
+    nk: int | Sequence[int] = 1,
+    input: InputRole = "u",
+    output: str | None = None,
+    initial: Initial = "zero",
+    init: Init = None,
+    multistart: int = 0,
+    rng: np.random.Generator | int | None = None,
+    max_iter: int = 100,
+    tol: float = 1e-9,
+    start: int = 0,
+) -> Estimate:
+    """Fit the general polynomial model by prediction error.
+
+    ``A y = Σ_i B_i/F_i u_i(t − nk_i) + C/D e``; :func:`fit_oe`,
+    :func:`fit_armax` and :func:`fit_bj` are this with some orders zero.
+    See the module notes for the search, stability and covariance.
+
+    Parameters
+    ----------
+    data : Experiment or ExperimentSet
+        The record(s); segments are never joined, each starts its own predictor.
+    na, nc, nd : int
+        Orders of A, C, D (coefficients after the leading 1), >= 0.
+    nb : int or sequence of int
+        Number of B coefficients per input, >= 1.
+    nf : int or sequence of int
+        Order of F per input, >= 0.
+    nk : int or sequence of int
+        Input delay per input [samples], >= 0.
+    input : {"u", "r"}
+        Role of the input channels (``"r"``: the reference, for a model from r to y).
+    output : str, optional
+        Output channel when there are several.
+    initial : {"zero", "estimate"}
+        Initial conditions of the predictor filters: zero (the record starts
+        at rest), or estimated — eliminated by linear least squares at every
+        step (variable projection), which removes the start-up transient of
+        a record that does not start at rest.
+    init : PolynomialModel or array_like, optional
+        Start of the search instead of the IV start: a model with these
+        orders, or θ in the order of the returned ``names``.
+    multistart : int
+        Extra random stable starts, >= 0; the lowest cost wins.
+    rng : numpy.random.Generator or int, optional
+        Source of the random starts (a seed for reproducibility).
+    max_iter : int
+        Most Gauss–Newton steps per start, >= 0.
+    tol : float
+        Relative cost decrease below which a step is not worth taking, in (0, 1).
+    start : int
+        First sample of each segment whose prediction error enters the cost
+        (the predictors still run from sample 0); a common start makes fits
+        of different orders comparable.
+
+    Returns
+    -------
+    Estimate
+        ``model`` is a :class:`~servoid.models.PolynomialModel`; parameters
+        ``a1…``, per input ``b0…, f1…`` (``<input>:`` prefix with several
+        inputs), ``c1…``, ``d1…``; ``model_function`` maps θ to the model;
+        ``n_samples`` counts the prediction errors in the cost.  ``options``
+        holds the orders (``nb``, ``nf``, ``nk`` as lists per input),
+        ``input``, ``inputs``, ``output``, ``initial``, ``iterations``,
+        ``converged``, ``start`` (how the start values were made),
+        ``reflected`` (roots reflected into the unit circle), ``first_sample``
+        (the ``start`` keyword), ``cost`` (Σε²), ``initial_values`` (number
+        eliminated) and, with ``multistart``, a ``multistart`` table: starts,
+        how many reached the same minimum (cost within 1e-6), failures, the
+        winner and every final cost.
+
+    Raises
+    ------
+    DataError
+        Orders too long for the record, bad option values, huge signal values.
+    IdentifiabilityError
+        A constant input.
+    OptionError, OptionTypeError
+        An unknown ``initial``/``input``, or an option of the wrong type.
+    ConvergenceError
+        The prediction errors overflow at the start, or the search cannot
+        lower the cost although the gradient is not small.
+    """
+    return _fit(data, na, nb, nc, nd, nf, nk, "pem", input=input, output=output,
+                initial=initial, init=init, multistart=multistart, rng=rng,
+                max_iter=max_iter, tol=tol, start=start)
+
+
+def fit_oe(
+    data: Experiment | ExperimentSet,
+    nb: int | Sequence[int],
+    nf: int | Sequence[int],
+    nk: int | Sequence[int] = 1,
+    *,
+    input: InputRole = "u",
+    output: str | None = None,
+    initial: Initial = "zero",
+    init: Init = None,
+    multistart: int = 0,
+    rng: np.random.Generator | int | None = None,
+    max_iter: int = 100,
+    tol: float = 1e-9,
+    start: int = 0,
+) -> Estimate:
+    """Fit an output-error model ``y = Σ B_i/F_i u_i + e``.
+
+    The prediction error is the simulation error, so the fit is the best
+    simulation of the output; no noise model is estimated.
+
+    Parameters
+    ----------
+    data : Experiment or ExperimentSet
+        The record(s).
+    nb : int or sequence of int
+        Number of B coefficients per input.
+    nf : int or sequence of int
+        Order of F per input.
+    nk : int or sequence of int
+        Input delay per input [samples].
+    input, output, initial, init, multistart, rng, max_iter, tol, start
+        As in :func:`fit_pem`.
+
+    Returns
+    -------
+    Estimate
+        Method ``"oe"``; parameters per input ``b0…, f1…``.
+    """
+    return _fit(data, 0, nb, 0, 0, nf, nk, "oe", input=input, output=output,
+                initial=initial, init=init, multistart=multistart, rng=rng,
+                max_iter=max_iter, tol=tol, start=start)
+
+
+def fit_armax(
+    data: Experiment | ExperimentSet,
+    na: int,
+    nb: int | Sequence[int],
+    nc: int,
+    nk: int | Sequence[int] = 1,
+    *,
+    input: InputRole = "u",
+    output: str | None = None,
+    initial: Initial = "zero",
+    init: Init = None,
+    multistart: int = 0,
+    rng: np.random.Generator | int | None = None,
+    max_iter: int = 100,
+    tol: float = 1e-9,
+    start: int = 0,
+) -> Estimate:
+    """Fit an ARMAX model ``A y = Σ B_i u_i + C e``.
+
+    Parameters
+    ----------
+    data : Experiment or ExperimentSet
+        The record(s).
+    na : int
+        Order of A.
+    nb : int or sequence of int
+        Number of B coefficients per input.
+    nc : int
+        Order of C.
+    nk : int or sequence of int
+        Input delay per input [samples].
+    input, output, initial, init, multistart, rng, max_iter, tol, start
+        As in :func:`fit_pem`.
+
+    Returns
+    -------
+    Estimate
+        Method ``"armax"``; parameters ``a1…, b0…, c1…``.
+    """
+    return _fit(data, na, nb, nc, 0, 0, nk, "armax", input=input, output=output,
+                initial=initial, init=init, multistart=multistart, rng=rng,
+                max_iter=max_iter, tol=tol, start=start)
+
+
+def fit_bj(
+    data: Experiment | ExperimentSet,
+    nb: int | Sequence[int],
+    nc: int,
+    nd: int,
+    nf: int | Sequence[int],
+    nk: int | Sequence[int] = 1,
+    *,
+    input: InputRole = "u",
+    output: str | None = None,
+    initial: Initial = "zero",
+    init: Init = None,
+    multistart: int = 0,
+    rng: np.random.Generator | int | None = None,
+    max_iter: int = 100,
+    tol: float = 1e-9,
+    start: int = 0,
+) -> Estimate:
+    """Fit a Box–Jenkins model ``y = Σ B_i/F_i u_i + C/D e``.
+
+    The plant and the noise have their own dynamics; with a noise model
+    this is also the direct method for closed-loop data.
+
+    Parameters
+    ----------
+    data : Experiment or ExperimentSet
+        The record(s).
+    nb : int or sequence of int
+        Number of B coefficients per input.
+    nc, nd : int
+        Orders of the noise numerator C and denominator D.
+    nf : int or sequence of int
+        Order of F per input.
+    nk : int or sequence of int
+        Input delay per input [samples].
+    input, output, initial, init, multistart, rng, max_iter, tol, start
+        As in :func:`fit_pem`.
+
+    Returns
+    -------
+    Estimate
+        Method ``"bj"``; parameters per input ``b0…, f1…``, then ``c1…, d1…``.
+    """
+    return _fit(data, 0, nb, nc, nd, nf, nk, "bj", input=input, output=output,
+                initial=initial, init=init, multistart=multistart, rng=rng,
+                max_iter=max_iter, tol=tol, start=start)
+
+
+def _fit(
+    data: Experiment | ExperimentSet,
+    na: Any, nb: Any, nc: Any, nd: Any, nf: Any, nk: Any,
+    method: str,
+    *,
+    input: InputRole,
+    output: str | None,
+    initial: Initial,
+    init: Init,
+    multistart: int,
+    rng: np.random.Generator | int | None,
+    max_iter: int,
+    tol: float,
+    start: int,
+) -> Estimate:
+    check_option("initial", initial, ("zero", "estimate"))
+    max_iter = as_int("max_iter", max_iter, minimum=0)
+    multistart = as_int("multistart", multistart, minimum=0)
+    start = as_int("start", start, minimum=0)
+    tol = as_float("tol", tol, positive=True)
+    if not tol < 1:
+        raise DataError(f"tol is a relative cost decrease and must lie in (0, 1), got {tol:g}")
+    sd = prepare(data, input, output)
+    orders = PemOrders(na, nb, nc, nd, nf, nk, len(sd.inputs))
+    estimate_ic = initial == "estimate"
+    n_ic = sum(initial_sizes(orders)[1]) + initial_sizes(orders)[0] if estimate_ic else 0
+    n_par = orders.n_parameters
+    label = repr(orders) + (f" with {n_ic} initial values per segment" if n_ic else "")
+    n_rows = check_record(label, n_par + n_ic * len(sd.y), sd, start, orders.max_lag)
+    names = orders.names(sd.inputs)
+    problem = Problem(orders, sd, start, estimate_ic)
+    floor = n_rows * (_PREDICTION_FLOOR * sd.y_rms) ** 2
+
+    if init is None:
+        theta0, how = _default_start(orders, sd, start, problem)
+    else:
+        theta0, how = _user_start(init, orders, names), "user"
+    theta0, reflected0 = stabilize(orders, theta0)
+    generator = _generator(rng) if multistart else None
+    results: list[_Search | None] = []
+    failure: ConvergenceError | None = None
+    for k in range(multistart + 1):
+        if k == 0:
+            theta_k = theta0
+        else:
+            assert generator is not None
+            theta_k = random_start(orders, problem, generator)
+        try:
+            results.append(_search(problem, orders, theta_k, max_iter, tol, floor))
+        except ConvergenceError as exc:
+            if not multistart:
+                raise
+            failure = failure or exc
+            results.append(None)
+    if all(r is None for r in results):
+        raise ConvergenceError(f"every one of the {multistart + 1} starts failed; the first: "
+                               f"{failure}")
+    costs = [r.cost if r is not None else np.inf for r in results]
+    k_best = int(np.argmin(costs))
+    best = results[k_best]
+    assert best is not None
+
+    n_ic_used = problem.ic_rank if estimate_ic else 0
+    if estimate_ic:  # the rank of the eliminated initial values at the chosen θ
+        problem.cost(best.theta)
+        problem.normal_equations(best.theta)
+        n_ic_used = problem.ic_rank
+    dof = max(n_rows - n_par - n_ic_used, 1)
+    sigma2 = best.cost / dof
+    cov, singular = _covariance(best.h, sigma2)
+    reflected = best.reflected + (reflected0 if k_best == 0 else 0)
+    status = _status(best, reflected, singular)
+    if not best.converged:
+        warnings.warn(
+            f"the {method} search stopped at max_iter={max_iter} before converging; increase "
+            "max_iter, try multistart=5 or initial='estimate', or check the orders",
+            ServoidWarning, stacklevel=3)
+    if singular:
+        warnings.warn(
+            f"the {method} parameters are not all identifiable (singular information matrix: "
+            "a pole–zero cancellation or a noise model without noise); the covariance uses a "
+            "pseudo-inverse. Lower the orders",
+            ServoidWarning, stacklevel=3)
+    p = orders.split(best.theta)
+    _warn_if_unstable(p.a)
+    same = sum(1 for c in costs if np.isfinite(c) and abs(c - best.cost) <= _SAME_MINIMUM
+               * max(best.cost, floor))
+
+    def model_at(theta: NDArray[np.float64]) -> PolynomialModel:
+        return orders.model(theta, sd.dt, sigma2, sd.inputs, sd.output)
+
+    theta_best = best.theta.copy()
+
+    def residuals() -> NDArray[np.float64]:
+        # a fresh predictor, so the estimate does not keep the search's buffers alive
+        return Problem(orders, sd, start, estimate_ic).residuals(theta_best)
+
+    options: dict[str, Any] = {
+        **orders.as_options(),
+        "input": input,
+        "inputs": list(sd.inputs),
+        "output": sd.output,
+        "initial": initial,
+        "iterations": best.iterations,
+        "converged": best.converged,
+        "start": how if k_best == 0 else f"random start {k_best} of {multistart}",
+        "reflected": reflected,
+        "first_sample": start,
+        "segments": len(sd.y),
+        "cost": best.cost,
+        "initial_values": n_ic_used,
+        "max_iter": max_iter,
+        "tol": tol,
+    }
+    if multistart:
+        options["multistart"] = {
+            "starts": multistart + 1,
+            "same_minimum": same,
+            "failed": sum(r is None for r in results),
+            "best": k_best,
+            "costs": [float(c) if np.isfinite(c) else None for c in costs],
+        }
+    return Estimate(
+        model=model_at(best.theta),
+        parameters=best.theta,
+        names=names,
+        covariance=cov,
+        noise_variance=sigma2,
+        n_samples=n_rows,
+        method=method,
+        status=status,
+        options=options,
+        residual_function=residuals,
+        model_function=model_at,
+    )
+
+
+def _default_start(orders: PemOrders, sd: SignalData, start: int,
+                   problem: Problem) -> tuple[NDArray[np.float64], str]:
+    try:
+        return iv_start(orders, sd, start)
+    except (IdentifiabilityError, DataError) as exc:
+        # e.g. more poles than the input excites: start from F = C = D = 1 and let the
+        # damped search find its way (the information matrix will say what is not determined)
+        theta = np.zeros(orders.n_parameters)
+        a, bs, _, _, _ = orders.blocks()
+        linear = np.concatenate([np.arange(a.start, a.stop),
+                                 *(np.arange(s.start, s.stop) for s in bs)])
+        problem.cost(theta)
+        h, g = problem.normal_equations(theta)
+        sub = h[np.ix_(linear, linear)]
+        theta[linear] = np.linalg.lstsq(sub, g[linear], rcond=None)[0]
+        return theta, f"least squares with F = C = D = 1 (the IV start failed: {exc})"
+
+
+def _user_start(init: Init, orders: PemOrders, names: tuple[str, ...]) -> NDArray[np.float64]:
+    if isinstance(init, PolynomialModel):
+        got = (init.na, init.nb, init.nc, init.nd, init.nf, init.nk)
+        want = (orders.na, orders.nb, orders.nc, orders.nd, orders.nf, orders.nk)
+        if got != want:
+            raise ModelError(
+                f"init has orders (na, nb, nc, nd, nf, nk) = {got}, the fit asks for {want}; "
+                "pass a model with the same orders or a parameter vector")
+        return orders.join(Polys(np.asarray(init.a), tuple(init.b), tuple(init.f or ()),
+                                 np.asarray(init.c), np.asarray(init.d)))
+    if isinstance(init, (str, bytes)) or not isinstance(init, (Sequence, np.ndarray)):
+        raise OptionTypeError(
+            f"init must be a PolynomialModel or a parameter vector, got {type(init).__name__}")
+    theta = np.asarray(init, dtype=float)
+    if theta.shape != (orders.n_parameters,):
+        raise DataError(f"init must have {orders.n_parameters} values ({', '.join(names)}), "
+                        f"got shape {theta.shape}")
+    if not np.all(np.isfinite(theta)):
+        raise DataError("init must be finite")
+    return theta.copy()
+
+
+def _generator(rng: object) -> np.random.Generator:
+    if rng is None or isinstance(rng, np.random.Generator):
+        return np.random.default_rng(rng)
+    if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
+        if rng < 0:
+            raise DataError(f"rng seed must be >= 0, got {rng}")
+        return np.random.default_rng(int(rng))
+    raise OptionTypeError(
+        f"rng must be a numpy.random.Generator, an integer seed or None, got {type(rng).__name__}")
+
+
+def _search(problem: Problem, orders: PemOrders, theta: NDArray[np.float64], max_iter: int,
+            tol: float, floor: float) -> _Search:
+    """Damped Gauss–Newton from θ (stable) to a local minimum of Σε²."""
+    cost = problem.cost(theta)
+    if not np.isfinite(cost):
+        raise ConvergenceError(
+            "the search diverged: the prediction errors overflow at the start. Rescale the data "
+            "(calibrate to SI units, remove offsets with detrend), give a sensible init, or try "
+            "multistart=5")
+    h, g = problem.normal_equations(theta)
+    lam, iterations, reflected, converged, note = 0.0, 0, 0, False, ""
+    while True:
+        step = _step(h, g, 0.0)
+        predicted = float(g @ step)  # = ‖ΨΔ‖², twice the decrease of ½Σε² the step promises
+        if not np.isfinite(predicted):
+            raise ConvergenceError(
+                "the search diverged: the gradient is not finite. Rescale the data, lower the "
+                "orders, or try initial='estimate' or multistart=5")
+        if predicted <= tol * cost or predicted <= floor:
+            converged = True
+            break
+        if iterations >= max_iter:
+            break
+        lam_try = lam
+        for _ in range(_MAX_DAMPING):
+            delta = step if lam_try == 0.0 else _step(h, g, lam_try)
+            trial, n_ref = stabilize(orders, theta + delta)
+            trial_cost = problem.cost(trial)
+            if lam_try == 0.0 and n_ref == 0:
+                trial, trial_cost, n_ref = _line_search(problem, orders, theta, delta, cost,
+                                                        predicted, trial, trial_cost)
+            if trial_cost < cost:
+                break
+            lam_try = max(10.0 * lam_try, 1e-4)
+        else:
+            if predicted <= 1e-4 * cost:
+                converged, note = True, "stopped where no step lowers the cost further"
+                break
+            raise ConvergenceError(
+                f"the search stalled after {iterations} steps: no damped step lowers the cost "
+                f"although the predicted decrease is {predicted / cost:.2g} of it. Try "
+                "multistart=5, initial='estimate', lower orders or detrended data")
+        theta, cost = trial, trial_cost
+        reflected += n_ref
+        iterations += 1
+        lam = 0.0 if lam_try <= 1e-3 else lam_try / 10.0
+        h, g = problem.normal_equations(theta)
+    return _Search(theta, cost, h, iterations, converged, reflected, note)
+
+
+def _line_search(problem: Problem, orders: PemOrders, theta: NDArray[np.float64],
+                 delta: NDArray[np.float64], cost: float, predicted: float,
+                 trial: NDArray[np.float64], trial_cost: float) -> tuple[NDArray[np.float64],
+                                                                         float, int]:
+    """One parabolic correction of the step length along a Gauss–Newton step.
+
+    Along θ + αΔ the cost starts at c₀ with slope −2·gᵀΔ; with the cost c₁
+    at α = 1 the parabola has its minimum at α* = gᵀΔ/(c₁ − c₀ + 2 gᵀΔ),
+    which is 1 when the Gauss–Newton model is exact (small residuals).
+    Large-residual problems (under-modelled structures) overshoot and
+    zig-zag; one evaluation at α* removes most of it.
+    """
+    curvature = trial_cost - cost + 2.0 * predicted
+    if not (np.isfinite(trial_cost) and curvature > 0):
+        alpha = 0.25
+    else:
+        alpha = float(np.clip(predicted / curvature, 0.05, 2.0))
+    if abs(alpha - 1.0) < 0.25:
+        return trial, trial_cost, 0
+    other, n_ref = stabilize(orders, theta + alpha * delta)
+    other_cost = problem.cost(other)
+    if other_cost < trial_cost:
+        return other, other_cost, n_ref
+    return trial, trial_cost, 0
+
+
+def _step(h: NDArray[np.float64], g: NDArray[np.float64], lam: float) -> NDArray[np.float64]:
+    """Solve (ΨᵀΨ + λ·diag ΨᵀΨ) Δ = Ψᵀε after equilibration."""
+    s = np.sqrt(np.clip(np.diag(h), 0.0, None))
+    s[~(s > 0)] = 1.0
+    hs = h / np.outer(s, s)
+    if lam:
+        hs = hs + lam * np.eye(h.shape[0])
+    try:
+        chol = linalg.cho_factor(hs, check_finite=False)
+        return linalg.cho_solve(chol, g / s, check_finite=False) / s
+    except linalg.LinAlgError:
+        return np.linalg.lstsq(hs, g / s, rcond=1e-12)[0] / s
+
+
+def _covariance(h: NDArray[np.float64], sigma2: float) -> tuple[NDArray[np.float64], bool]:
+    """σ̂²·(ΨᵀΨ)⁻¹, and whether ΨᵀΨ was singular (pseudo-inverse used)."""
+    n = h.shape[0]
+    if n == 0:
+        return np.zeros((0, 0)), False
+    s = np.sqrt(np.clip(np.diag(h), 0.0, None))
+    zero = ~(s > 0)
+    s[zero] = 1.0
+    hs = h / np.outer(s, s)
+    lam, vec = np.linalg.eigh(hs)
+    singular = bool(zero.any() or not lam[0] > 1e-12 * lam[-1])
+    keep = lam > 1e-12 * max(float(lam[-1]), 1e-300)
+    inv = (vec[:, keep] / lam[keep]) @ vec[:, keep].T
+    cov = sigma2 * inv / np.outer(s, s)
+    return 0.5 * (cov + cov.T), singular
+
+
+def _status(best: _Search, reflected: int, singular: bool) -> str:
+    parts = []
+    if not best.converged:
+        parts.append(f"stopped at max_iter after {best.iterations} steps, not converged")
+    if best.note:
+        parts.append(best.note)
+    if reflected:
+        parts.append(f"reflected {reflected} root(s) of F/C/D from outside the unit circle to "
+                     "1/conj(z) to keep the predictor stable")
+    if singular:
+        parts.append("singular information matrix: covariance from a pseudo-inverse")
+    return "; ".join(parts) if parts else "ok"
