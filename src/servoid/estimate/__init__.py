@@ -4,6 +4,7 @@ from ._arx import ArxOrders, fit_arx
 from ._band import FrequencyBand, frequency_band
 from ._estimate import Estimate, ParameterRow
 from ._greybox import GreyboxModel, GreyboxParameter, fit_greybox
+from ._innovation import InnovationModel
 from ._inverse import (
     FRICTION_MODELS,
     InverseDynamicsRegression,
@@ -18,6 +19,8 @@ from ._pem import fit_armax, fit_bj, fit_oe, fit_pem
 from ._rls import RecursiveLeastSquaresResult, fit_rls
 from ._search import StructureCandidate, StructureSelection, select_order
 from ._separable import fit_separable
+from ._ss_polynomial import to_polynomial
+from ._subspace import fit_n4sid
 from ._svf import FilteredSignal, filter_product, state_variable_filter
 from ._tf_greybox import fit_tf_greybox
 
@@ -29,6 +32,7 @@ __all__ = [
     "FrequencyBand",
     "GreyboxModel",
     "GreyboxParameter",
+    "InnovationModel",
     "InverseDynamicsRegression",
     "LeastSquaresResult",
     "OrderCandidate",
@@ -45,6 +49,7 @@ __all__ = [
     "fit_greybox",
     "fit_inverse_dynamics",
     "fit_iv",
+    "fit_n4sid",
     "fit_oe",
     "fit_pem",
     "fit_rls",
@@ -57,4 +62,5 @@ __all__ = [
     "select_order",
     "solve_gram",
     "state_variable_filter",
+    "to_polynomial",
 ]
