@@ -105,3 +105,24 @@ def test_layout_and_json():
 def test_bad_arguments(kwargs, match):
     with pytest.raises(DataError, match=match):
         residual_analysis(np.random.default_rng(5).normal(size=100), **kwargs)
+
+
+def test_coloured_independent_residuals_are_not_called_correlated():
+    # an output-error model leaves the noise colour in its residuals; independent of the input
+    # they must still pass (the null covariance includes their own correlation, Ljung eq. 16.69)
+    u = prbs(11, clock=10, periods=1).values[:N]
+    results = [residual_analysis(sps.lfilter([1.0], [1.0, -0.8],
+                                             np.random.default_rng(s).normal(size=N)), u)
+               for s in range(RUNS)]
+    assert all(not r.is_white for r in results)  # AR(0.8): the switch to the coloured null is on
+    # the truncated, Bartlett-weighted covariance is approximate: allow twice the white band
+    assert sum(not r.is_independent for r in results) <= 2 * MAX_REJECTIONS
+    p = np.array([r.independence_pvalue for r in results])
+    assert 0.35 < np.mean(p) < 0.65  # uniform p-values have mean 1/2; ±0.15 is > 7 sd for 200
+
+
+def test_coloured_residuals_with_an_input_leak_are_still_caught():
+    rng = np.random.default_rng(9)
+    u = rng.normal(size=N)
+    e = sps.lfilter([1.0], [1.0, -0.8], rng.normal(size=N)) + 0.5 * np.roll(u, 2)
+    assert not residual_analysis(e, u).is_independent

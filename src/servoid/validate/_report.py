@@ -61,6 +61,7 @@ class ValidationReport:
     initial: str = "measured"
     clipped: int = 0
     unit: str = ""
+    noise_model: bool = True
 
     def notes(self) -> tuple[str, ...]:
         """Verdicts in plain words: what the data say about the model."""
@@ -78,7 +79,14 @@ class ValidationReport:
                 "model structure is rejected by the data; the dynamics from the input are not "
                 "captured (try other orders or delays), or the data were taken in closed loop"
             )
-        if not r.is_white:
+        if not r.is_white and not self.noise_model:
+            out.append(
+                f"the residuals are coloured (Ljung–Box p = {r.whiteness_pvalue:.3g}); an "
+                "output-error model describes the dynamics, not the noise, so this alone does "
+                "not reject it (the input–residual test judges the dynamics); BJ adds a noise "
+                "model when the noise itself matters"
+            )
+        elif not r.is_white:
             out.append(
                 f"the residuals are not white (Ljung–Box p = {r.whiteness_pvalue:.3g}): the "
                 "noise model is rejected by the data; parameter intervals that assume white "
@@ -223,6 +231,7 @@ def validate(
         initial=initial_used,
         clipped=clipped,
         unit=experiment.unit(outputs[0]),
+        noise_model=has_noise_model(model),
     )
 
 

@@ -126,7 +126,11 @@ def residual_analysis(
     else:
         uu = np.asarray(u, dtype=float).reshape(n, -1)
         cross = np.vstack([_xcorr(col - col.mean(), e, max_lag) for col in uu.T])
-        p_indep = _independence_pvalue(cross, uu - uu.mean(axis=0), max_lag)
+        # Coloured residuals (an output-error model leaves the noise colour in them) widen the
+        # spread of r_εu under the null; then the residuals' own correlation enters its
+        # covariance (Ljung, System Identification, 2nd ed., eq. 16.69), else the exact white one.
+        colour = None if p_white > 1 - confidence else _bartlett_autocorrelation(e, max_lag)
+        p_indep = _independence_pvalue(cross, uu - uu.mean(axis=0), max_lag, colour)
     bound = float(stats.norm.ppf(0.5 + confidence / 2) / np.sqrt(n))
     return ResidualAnalysis(lags, auto, cross_lags, cross, bound, confidence, p_white, p_indep, n)
 
@@ -142,8 +146,16 @@ def _xcorr(a: NDArray[np.float64], b: NDArray[np.float64], max_lag: int) -> NDAr
     return r / norm if norm > 0 else np.zeros_like(r)
 
 
+def _bartlett_autocorrelation(e: NDArray[np.float64], max_lag: int) -> NDArray[np.float64]:
+    """ρ̂_ε(k)·(1 − |k|/(K+1)) for k = −K…K, K = min(4M, N/4): a non-negative spectrum."""
+    k_max = int(min(4 * max_lag, e.size // 4))
+    rho = _xcorr(e, e, k_max)
+    return rho * (1.0 - np.abs(np.arange(-k_max, k_max + 1)) / (k_max + 1))
+
+
 def _independence_pvalue(
-    cross: NDArray[np.float64], u: NDArray[np.float64], max_lag: int
+    cross: NDArray[np.float64], u: NDArray[np.float64], max_lag: int,
+    colour: NDArray[np.float64] | None = None,
 ) -> float:
     # With ε white and independent of u, r_εu(i, τ) = Σ_s ε(s)·x_iτ(s)/(‖u_i‖‖ε‖) with
     # x_iτ(s) = u_i(s − τ) (zero outside the record), so Cov(√N·r) = P with
@@ -177,6 +189,13 @@ def _independence_pvalue(
                 [np.zeros((d_all.size, 1)), np.cumsum(tail[:, ::-1], axis=1)], axis=1
             )
             block = full[d_idx] - head_sum[d_idx, head_len] - tail_sum[d_idx, tail_len]
+            if colour is not None:
+                # Cov = Σ_k ρ_ε(k)·S_ij(k + τ − τ'), S_ij(m) = Σ_s u_i(s)u_j(s + m); the end
+                # corrections above are dropped here (they are O(M/N) of each term)
+                k_max = (colour.size - 1) // 2
+                wide = _lagged_sums(u[:, i], u[:, j], 2 * m_lag + k_max)
+                mixed = np.correlate(wide, colour, mode="valid")  # index d + 2M, d = τ − τ'
+                block = mixed[d_idx]
             rows = slice(i * lags.size, (i + 1) * lags.size)
             cols = slice(j * lags.size, (j + 1) * lags.size)
             cov[rows, cols] = block / (norms[i] * norms[j])

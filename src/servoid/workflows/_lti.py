@@ -39,7 +39,7 @@ from ._common import parameter_table, read_truth, report_options, sha256, valida
 from ._registry import FigureWriter
 
 __all__ = ["IdentificationResult", "OrderRow", "gain_unit", "lti_result", "model_dict",
-           "n_inputs", "on_edge", "order_grid"]
+           "n_inputs", "on_edge", "order_grid", "outputs_of"]
 
 
 @dataclass(frozen=True)
@@ -114,7 +114,8 @@ class IdentificationResult:
     def __str__(self) -> str:
         est = self.estimate
         o = est.options
-        lines = [f"{self.title}: output {o.get('output')!r} from {', '.join(o.get('inputs', []))}"
+        lines = [f"{self.title}: output {', '.join(outputs_of(est))} from "
+                 f"{', '.join(o.get('inputs', []))}"
                  f" ({o.get('input', 'u')}); {est.parameters.size} parameters on "
                  f"{est.n_samples} samples, σ̂² = {est.noise_variance:.4g}"]
         lines += str(est).splitlines()[1:]
@@ -197,7 +198,7 @@ class IdentificationResult:
         val_files = ", ".join(p.name for p in spec.validation_paths)
         experiment = Section("Experiment", paragraphs=(
             f"Estimation data: {data_files}; input {', '.join(o.get('inputs', []))} "
-            f"({o.get('input', 'u')}), output {o.get('output')}.",
+            f"({o.get('input', 'u')}), output {', '.join(outputs_of(est))}.",
             (f"Validation records: {val_files}." if val_files else
              "Validation: the held-back part of the record ([split])."),
         ))
@@ -224,6 +225,8 @@ class IdentificationResult:
             section = validation_section(v, files[f"validation{suffix}.png"],
                                          files[f"residuals{suffix}.png"])
             title = section.title + (f": {v.experiment}" if v.experiment else "")
+            if len(outputs_of(est)) > 1:
+                title += f" ({v.output})"
             sections.append(Section(title, section.paragraphs, section.tables, section.figures))
         sections.append(Section("Notes", paragraphs=self.notes or
                                 ("The validation data do not reject the model.",)))
@@ -294,13 +297,11 @@ def lti_result(
     order on the edge of its grid) become notes and are also warned, so a
     script sees them as :class:`~servoid.ServoidWarning`.
     """
-    output = estimate.options.get("output")
     reports = tuple(
         validate(estimate, v, input=estimate.options.get("input", "u"), output=output,
                  horizon=options.get("horizon", 5), initial=spec.validation.initial,
-                 transient=spec.validation.transient,
-                 limits=spec.limits(output) if output else None)
-        for v in validations)
+                 transient=spec.validation.transient, limits=spec.limits(output))
+        for v in validations for output in outputs_of(estimate))
     all_notes = list(notes)
     if edge:
         all_notes.append(f"the chosen {', '.join(edge)} sits on the edge of the searched grid; "
@@ -317,9 +318,15 @@ def lti_result(
         tuple(all_notes), gain_unit(validations[0], estimate))
 
 
+def outputs_of(estimate: Estimate) -> list[str]:
+    """The output channel(s) an estimate models."""
+    o = estimate.options
+    return list(o["outputs"]) if o.get("outputs") else [o["output"]]
+
+
 def gain_unit(exp: Experiment, estimate: Estimate) -> str:
-    """``output unit/input unit`` of an estimate's first input, or ''."""
-    out = estimate.options.get("output")
+    """``output unit/input unit`` of an estimate's first path, or ''."""
+    out = outputs_of(estimate)[0]
     inputs = estimate.options.get("inputs") or []
     y = exp.unit(out) if out in exp.names else ""
     u = exp.unit(inputs[0]) if inputs and inputs[0] in exp.names else ""
@@ -466,9 +473,12 @@ def _plot_bode(result: IdentificationResult, path: Path, overwrite: bool) -> Non
     f = _frequency_grid(result)
     bands = {}
     inputs = est.options.get("inputs", ["u"])
-    for i, name in enumerate(inputs):
-        label = result.method if len(inputs) == 1 else f"{result.method}: {name}"
-        bands[label] = frequency_band(est, f, input=i)
+    outputs = outputs_of(est)
+    for k, y_name in enumerate(outputs):
+        for i, u_name in enumerate(inputs):
+            label = result.method if len(inputs) * len(outputs) == 1 else \
+                f"{result.method}: {u_name} → {y_name}"
+            bands[label] = frequency_band(est, f, input=i, output=k)
     plot_bode_bands(bands, path, measured=result.measured, unit=result.gain_unit,
                     title=f"{result.title}", overwrite=overwrite)
 

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
-from . import _arx, _closedloop, _inverse, _pneumatic
+from . import _arx, _closedloop, _inverse, _n4sid, _pem, _pneumatic
 from ._registry import registry
 
 __all__ = ["METHODS"]
 
 METHODS = registry((
     _arx.METHOD,
+    _pem.OE,
+    _pem.ARMAX,
+    _pem.BJ,
+    _n4sid.N4SID,
     _closedloop.METHOD,
     _inverse.METHOD,
     _pneumatic.METHOD,
