@@ -1,7 +1,16 @@
-"""Closed-loop identification: indirect, one-step and direct approaches.
+"""Closed-loop identification: known loops, unknown controllers, feedback test.
 
-The plant G0 runs in a known loop ``H = c·G0/(1 + F·G0)``
-(:class:`FeedbackLoop`). Every approach returns a
+Any plant, black box (:mod:`._blackbox`, :mod:`._indirect`,
+:mod:`._feedback`)::
+
+    feedback_test      residuals against future inputs: was the record taken in closed loop?
+    fit_indirect_tf    known controller C: OE on r → y, then the plant of any order
+    fit_two_stage      unknown controller: û_r = Ŝ r by FIR (or projection), then OE/BJ
+    fit_cliv           unknown controller: IV with instruments from r
+    (direct)           servoid.estimate.fit_bj on (u, y): PEM with a noise model
+
+The electro-hydraulic actuator study: the plant G0 runs in a known loop
+``H = c·G0/(1 + F·G0)`` (:class:`FeedbackLoop`). Every approach returns a
 :class:`ClosedLoopResult` with the physical parameters of the reduced
 EHSA model ``K/(s(s²/ω_hp² + 2δ_hp·s/ω_hp + 1))``, their covariance, the
 discrete and continuous models and a pole report that flags what cannot
@@ -14,6 +23,9 @@ be physical::
 """
 
 from ._api import APPROACHES, identify_closed_loop, simulate_closed_loop
+from ._blackbox import fit_cliv, fit_two_stage
+from ._feedback import FeedbackTest, feedback_test, warn_if_feedback
+from ._indirect import fit_indirect_tf
 from ._loop import FeedbackLoop, reduced_plant
 from ._onestep import fit_one_step
 from ._result import ClosedLoopResult, PoleInfo
@@ -23,11 +35,17 @@ __all__ = [
     "APPROACHES",
     "ClosedLoopResult",
     "FeedbackLoop",
+    "FeedbackTest",
     "PoleInfo",
+    "feedback_test",
+    "fit_cliv",
     "fit_direct",
     "fit_indirect",
+    "fit_indirect_tf",
     "fit_one_step",
+    "fit_two_stage",
     "identify_closed_loop",
     "reduced_plant",
     "simulate_closed_loop",
+    "warn_if_feedback",
 ]
