@@ -3,6 +3,8 @@
 from ._arx import ArxOrders, fit_arx
 from ._band import FrequencyBand, frequency_band
 from ._estimate import Estimate, ParameterRow
+from ._fit_frf import FrfWeighting, fit_frf
+from ._frf import FrfMethod, estimate_frf
 from ._greybox import GreyboxModel, GreyboxParameter, fit_greybox
 from ._innovation import InnovationModel
 from ._inverse import (
@@ -30,6 +32,8 @@ __all__ = [
     "Estimate",
     "FilteredSignal",
     "FrequencyBand",
+    "FrfMethod",
+    "FrfWeighting",
     "GreyboxModel",
     "GreyboxParameter",
     "InnovationModel",
@@ -41,11 +45,13 @@ __all__ = [
     "RecursiveLeastSquaresResult",
     "StructureCandidate",
     "StructureSelection",
+    "estimate_frf",
     "filter_product",
     "fit_armax",
     "fit_arx",
     "fit_bj",
     "fit_closed_loop_oe",
+    "fit_frf",
     "fit_greybox",
     "fit_inverse_dynamics",
     "fit_iv",

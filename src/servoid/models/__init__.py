@@ -4,25 +4,36 @@ Continuous models have ``dt=None``; discrete ones have ``dt`` [s] and
 remember how they were discretised (``method``, ``prewarp``).  :func:`c2d`
 and :func:`d2c` convert both ways (ZOH, Tustin); :func:`to_scipy`,
 :func:`from_scipy`, :func:`to_control` and :func:`from_control` talk to
-scipy.signal and python-control.
+scipy.signal and python-control.  :class:`FrequencyResponseData` is a
+measured (nonparametric) frequency response; :func:`bandwidth`,
+:func:`phase_lag` and :func:`resonance_peak` give the spec numbers of it
+or of any model.
 """
 
 from ._discretize import c2d, d2c
+from ._frd import FrequencyResponseData, NonlinearDistortion
 from ._interop import from_control, from_scipy, to_control, to_scipy
 from ._polynomial import PolynomialModel
 from ._response import TimeResponse
+from ._specs import ResonancePeak, bandwidth, phase_lag, resonance_peak
 from ._statespace import StateSpace
 from ._transfer import TransferFunction
 
 __all__ = [
+    "FrequencyResponseData",
+    "NonlinearDistortion",
     "PolynomialModel",
+    "ResonancePeak",
     "StateSpace",
     "TimeResponse",
     "TransferFunction",
+    "bandwidth",
     "c2d",
     "d2c",
     "from_control",
     "from_scipy",
+    "phase_lag",
+    "resonance_peak",
     "to_control",
     "to_scipy",
 ]
