@@ -55,10 +55,18 @@ def plot_bode_bands(
         f = np.asarray(measured.frequency, dtype=float)
         h = np.asarray(measured.response, dtype=complex)
         keep = f > 0
-        ax_m.semilogx(f[keep], 20 * np.log10(np.abs(h[keep])), ".", color="0.35", ms=3,
-                      label="measured FRF")
-        ax_p.semilogx(f[keep], np.degrees(np.unwrap(np.angle(h[keep]))), ".", color="0.35",
-                      ms=3)
+        mag = 20 * np.log10(np.abs(h[keep]))
+        phase = np.degrees(np.unwrap(np.angle(h[keep])))
+        ax_m.semilogx(f[keep], mag, ".", color="0.35", ms=3, label="measured FRF")
+        ax_p.semilogx(f[keep], phase, ".", color="0.35", ms=3)
+        variance = getattr(measured, "variance", None)
+        if variance is not None:  # ±kσ of each line: |G| ± kσ in dB, phase ± kσ/|G| rad
+            rel = sigmas * np.sqrt(np.asarray(variance)[keep]) / np.abs(h[keep])
+            low = 20 * np.log10(np.clip(1 - rel, 1e-3, None))
+            ax_m.fill_between(f[keep], mag + low, mag + 20 * np.log10(1 + rel), color="0.35",
+                              alpha=0.15, lw=0)
+            dph = np.degrees(np.arcsin(np.clip(rel, 0, 1)))
+            ax_p.fill_between(f[keep], phase - dph, phase + dph, color="0.35", alpha=0.15, lw=0)
     for k, (label, band) in enumerate(bands.items()):
         color = f"C{k}"
         mag, phase = band.magnitude_db, band.phase_deg

@@ -144,6 +144,7 @@ def validate(
     transient: int = 0,
     intersample: Intersample = "zoh",
     limits: tuple[float, float] | None = None,
+    closed_loop: bool = False,
 ) -> ValidationReport:
     """Validate a model on an experiment it was not fitted to.
 
@@ -176,6 +177,9 @@ def validate(
     limits : (float, float), optional
         Declared range of the output sensor [output unit]: the simulation
         and prediction are clipped to it as the measurement was.
+    closed_loop : bool
+        The record was taken in closed loop: residuals are tested for
+        independence of past inputs only (the loop correlates the rest).
 
     Returns
     -------
@@ -225,7 +229,8 @@ def validate(
         relative_error=float(relative_error(ys, ss)),
         horizon=horizon,
         prediction_fit_percent=float(fit_percent(y[p0:], y_pred[p0:])),
-        residuals=residual_analysis(eps[first:], u[first:], max_lag, confidence),
+        residuals=residual_analysis(eps[first:], u[first:], max_lag, confidence,
+                                    causal=closed_loop),
         experiment=experiment.name,
         prediction_first=p0,
         initial=initial_used,

@@ -38,6 +38,8 @@ class ResidualAnalysis:
         of √N·r_εu under the null (ε white, independent of u), built from the
         input's own correlations, so a coloured input (a PRBS held for several
         samples) is not mistaken for dependence; NaN without input.
+    causal : bool
+        Whether only the lags τ ≥ 0 (input leading) were tested (closed loop).
     """
 
     lags: NDArray[np.int64]
@@ -49,6 +51,7 @@ class ResidualAnalysis:
     whiteness_pvalue: float
     independence_pvalue: float
     n_samples: int
+    causal: bool = False
 
     @property
     def is_white(self) -> bool:
@@ -79,6 +82,7 @@ class ResidualAnalysis:
             "is_white": self.is_white,
             "is_independent": self.is_independent,
             "n_samples": self.n_samples,
+            "causal": self.causal,
         }
 
 
@@ -87,6 +91,7 @@ def residual_analysis(
     u: ArrayLike | None = None,
     max_lag: int = 25,
     confidence: float = 0.99,
+    causal: bool = False,
 ) -> ResidualAnalysis:
     """Test residuals for whiteness and correlation with the input.
 
@@ -100,6 +105,11 @@ def residual_analysis(
         Largest lag M [samples].
     confidence : float
         Level of the band (0.99 gives ±2.58/√N) and of the verdicts.
+    causal : bool
+        Test independence only at lags τ = 0…M (the input leading the
+        residual).  In closed loop the input depends on past residuals
+        through the controller, so the negative lags are correlated by the
+        loop, not by a wrong model (Ljung, *System Identification*, §16.6).
     """
     e = np.asarray(residuals, dtype=float).ravel()
     n = e.size
@@ -130,9 +140,10 @@ def residual_analysis(
         # spread of r_εu under the null; then the residuals' own correlation enters its
         # covariance (Ljung, System Identification, 2nd ed., eq. 16.69), else the exact white one.
         colour = None if p_white > 1 - confidence else _bartlett_autocorrelation(e, max_lag)
-        p_indep = _independence_pvalue(cross, uu - uu.mean(axis=0), max_lag, colour)
+        p_indep = _independence_pvalue(cross, uu - uu.mean(axis=0), max_lag, colour, causal)
     bound = float(stats.norm.ppf(0.5 + confidence / 2) / np.sqrt(n))
-    return ResidualAnalysis(lags, auto, cross_lags, cross, bound, confidence, p_white, p_indep, n)
+    return ResidualAnalysis(lags, auto, cross_lags, cross, bound, confidence, p_white, p_indep, n,
+                            causal)
 
 
 def _xcorr(a: NDArray[np.float64], b: NDArray[np.float64], max_lag: int) -> NDArray[np.float64]:
@@ -155,7 +166,7 @@ def _bartlett_autocorrelation(e: NDArray[np.float64], max_lag: int) -> NDArray[n
 
 def _independence_pvalue(
     cross: NDArray[np.float64], u: NDArray[np.float64], max_lag: int,
-    colour: NDArray[np.float64] | None = None,
+    colour: NDArray[np.float64] | None = None, causal: bool = False,
 ) -> float:
     # With ε white and independent of u, r_εu(i, τ) = Σ_s ε(s)·x_iτ(s)/(‖u_i‖‖ε‖) with
     # x_iτ(s) = u_i(s − τ) (zero outside the record), so Cov(√N·r) = P with
@@ -200,6 +211,9 @@ def _independence_pvalue(
             cols = slice(j * lags.size, (j + 1) * lags.size)
             cov[rows, cols] = block / (norms[i] * norms[j])
     r = cross.ravel()
+    if causal:  # keep τ = 0…M of every input
+        keep_lags = np.tile(lags >= 0, k)
+        r, cov = r[keep_lags], cov[np.ix_(keep_lags, keep_lags)]
     eig, vec = np.linalg.eigh(cov)
     keep = eig > eig[-1] * cov.shape[0] * np.finfo(float).eps  # numerical rank, as matrix_rank
     proj = vec[:, keep].T @ r

@@ -43,7 +43,8 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     o = estimate.options
     title = f"ARX (na = {o['na']}, nb = {_short(o['nb'])}, nk = {_short(o['nk'])})"
     return lti_result(spec, "arx", estimate, title, validations, options, orders=rows,
-                      criterion=options["criterion"] if grid else "", edge=edge, truth=truth)
+                      criterion=options["criterion"] if grid else "", edge=edge, truth=truth,
+                      estimation=estimation)
 
 
 def _rows(selection: OrderSelection) -> tuple[OrderRow, ...]:

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from .._errors import ServoidWarning
+from .._errors import ServoidError, ServoidWarning
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 from ..estimate import Estimate, frequency_band
 from ..report import (
@@ -85,6 +85,8 @@ class IdentificationResult:
         Verdicts and warnings in words.
     gain_unit : str
         Output unit per input unit (for gains and Bode magnitudes).
+    feedback : FeedbackTest or None
+        Whether the estimation record looks closed loop (open-loop methods).
     folder, files
         Where the results were written.
     """
@@ -102,6 +104,7 @@ class IdentificationResult:
     truth: Mapping[str, float] | None = None
     notes: tuple[str, ...] = ()
     gain_unit: str = ""
+    feedback: Any = None
     folder: Path | None = None
     files: tuple[Path, ...] = field(default=())
 
@@ -158,6 +161,7 @@ class IdentificationResult:
             "singular_values": list(self.singular_values) or None,
             "measured_frf": self.measured.to_dict() if self.measured is not None else None,
             "truth": dict(self.truth) if self.truth else None,
+            "feedback_test": self.feedback.to_dict() if self.feedback is not None else None,
             "validation": self.validation.summary(),
             "validations": [v.summary() for v in self.validations],
             "notes": list(self.notes),
@@ -290,19 +294,35 @@ def lti_result(
     singular_values: Sequence[float] = (),
     truth: Mapping[str, float] | None = None,
     notes: Sequence[str] = (),
+    estimation: Experiment | ExperimentSet | None = None,
+    closed_loop: bool = False,
 ) -> IdentificationResult:
     """Validate an estimate on each record and assemble the result.
 
     Verdicts (a negative fit, a structure the residual tests reject, an
-    order on the edge of its grid) become notes and are also warned, so a
-    script sees them as :class:`~servoid.ServoidWarning`.
+    order on the edge of its grid, a closed-loop record under an
+    open-loop method) become notes and are also warned, so a script sees
+    them as :class:`~servoid.ServoidWarning`.  With ``estimation`` given
+    and the input ``u``, the feedback test runs on it; ``closed_loop``
+    says the method is made for closed-loop data (then the residuals are
+    tested against past inputs only).
     """
-    reports = tuple(
-        validate(estimate, v, input=estimate.options.get("input", "u"), output=output,
-                 horizon=options.get("horizon", 5), initial=spec.validation.initial,
-                 transient=spec.validation.transient, limits=spec.limits(output))
-        for v in validations for output in outputs_of(estimate))
+    input_role = estimate.options.get("input", "u")
+    feedback = None
     all_notes = list(notes)
+    if estimation is not None and input_role == "u" and not closed_loop:
+        feedback = _feedback(estimation, estimate)
+        if feedback is not None and feedback.has_feedback:
+            closed_loop = True
+            all_notes.append(_feedback_note(method, feedback))
+    if measured is None and estimation is not None:
+        measured = _measured_frf(estimation, estimate, closed_loop)
+    reports = tuple(
+        validate(estimate, v, input=input_role, output=output,
+                 horizon=options.get("horizon", 5), initial=spec.validation.initial,
+                 transient=spec.validation.transient, limits=spec.limits(output),
+                 closed_loop=closed_loop)
+        for v in validations for output in outputs_of(estimate))
     if edge:
         all_notes.append(f"the chosen {', '.join(edge)} sits on the edge of the searched grid; "
                          "widen the grid to be sure the best order is inside it")
@@ -315,7 +335,55 @@ def lti_result(
     return IdentificationResult(
         spec, method, estimate, reports, title, tuple(orders), criterion,
         tuple(characteristics), measured, tuple(float(s) for s in singular_values), truth,
-        tuple(all_notes), gain_unit(validations[0], estimate))
+        tuple(all_notes), gain_unit(validations[0], estimate), feedback)
+
+
+def _feedback(data: Experiment | ExperimentSet, estimate: Estimate) -> Any:
+    """The feedback test on the estimation record, or None when it cannot run."""
+    from ..closedloop import feedback_test
+
+    inputs = estimate.options.get("inputs") or []
+    outputs = outputs_of(estimate)
+    if len(inputs) != 1 or len(outputs) != 1:
+        return None  # the test is single-input single-output
+    first = data if isinstance(data, Experiment) else data[0]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ServoidWarning)
+            return feedback_test(first, input=inputs[0], output=outputs[0])
+    except ServoidError:  # too short or not exciting enough for the test's own ARX
+        return None
+
+
+def _measured_frf(data: Experiment | ExperimentSet, estimate: Estimate,
+                  closed_loop: bool) -> Any:
+    """A Welch FRF of the estimation record to draw under the model, or None."""
+    from ..estimate import estimate_frf
+
+    inputs = estimate.options.get("inputs") or []
+    outputs = outputs_of(estimate)
+    if len(inputs) != 1 or len(outputs) != 1:
+        return None
+    first = data if isinstance(data, Experiment) else data[0]
+    reference = "r" if closed_loop and first.names_of("r") else None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ServoidWarning)
+            return estimate_frf(first, input=inputs[0], output=outputs[0], reference=reference,
+                                method="welch")
+    except ServoidError:  # too short for a spectral estimate: the Bode shows the model alone
+        return None
+
+
+def _feedback_note(method: str, test: Any) -> str:
+    if method == "bj":
+        return (f"the record looks closed loop (feedback test p = {test.pvalue:.2g}); BJ on "
+                "(u, y) is the direct approach, consistent when its noise model is right — "
+                "check that the residuals are white")
+    return (f"the record looks closed loop (feedback test p = {test.pvalue:.2g}): {method} on "
+            "(u, y) is biased under feedback; use method = \"bj\" (direct, with a noise "
+            "model), \"two-stage\" or \"cliv\" (the reference as instrument), or "
+            "\"indirect\" with the controller in [loop]")
 
 
 def outputs_of(estimate: Estimate) -> list[str]:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from . import _arx, _closedloop, _inverse, _n4sid, _pem, _pneumatic
+from . import _arx, _closedloop, _closedloop_any, _frf, _inverse, _n4sid, _pem, _pneumatic
 from ._registry import registry
 
 __all__ = ["METHODS"]
@@ -13,6 +13,10 @@ METHODS = registry((
     _pem.ARMAX,
     _pem.BJ,
     _n4sid.N4SID,
+    _frf.FRF,
+    _closedloop_any.TWO_STAGE,
+    _closedloop_any.CLIV,
+    _closedloop_any.INDIRECT,
     _closedloop.METHOD,
     _inverse.METHOD,
     _pneumatic.METHOD,

@@ -42,7 +42,8 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         notes.append(f"the subspace model (order {o['order']}) started an output-error fit; "
                      "the parameters and intervals are the output-error ones")
     return lti_result(spec, "n4sid", estimate, title, validations, options,
-                      singular_values=o["singular_values"], truth=truth, notes=notes)
+                      singular_values=o["singular_values"], truth=truth, notes=notes,
+                      estimation=estimation)
 
 
 def _outputs(value: Any, where: str, name: str) -> str | list[str]:

@@ -59,7 +59,8 @@ def run(structure: str, spec: ExperimentSpec, options: Mapping[str, Any],
         estimate = fit(estimation, **{k: fixed[k] for k in keys}, **settings)
     title = f"{_TITLES[structure]} ({orders_text(estimate.options, keys)})"
     return lti_result(spec, structure, estimate, title, validations, options, orders=rows,
-                      criterion=options["criterion"] if grid else "", edge=edge, truth=truth)
+                      criterion=options["criterion"] if grid else "", edge=edge, truth=truth,
+                      estimation=estimation)
 
 
 def order_rows(selection: StructureSelection) -> tuple[OrderRow, ...]:

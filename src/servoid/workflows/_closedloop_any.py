@@ -1,0 +1,166 @@
+"""``method = "two-stage" | "cliv" | "indirect"``: a plant from closed-loop records, any loop."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
+from .._checks import as_float, as_float_list
+from .._errors import DataError, OptionError
+from ..closedloop import fit_cliv, fit_indirect_tf, fit_two_stage
+from ..data import Experiment, ExperimentSet, ExperimentSpec
+from ..estimate import Estimate
+from ..models import TransferFunction
+from ._arx import HORIZON
+from ._lti import IdentificationResult, lti_result
+from ._options import boolean, choice, integer, number, optional, text
+from ._pem import orders_text
+from ._registry import Method, Option
+
+__all__ = ["CLIV", "INDIRECT", "TWO_STAGE"]
+
+_OUTPUT = Option("output", None, optional(text()), "output channel when the data have several")
+_PEM = (
+    Option("multistart", 0, integer(minimum=0), "extra random stable starts; the best wins"),
+    Option("seed", 0, integer(minimum=0), "seed of the random starts"),
+    Option("max_iter", 100, integer(minimum=1), "most Gauss–Newton iterations per start"),
+    Option("tol", 1e-9, number(positive=True), "relative cost decrease that ends the search"),
+)
+_LOOP_KEYS = ("controller", "feedback")
+
+
+def _run_two_stage(spec: ExperimentSpec, options: Mapping[str, Any],
+                   truth: Mapping[str, float] | None) -> IdentificationResult:
+    estimation, validations = spec.records()
+    est = fit_two_stage(estimation, options["nb"], options["nf"], options["nk"],
+                        stage1_order=options["stage1_order"], projection=options["projection"],
+                        structure=options["structure"], nc=options["nc"], nd=options["nd"],
+                        output=options["output"], multistart=options["multistart"],
+                        rng=options["seed"], max_iter=options["max_iter"], tol=options["tol"])
+    est = _plant_input(est, estimation)
+    how = "projection" if options["projection"] else "two-stage"
+    title = f"{options['structure'].upper()} plant by the {how} method " \
+            f"({orders_text(est.options, ('nb', 'nf', 'nk'))})"
+    note = (f"stage 1: a FIR of order {est.options['stage1_order']} from the reference explains "
+            f"{100 * est.options['reference_explains']:.0f} % of the input's variance")
+    return lti_result(spec, "two-stage", est, title, validations, options, truth=truth,
+                      notes=[note], closed_loop=True)
+
+
+def _run_cliv(spec: ExperimentSpec, options: Mapping[str, Any],
+              truth: Mapping[str, float] | None) -> IdentificationResult:
+    estimation, validations = spec.records()
+    est = fit_cliv(estimation, options["na"], options["nb"], options["nk"],
+                   output=options["output"], iterations=options["iterations"])
+    est = _plant_input(est, estimation)
+    title = f"plant by closed-loop IV ({orders_text(est.options, ('na', 'nb', 'nk'))})"
+    return lti_result(spec, "cliv", est, title, validations, options, truth=truth,
+                      closed_loop=True)
+
+
+def _run_indirect(spec: ExperimentSpec, options: Mapping[str, Any],
+                  truth: Mapping[str, float] | None) -> IdentificationResult:
+    estimation, validations = spec.records()
+    dt = estimation.dt
+    controller, feedback = _loop(spec.loop, dt)
+    est = fit_indirect_tf(estimation, controller, options["nb"], options["nf"], options["nk"],
+                          feedback=feedback, structure=options["structure"],
+                          refine=options["refine"], output=options["output"],
+                          multistart=options["multistart"], rng=options["seed"],
+                          max_iter=options["max_iter"], tol=options["tol"])
+    est = _plant_input(est, estimation)
+    title = f"plant by the indirect approach ({orders_text(est.options, ('nb', 'nf', 'nk'))})"
+    return lti_result(spec, "indirect", est, title, validations, options, truth=truth,
+                      closed_loop=True)
+
+
+def _plant_input(est: Estimate, data: Experiment | ExperimentSet) -> Estimate:
+    """The estimate's options with the plant input named like the other methods'."""
+    first = data if isinstance(data, Experiment) else data[0]
+    names = first.names_of("u")
+    if len(names) != 1:
+        raise DataError(f"the closed-loop methods need one plant input u; the data have "
+                        f"{len(names)} ({', '.join(names) or 'none'})")
+    return dataclasses.replace(est, options={**est.options, "input": "u", "inputs": [names[0]]})
+
+
+def _loop(table: Mapping[str, Any], dt: float) -> tuple[TransferFunction | float,
+                                                       TransferFunction | float]:
+    unknown = sorted(set(table) - set(_LOOP_KEYS))
+    if unknown:
+        raise OptionError(f"unknown key(s) in [loop]: {', '.join(unknown)}; method = "
+                          f"\"indirect\" reads {', '.join(_LOOP_KEYS)}")
+    if "controller" not in table:
+        raise DataError("method = \"indirect\" needs the controller: add [loop] controller = "
+                        "{num = [...], den = [...]} (discrete in q, at the data's dt) or a gain")
+    return (_discrete("controller", table["controller"], dt),
+            _discrete("feedback", table.get("feedback", 1.0), dt))
+
+
+def _discrete(key: str, value: Any, dt: float) -> TransferFunction | float:
+    if isinstance(value, Mapping):
+        extra = sorted(set(value) - {"num", "den", "dt"})
+        if extra or "num" not in value or "den" not in value:
+            raise DataError(f"[loop] {key} must be a gain or {{num = [...], den = [...]}} "
+                            f"(descending powers of z, at the data's dt); got keys {sorted(value)}")
+        num = as_float_list(f"{key}.num", value["num"], min_length=1, where="[loop]")
+        den = as_float_list(f"{key}.den", value["den"], min_length=1, where="[loop]")
+        at = as_float(f"{key}.dt", value.get("dt", dt), positive=True, unit="s", where="[loop]")
+        return TransferFunction(num, den, dt=at)
+    return as_float(key, value, where="[loop]")
+
+
+TWO_STAGE = Method(
+    name="two-stage",
+    summary="plant from a closed-loop record with an unknown controller: a FIR r → u gives the "
+            "noise-free input, then OE (or BJ) from it to y",
+    options=(
+        _OUTPUT,
+        Option("nb", 2, integer(minimum=1), "B coefficients of the plant"),
+        Option("nf", 2, integer(minimum=0), "order of F (plant poles)"),
+        Option("nk", 1, integer(minimum=0), "plant delay [samples]"),
+        Option("stage1_order", None, optional(integer(minimum=1)),
+               "FIR length of stage 1 (default: by AIC)"),
+        Option("projection", False, boolean(), "two-sided FIR (the projection method)"),
+        Option("structure", "oe", choice(("oe", "bj")), "stage-2 structure"),
+        Option("nc", 1, integer(minimum=0), "BJ noise zeros (structure = \"bj\")"),
+        Option("nd", 1, integer(minimum=0), "BJ noise poles (structure = \"bj\")"),
+        *_PEM,
+        HORIZON,
+    ),
+    run=_run_two_stage,
+)
+
+CLIV = Method(
+    name="cliv",
+    summary="plant from a closed-loop record with an unknown controller by instrumental "
+            "variables built from the reference",
+    options=(
+        _OUTPUT,
+        Option("na", 2, integer(minimum=0), "number of poles"),
+        Option("nb", 2, integer(minimum=1), "B coefficients"),
+        Option("nk", 1, integer(minimum=0), "delay [samples]"),
+        Option("iterations", 2, integer(minimum=1), "refined-IV passes"),
+        HORIZON,
+    ),
+    run=_run_cliv,
+)
+
+INDIRECT = Method(
+    name="indirect",
+    summary="plant of any order from a closed-loop record and the known controller "
+            "([loop] controller, feedback): OE of r → y, then the plant",
+    options=(
+        _OUTPUT,
+        Option("nb", 2, integer(minimum=1), "B coefficients of the plant"),
+        Option("nf", 2, integer(minimum=0), "order of F (plant poles)"),
+        Option("nk", 1, integer(minimum=0), "plant delay [samples]"),
+        Option("structure", "oe", choice(("oe", "arx")), "closed-loop fit of r → y"),
+        Option("refine", True, boolean(), "refine by output error with the plant as parameters"),
+        *_PEM,
+        HORIZON,
+    ),
+    run=_run_indirect,
+    tables=("loop", "validation"),
+)

@@ -1,0 +1,215 @@
+"""``method = "frf"``: the measured frequency response, its spec numbers, a fitted model."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+from .. import __version__
+from .._errors import ServoidError
+from ..data import Experiment, ExperimentSpec
+from ..estimate import estimate_frf, fit_frf
+from ..models import FrequencyResponseData, bandwidth, phase_lag, resonance_peak
+from ..report import Figure, Page, Section, Table, plot_bode_bands
+from ._common import report_options, sha256
+from ._lti import IdentificationResult, lti_result
+from ._options import choice, integer, number, optional, text
+from ._registry import FigureWriter, Method, Option
+
+__all__ = ["FRF", "FrfIdentification", "spec_numbers"]
+
+
+@dataclass(frozen=True, eq=False)
+class FrfIdentification:
+    """A measured frequency response and the spec numbers read from it.
+
+    Attributes
+    ----------
+    spec : ExperimentSpec
+        The experiment file.
+    frd : FrequencyResponseData
+        The measured response (with its variance or coherence).
+    numbers : mapping of str to float
+        Bandwidth [Hz], phase lag at the named frequency [deg], resonance
+        peak [dB] and its frequency [Hz] (NaN where undefined).
+    notes : tuple of str
+        Remarks (nonlinear distortion, an undefined number).
+    folder, files
+        Where the results were written.
+    """
+
+    spec: ExperimentSpec
+    frd: FrequencyResponseData
+    numbers: Mapping[str, float]
+    notes: tuple[str, ...] = ()
+    folder: Path | None = None
+    files: tuple[Path, ...] = field(default=())
+
+    def __str__(self) -> str:
+        f = self.frd
+        lines = [f"measured frequency response ({f.method}, {f.n_lines} lines, "
+                 f"{f.n_averages} averages) of {f.output_name} from {f.input_name}"
+                 + (f", referred to {f.reference_name}" if f.reference_name else "")]
+        lines += [f"  {name:<28} {_num(value)}" for name, value in self.numbers.items()]
+        lines += [f"  note: {n}" for n in self.notes]
+        if self.folder:
+            lines.append(f"  report: {self.folder / 'report.html'}")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Everything in ``results.json``."""
+        return {
+            "servoid_version": __version__, "method": "frf",
+            "experiment_file": str(self.spec.source) if self.spec.source else None,
+            "data_files": [{"path": str(p), "sha256": sha256(p)} for p in self.spec.data_paths],
+            "spec_numbers": {k: (None if math.isnan(v) else v) for k, v in self.numbers.items()},
+            "measured_frf": self.frd.to_dict(), "notes": list(self.notes),
+        }
+
+    def inputs(self) -> tuple[Path, ...]:
+        """Every file the run read."""
+        out = [*self.spec.data_paths, *self.spec.validation_paths]
+        if self.spec.source:
+            out.append(Path(self.spec.source))
+            truth = report_options(self.spec.report).get("truth")
+            if truth:
+                out.append(self.spec.source.parent / truth)
+        return tuple(out)
+
+    def figures(self) -> dict[str, FigureWriter]:
+        """The measured Bode diagram with coherence or ±2σ."""
+        return {"frf.png": partial(_plot, self.frd)}
+
+    def page(self, files: Mapping[str, Path]) -> Page:
+        """The report page."""
+        f = self.frd
+        rows = tuple((k, _num(v)) for k, v in self.numbers.items())
+        body = Section(
+            "Measured frequency response",
+            paragraphs=(
+                f"{f.method} estimate of {f.output_name} from {f.input_name}"
+                + (f" referred to {f.reference_name} (consistent in closed loop)"
+                   if f.reference_name else "")
+                + f": {f.n_lines} lines, {f.n_averages} averages.",
+                *self.notes,
+            ),
+            tables=(Table(("quantity", "value"), rows, "The numbers actuator specs are written "
+                          "in"),),
+            figures=(Figure.from_file(files["frf.png"], "Measured frequency response with its "
+                                      "±2σ band or coherence"),),
+        )
+        name = self.spec.source.name if self.spec.source else "experiment"
+        return Page(title=f"Frequency response: {name}", subtitle="Measured, nonparametric",
+                    sections=(body,),
+                    meta=(("servoid", __version__), ("experiment file", str(self.spec.source))))
+
+
+def spec_numbers(model: Any, *, level_db: float, phase_frequency: float | None,
+                 reference_frequency: float | None = None) -> dict[str, float]:
+    """Bandwidth, phase lag at a frequency and the resonance peak of a model or FRF."""
+    out: dict[str, float] = {}
+    out[f"bandwidth ({level_db:g} dB) [Hz]"] = _safe(
+        lambda: bandwidth(model, level_db, reference_frequency=reference_frequency))
+    if phase_frequency is not None:
+        out[f"phase lag at {phase_frequency:g} Hz [deg]"] = _safe(
+            lambda: phase_lag(model, phase_frequency))
+    try:
+        peak = resonance_peak(model, reference_frequency=reference_frequency)
+        out["resonance peak [dB]"] = float(peak.peak_db)
+        out["resonance frequency [Hz]"] = float(peak.frequency)
+    except ServoidError:  # an undefined number is reported as NaN, not a crash
+        out["resonance peak [dB]"] = out["resonance frequency [Hz]"] = math.nan
+    return out
+
+
+def run(spec: ExperimentSpec, options: Mapping[str, Any],
+        truth: Mapping[str, float] | None) -> FrfIdentification | IdentificationResult:
+    """Measure the FRF; with ``n_poles`` also fit and validate a transfer function."""
+    estimation, validations = spec.records()
+    first = estimation if isinstance(estimation, Experiment) else estimation[0]
+    frd = estimate_frf(first, input=options["input"], output=options["output"],
+                       reference=options["reference"], method=options["estimator"],
+                       nperseg=options["nperseg"], period=options["period"],
+                       skip_periods=options["skip_periods"], f_max=options["f_max"])
+    numbers = spec_numbers(frd, level_db=options["level_db"],
+                           phase_frequency=options["phase_frequency"])
+    notes = []
+    if frd.distortion is not None and frd.distortion.detected:
+        notes.append(f"nonlinear distortion detected at the non-excited lines (p = "
+                     f"{frd.distortion.p_value:.2g}): the FRF is the best linear approximation "
+                     "at this amplitude")
+    if options["n_poles"] is None:
+        return FrfIdentification(spec, frd, numbers, tuple(notes))
+    est = fit_frf(frd, options["n_poles"], options["n_zeros"], delay=options["delay"])
+    est = _with_channels(est, frd, options)
+    fitted = spec_numbers(est.model, level_db=options["level_db"],
+                          phase_frequency=options["phase_frequency"])
+    notes.append("measured: " + ", ".join(f"{k} {_num(v)}" for k, v in numbers.items()))
+    notes.append("fitted model: " + ", ".join(f"{k} {_num(v)}" for k, v in fitted.items()))
+    title = f"continuous transfer function fitted to the FRF ({options['n_poles']} poles, " \
+            f"{est.options.get('n_zeros', options['n_zeros'])} zeros)"
+    return lti_result(spec, "frf", est, title, validations, options, measured=frd, truth=truth,
+                      notes=notes, closed_loop=options["reference"] is not None)
+
+
+def _with_channels(est: Any, frd: FrequencyResponseData, options: Mapping[str, Any]) -> Any:
+    role = options["input"] if options["input"] in ("u", "r") else "u"
+    return dataclasses.replace(est, options={**est.options, "input": role,
+                                             "inputs": [frd.input_name],
+                                             "output": frd.output_name,
+                                             "intersample": options["intersample"]})
+
+
+def _safe(fn: Any) -> float:
+    try:
+        return float(fn())
+    except ServoidError:  # e.g. no −3 dB crossing inside the measured band
+        return math.nan
+
+
+def _num(x: float) -> str:
+    return "undefined in the measured band" if math.isnan(x) else f"{x:.5g}"
+
+
+def _plot(frd: FrequencyResponseData, path: Path, overwrite: bool) -> None:
+    plot_bode_bands({}, path, measured=frd, unit=frd.unit, title="measured frequency response",
+                    overwrite=overwrite)
+
+
+FRF = Method(
+    name="frf",
+    summary="measured frequency response (Welch H1 with coherence, or averaged over excitation "
+            "periods with its variance), the spec numbers, and optionally a continuous "
+            "transfer function fitted to it",
+    options=(
+        Option("input", "u", text(), "input channel or role (u, r)"),
+        Option("output", None, optional(text()), "output channel"),
+        Option("reference", None, optional(text()),
+               "reference channel or role (\"r\") of a closed-loop record: S_yr/S_ur"),
+        Option("estimator", "auto", choice(("auto", "welch", "periodic")),
+               "periodic averaging (the record's excitation period) or Welch"),
+        Option("nperseg", None, optional(integer(minimum=8)), "Welch segment length [samples]"),
+        Option("period", None, optional(integer(minimum=2)),
+               "excitation period [samples] (default: from the record's notes)"),
+        Option("skip_periods", 1, integer(minimum=0), "leading periods dropped as transient"),
+        Option("f_max", None, optional(number(positive=True, unit="Hz")),
+               "highest frequency kept [Hz]"),
+        Option("level_db", -3.0, number(), "bandwidth level below the low-frequency gain [dB]"),
+        Option("phase_frequency", None, optional(number(positive=True, unit="Hz")),
+               "frequency of the phase-lag spec number [Hz]"),
+        Option("n_poles", None, optional(integer(minimum=1)),
+               "fit a continuous transfer function with this many poles"),
+        Option("n_zeros", None, optional(integer(minimum=0)),
+               "its zeros (default n_poles − 1)"),
+        Option("delay", 0.0, number(nonneg=True, unit="s"), "its input delay [s]"),
+        Option("intersample", "zoh", choice(("zoh", "foh", "bandlimited")),
+               "how the logged input behaves between samples, for validating the fit"),
+        Option("horizon", 5, integer(minimum=1), "k of the k-step prediction fit [samples]"),
+    ),
+    run=run,
+)
