@@ -32,7 +32,8 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     if grid:
         full = {k: grid.get(k, [fixed.get(k)]) for k in ("na", "nb", "nk")}
         selection = select_arx_order(
-            estimation, full["na"], full["nb"], full["nk"], criterion=options["criterion"],
+            estimation, full["na"], full["nb"], full["nk"],
+            criterion="mdl" if options["criterion"] == "bic" else options["criterion"],
             validation=validations[0], input=options["input"], output=options["output"])
         estimate = selection.estimate
         rows = _rows(selection)
@@ -69,8 +70,8 @@ METHOD = Method(
         Option("nb", 2, orders(1), "B coefficients per input; a list is a grid (one input) "
                "or one value per input"),
         Option("nk", 1, orders(0), "input delay per input [samples]; a list as for nb"),
-        Option("criterion", "aic", choice(("aic", "fpe", "mdl", "fit")),
-               "order-search criterion (fit: simulation fit on the validation data)"),
+        Option("criterion", "aic", choice(("aic", "bic", "mdl", "fpe", "fit")),
+               "order-search criterion (bic = mdl; fit: simulation fit on the validation data)"),
         HORIZON,
     ),
     run=run,

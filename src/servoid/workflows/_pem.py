@@ -32,8 +32,8 @@ def search_options() -> tuple[Option, ...]:
         Option("seed", 0, integer(minimum=0), "seed of the random starts"),
         Option("max_iter", 100, integer(minimum=1), "most Gauss–Newton iterations per start"),
         Option("tol", 1e-9, number(positive=True), "relative cost decrease that ends the search"),
-        Option("criterion", "aic", choice(("aic", "bic", "fpe", "fit")),
-               "order-search criterion (fit: simulation fit on the validation data)"),
+        Option("criterion", "aic", choice(("aic", "bic", "mdl", "fpe", "fit")),
+               "order-search criterion (bic = mdl; fit: simulation fit on the validation data)"),
     )
 
 
@@ -50,7 +50,8 @@ def run(structure: str, spec: ExperimentSpec, options: Mapping[str, Any],
     rows: tuple[OrderRow, ...] = ()
     edge: list[str] = []
     if grid:
-        selection = select_order(fit, estimation, grid, criterion=options["criterion"],
+        criterion = "bic" if options["criterion"] == "mdl" else options["criterion"]
+        selection = select_order(fit, estimation, grid, criterion=criterion,
                                  validation=validations[0], **fixed, **settings)
         estimate = selection.estimate
         rows = order_rows(selection)
