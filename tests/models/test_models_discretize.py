@@ -237,7 +237,7 @@ def test_tustin_d2c_refuses_pole_at_minus_one():
 @pytest.mark.parametrize(
     "call, error, match",
     [
-        (lambda: c2d(g_simple(), DT, "foh"), OptionError, "'zoh', 'tustin'"),
+        (lambda: c2d(g_simple(), DT, "matched"), OptionError, "'zoh', 'tustin'"),
         (lambda: c2d(g_simple(), -1.0), ModelError, "dt must be > 0"),
         (lambda: c2d(g_simple(), DT, "zoh", prewarp=10.0), OptionError, "prewarp"),
         (lambda: c2d(g_simple(), DT, "tustin", prewarp=1e4), ModelError, r"\(0, pi/dt\)"),

@@ -132,7 +132,7 @@ def test_to_ss_and_back():
         ({"dt": 0}, ModelError, "dt must be > 0"),
         ({"dt": True}, TypeError, "dt must be a float"),
         ({"dt": None, "method": "zoh"}, ModelError, "no discretisation method"),
-        ({"dt": 0.1, "method": "foh"}, OptionError, "'zoh', 'tustin'"),
+        ({"dt": 0.1, "method": "matched"}, OptionError, "'zoh', 'tustin'"),
         ({"dt": 0.1, "method": "zoh", "prewarp": 1.0}, OptionError, "prewarp"),
         ({"num": [np.inf]}, ModelError, "finite"),
         ({"num": [[1.0]]}, ModelError, "1-D"),

@@ -16,11 +16,13 @@ from ._inverse import (
 )
 from ._iv import fit_iv
 from ._ls import LeastSquaresResult, lstsq, solve_gram
+from ._modal import modal_parameters
 from ._order import OrderCandidate, OrderSelection, select_arx_order
 from ._pem import fit_armax, fit_bj, fit_oe, fit_pem
 from ._rls import RecursiveLeastSquaresResult, fit_rls
 from ._search import StructureCandidate, StructureSelection, select_order
 from ._separable import fit_separable
+from ._srivc import fit_tf
 from ._ss_polynomial import to_polynomial
 from ._subspace import fit_n4sid
 from ._svf import FilteredSignal, filter_product, state_variable_filter
@@ -60,10 +62,12 @@ __all__ = [
     "fit_pem",
     "fit_rls",
     "fit_separable",
+    "fit_tf",
     "fit_tf_greybox",
     "frequency_band",
     "inverse_dynamics_regression",
     "lstsq",
+    "modal_parameters",
     "select_arx_order",
     "select_order",
     "solve_gram",

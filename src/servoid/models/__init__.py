@@ -2,7 +2,7 @@
 
 Continuous models have ``dt=None``; discrete ones have ``dt`` [s] and
 remember how they were discretised (``method``, ``prewarp``).  :func:`c2d`
-and :func:`d2c` convert both ways (ZOH, Tustin); :func:`to_scipy`,
+and :func:`d2c` convert both ways (ZOH, FOH, Tustin); :func:`to_scipy`,
 :func:`from_scipy`, :func:`to_control` and :func:`from_control` talk to
 scipy.signal and python-control.  :class:`FrequencyResponseData` is a
 measured (nonparametric) frequency response; :func:`bandwidth`,

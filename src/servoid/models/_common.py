@@ -20,14 +20,15 @@ __all__ = [
     "as_coefficients",
     "as_input_matrix",
     "at_sample_time",
+    "check_delay",
     "check_dt",
     "check_method",
     "common_dt",
     "readonly",
 ]
 
-Method = Literal["zoh", "tustin"]
-METHODS: tuple[Method, ...] = ("zoh", "tustin")
+Method = Literal["zoh", "tustin", "foh"]
+METHODS: tuple[Method, ...] = ("zoh", "tustin", "foh")
 
 
 def readonly(values: ArrayLike, dtype: type = np.float64) -> NDArray:
@@ -48,6 +49,26 @@ def check_dt(dt: object, *, owner: str, allow_none: bool = True) -> float | None
     value = float(dt)
     if not math.isfinite(value) or value <= 0.0:
         raise ModelError(f"{owner}: dt must be > 0 s (None for continuous time), got {dt!r}")
+    return value
+
+
+def check_delay(delay: object, dt: float | None, *, owner: str) -> float:
+    """Validate an input/output delay [s]: finite, >= 0, continuous models only.
+
+    A discrete model carries a delay of k samples as k poles at z = 0
+    (``c2d`` puts them there), so it takes no separate delay.
+    """
+    if isinstance(delay, bool) or not isinstance(delay, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{owner}: delay must be a float [s], got {delay!r}")
+    value = float(delay)
+    if not math.isfinite(value) or value < 0.0:
+        raise ModelError(f"{owner}: delay must be finite and >= 0 s, got {delay!r}")
+    if value and dt is not None:
+        raise ModelError(
+            f"{owner}: a discrete model (dt = {dt} s) takes no delay [s]; its delay is k poles "
+            f"at z = 0 (build the continuous model with delay={value!r} and use c2d), got "
+            f"delay={delay!r}"
+        )
     return value
 
 

@@ -24,7 +24,8 @@ def to_scipy(model: TransferFunction | StateSpace) -> signal.TransferFunction | 
     Parameters
     ----------
     model : TransferFunction or StateSpace
-        The model; the discretisation method is not carried over.
+        The model; the discretisation method is not carried over, and a
+        transfer function with a delay is refused (scipy has none).
 
     Returns
     -------
@@ -36,6 +37,7 @@ def to_scipy(model: TransferFunction | StateSpace) -> signal.TransferFunction | 
             f"model must be a TransferFunction or StateSpace, got {type(model).__name__}; "
             "for a PolynomialModel convert model.transfer_function(i) first"
         )
+    _refuse_delay(model, "scipy.signal")
     kw = {} if model.dt is None else {"dt": model.dt}
     if isinstance(model, TransferFunction):
         return signal.TransferFunction(np.array(model.num), np.array(model.den), **kw)
@@ -86,11 +88,18 @@ def to_control(model: TransferFunction | StateSpace) -> Any:
     -------
     control.TransferFunction or control.StateSpace
         With python-control's ``dt = 0`` for continuous time.
+
+    Raises
+    ------
+    ModelError
+        For a transfer function with a delay (python-control's transfer
+        functions have none; use ``control.pade`` for an approximation).
     """
     if not isinstance(model, (TransferFunction, StateSpace)):
         raise TypeError(
             f"model must be a TransferFunction or StateSpace, got {type(model).__name__}"
         )
+    _refuse_delay(model, "python-control")
     control = _import_control()
     dt = 0 if model.dt is None else model.dt
     if isinstance(model, TransferFunction):
@@ -131,6 +140,15 @@ def from_control(obj: Any) -> TransferFunction | StateSpace:
     raise TypeError(
         f"obj must be a control.TransferFunction or control.StateSpace, got {type(obj).__name__}"
     )
+
+
+def _refuse_delay(model: TransferFunction | StateSpace, target: str) -> None:
+    if isinstance(model, TransferFunction) and model.delay:
+        raise ModelError(
+            f"{target} transfer functions have no delay and this model has delay = "
+            f"{model.delay} s; discretise it with c2d first (the delay becomes poles at z = 0), "
+            "or drop the delay on purpose with dataclasses.replace(model, delay=0.0)"
+        )
 
 
 def _import_control() -> Any:

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
+import scipy.linalg as la
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
@@ -16,6 +17,7 @@ from ._common import (
     as_coefficients,
     as_input_matrix,
     at_sample_time,
+    check_delay,
     check_dt,
     check_method,
     common_dt,
@@ -42,6 +44,15 @@ class TransferFunction:
     Only single-input single-output models; use :class:`StateSpace` for
     several channels.
 
+    A continuous model may carry a delay τ: ``G(s)·e^{−sτ}``.  Its
+    frequency response, simulation, step and impulse responses and
+    :func:`~servoid.models.c2d` include it; poles, zeros and the static
+    gain are those of the rational part.  Series connection adds delays;
+    a sum needs equal delays and a feedback loop none (neither would be
+    rational).  A discrete model has ``delay=0``: its delay is poles at
+    z = 0.  To drop a delay on purpose, use
+    ``dataclasses.replace(g, delay=0.0)``.
+
     Parameters
     ----------
     num : array_like
@@ -50,16 +61,22 @@ class TransferFunction:
         Denominator coefficients, descending powers; not all zero.
     dt : float or None
         Sample period [s] of a discrete model, None for continuous time.
-    method : {"zoh", "tustin"} or None
+    method : {"zoh", "tustin", "foh"} or None
         How the model was discretised, or None (continuous models: None).
     prewarp : float or None
         Tustin prewarp frequency [rad/s] used, or None.
+    delay : float
+        Input/output delay τ [s] of a continuous model, finite and >= 0;
+        0 for a discrete one.
 
     Examples
     --------
     >>> g = TransferFunction([2.0], [1.0, 1.0])
     >>> float(g.dc_gain())
     2.0
+    >>> late = TransferFunction([2.0], [1.0, 1.0], delay=0.5)
+    >>> complex(late.freqresp([0.0])[0])
+    (2+0j)
     """
 
     num: NDArray[np.float64]
@@ -67,6 +84,7 @@ class TransferFunction:
     dt: float | None = None
     method: Method | None = None
     prewarp: float | None = None
+    delay: float = 0.0
 
     def __post_init__(self) -> None:
         num = np.trim_zeros(as_coefficients("num", self.num, owner=_OWNER), "f")
@@ -82,16 +100,18 @@ class TransferFunction:
             )
         dt = check_dt(self.dt, owner=_OWNER)
         method, prewarp = check_method(self.method, self.prewarp, dt, owner=_OWNER)
+        delay = check_delay(self.delay, dt, owner=_OWNER)
         object.__setattr__(self, "num", readonly(num / den[0]))
         object.__setattr__(self, "den", readonly(den / den[0]))
         object.__setattr__(self, "dt", dt)
         object.__setattr__(self, "method", method)
         object.__setattr__(self, "prewarp", prewarp)
+        object.__setattr__(self, "delay", delay)
 
     # -- construction ---------------------------------------------------
     @classmethod
     def from_zpk(
-        cls, z: ArrayLike, p: ArrayLike, k: float, dt: float | None = None
+        cls, z: ArrayLike, p: ArrayLike, k: float, dt: float | None = None, delay: float = 0.0
     ) -> TransferFunction:
         """Build a transfer function from zeros, poles and gain.
 
@@ -105,6 +125,8 @@ class TransferFunction:
             Gain: the leading coefficient of the numerator.
         dt : float or None
             Sample period [s], None for continuous time.
+        delay : float
+            Delay τ [s] of a continuous model.
 
         Returns
         -------
@@ -113,7 +135,7 @@ class TransferFunction:
         """
         num = k * _real_poly(z, "zeros")
         den = _real_poly(p, "poles")
-        return cls(num, den, dt)
+        return cls(num, den, dt, delay=delay)
 
     # -- properties -----------------------------------------------------
     @property
@@ -170,7 +192,7 @@ class TransferFunction:
         return 0.0
 
     def freqresp(self, omega: ArrayLike) -> NDArray[np.complex128]:
-        """Return G(jω) (continuous) or G(e^{jω·dt}) (discrete).
+        """Return G(jω)·e^{−jωτ} (continuous) or G(e^{jω·dt}).
 
         Parameters
         ----------
@@ -184,7 +206,10 @@ class TransferFunction:
         """
         w = np.asarray(omega, dtype=np.float64)
         x = 1j * w if self.dt is None else np.exp(1j * w * self.dt)
-        return np.polyval(self.num, x) / np.polyval(self.den, x)
+        g = np.polyval(self.num, x) / np.polyval(self.den, x)
+        if self.delay:
+            g = g * np.exp(-1j * w * self.delay)
+        return g
 
     def bode(self, omega: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return magnitude [dB] and unwrapped phase [deg].
@@ -212,8 +237,9 @@ class TransferFunction:
             Input samples.
         dt : float, optional
             Sample period [s].  Required for a continuous model, which is
-            ZOH-discretised at `dt` first (exact for piecewise-constant u);
-            for a discrete model it must be None or equal to ``self.dt``.
+            ZOH-discretised at `dt` first (exact for piecewise-constant u,
+            a fractional delay included); for a discrete model it must be
+            None or equal to ``self.dt``.
 
         Returns
         -------
@@ -276,7 +302,8 @@ class TransferFunction:
 
         Discrete: the response to a unit pulse at k = 0.  Continuous: the
         samples of g(t) = C·e^{At}·B (a direct feed-through's Dirac term
-        is omitted, as in :func:`scipy.signal.impulse`).
+        is omitted, as in :func:`scipy.signal.impulse`), shifted by the
+        delay: g(t − τ), zero before τ.
 
         Parameters
         ----------
@@ -297,11 +324,16 @@ class TransferFunction:
         from ._discretize import c2d
         from ._statespace import StateSpace
 
-        ss = self.to_ss()
+        ss = self._rational().to_ss()
         ssd = c2d(ss, step, "zoh")
-        # y(k·step) = C·e^{A·k·step}·B: the free response of the sampled model from x(0) = B
+        # y(k·step) = C·e^{A·(k·step − τ)}·B for k·step >= τ: the free response of the
+        # sampled model from the state the impulse has reached at the first grid point
+        first = min(math.ceil(self.delay / step - 1e-9), grid.size)  # 1e-9: τ on the grid
+        x0 = la.expm(ss.A * (first * step - self.delay)) @ ss.B[:, 0] if ss.n_states else ss.B[:, 0]
         free = StateSpace(ssd.A, np.zeros_like(ssd.B), ssd.C, np.zeros_like(ssd.D), dt=step)
-        y = free.simulate(np.zeros(grid.size), x0=ss.B[:, 0])
+        y = np.zeros(grid.size)
+        if first < grid.size:
+            y[first:] = free.simulate(np.zeros(grid.size - first), x0=x0)
         return TimeResponse(grid, y, "impulse")
 
     # -- algebra --------------------------------------------------------
@@ -311,7 +343,10 @@ class TransferFunction:
         if o is None:
             return NotImplemented
         dt = common_dt(self.dt, o.dt, what="multiply")
-        return _with_memory(np.polymul(self.num, o.num), np.polymul(self.den, o.den), dt, self, o)
+        return _with_memory(
+            np.polymul(self.num, o.num), np.polymul(self.den, o.den), dt, self, o,
+            self.delay + o.delay,
+        )
 
     __rmul__ = __mul__
 
@@ -321,14 +356,22 @@ class TransferFunction:
         if o is None:
             return NotImplemented
         dt = common_dt(self.dt, o.dt, what="add")
+        if not math.isclose(self.delay, o.delay, rel_tol=1e-12, abs_tol=0.0):
+            raise ModelError(
+                f"cannot add models with different delays ({self.delay} s and {o.delay} s): "
+                "the sum is not a rational function times one delay; discretise both with "
+                "c2d first (a whole-sample delay becomes z^-k) or approximate the difference"
+            )
         num = np.polyadd(np.polymul(self.num, o.den), np.polymul(o.num, self.den))
-        return _with_memory(num, np.polymul(self.den, o.den), dt, self, o)
+        return _with_memory(num, np.polymul(self.den, o.den), dt, self, o, self.delay)
 
     __radd__ = __add__
 
     def __neg__(self) -> TransferFunction:
         """Negate the transfer function."""
-        return TransferFunction(-self.num, self.den, self.dt, self.method, self.prewarp)
+        return TransferFunction(
+            -self.num, self.den, self.dt, self.method, self.prewarp, self.delay
+        )
 
     def __sub__(self, other: TransferFunction | float) -> TransferFunction:
         """Difference ``self − other``."""
@@ -361,6 +404,12 @@ class TransferFunction:
         if o is None:
             raise TypeError(f"other must be a TransferFunction or a number, got {other!r}")
         dt = common_dt(self.dt, o.dt, what="connect")
+        if self.delay or o.delay:
+            raise ModelError(
+                f"cannot close a loop around a delay (delays {self.delay} s and {o.delay} s): "
+                "the loop is not rational; discretise with c2d first (the delay becomes "
+                "poles at z = 0)"
+            )
         num = np.polymul(self.num, o.den)
         den = np.polysub(np.polymul(self.den, o.den), sign * np.polymul(self.num, o.num))
         return _with_memory(num, den, dt, self, o)
@@ -376,7 +425,7 @@ class TransferFunction:
         Returns
         -------
         TransferFunction
-            The reduced model, same dt and method.
+            The reduced model, same dt, method and delay.
         """
         zeros = list(self.zeros())
         poles = list(self.poles())
@@ -392,14 +441,26 @@ class TransferFunction:
         gain = self.num[0] if np.any(self.num) else 0.0
         num = gain * _real_poly(zeros, "zeros")
         return TransferFunction(
-            num, _real_poly(kept_p, "poles"), self.dt, self.method, self.prewarp
+            num, _real_poly(kept_p, "poles"), self.dt, self.method, self.prewarp, self.delay
         )
 
     # -- conversion -----------------------------------------------------
     def to_ss(self) -> StateSpace:
-        """Return a state-space realisation (controller canonical form)."""
+        """Return a state-space realisation (controller canonical form).
+
+        Raises
+        ------
+        ModelError
+            For a model with a delay, which a state-space model cannot hold.
+        """
         from ._statespace import StateSpace
 
+        if self.delay:
+            raise ModelError(
+                f"{_OWNER}.to_ss: a StateSpace model has no delay and this model has "
+                f"delay = {self.delay} s; discretise with c2d (the delay becomes states), or "
+                "drop it on purpose with dataclasses.replace(g, delay=0.0)"
+            )
         a, b, c, d = signal.tf2ss(self.num, self.den)
         n = self.order
         return StateSpace(
@@ -450,6 +511,12 @@ class TransferFunction:
         )
 
     # -- private ----------------------------------------------------------
+    def _rational(self) -> TransferFunction:
+        """Return the model without its delay."""
+        if not self.delay:
+            return self
+        return TransferFunction(self.num, self.den, self.dt, self.method, self.prewarp)
+
     def _coerce(self, other: object) -> TransferFunction | None:
         if isinstance(other, TransferFunction):
             return other
@@ -462,13 +529,18 @@ class TransferFunction:
 
 
 def _with_memory(
-    num: NDArray, den: NDArray, dt: float | None, g1: TransferFunction, g2: TransferFunction
+    num: NDArray,
+    den: NDArray,
+    dt: float | None,
+    g1: TransferFunction,
+    g2: TransferFunction,
+    delay: float = 0.0,
 ) -> TransferFunction:
     """Build a result that keeps the method only if both operands agree."""
     static = g2.den.size == 1 and g2.num.size == 1
     if static or (g1.method == g2.method and g1.prewarp == g2.prewarp):
-        return TransferFunction(num, den, dt, g1.method, g1.prewarp)
-    return TransferFunction(num, den, dt)
+        return TransferFunction(num, den, dt, g1.method, g1.prewarp, delay)
+    return TransferFunction(num, den, dt, delay=delay)
 
 
 def _real_poly(roots: ArrayLike, what: str) -> NDArray[np.float64]:
