@@ -106,3 +106,15 @@ def test_cli_identify_oe(rig, capsys, tmp_path):
 def test_bad_options(rig, table, error, match):
     with pytest.raises(error, match=match):
         identify(_toml(rig, "bad", table), write=False)
+
+
+def test_tf_gives_continuous_poles_and_characteristics(rig):
+    result = identify(_toml(rig, "tf", {"method": "tf", "n_poles": [1, 2, 3], "n_zeros": 0,
+                                        "criterion": "bic"}), write=False)
+    est = result.estimate
+    assert est.model.dt is None and est.options["n_poles"] == 2
+    rows = {r.name: r for r in result.characteristics}
+    # the rig's plant: ω_n = 2π·2 rad/s, ζ = 0.3, gain 1; 4σ of the delta-method std
+    for name, truth in (("wn1", WN), ("zeta1", ZETA), ("dc_gain", 1.0)):
+        assert abs(rows[name].value - truth) < 4 * rows[name].std, name
+    assert rows["wn1"].unit == "rad/s" and rows["dc_gain"].unit == "mm/V"

@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from .._checks import as_int
 from .._errors import DataError, OptionTypeError, ServoidError, ServoidWarning, check_option
 from ..data import Experiment, ExperimentSet, as_segments
-from ..validate import fit_percent, simulate_from_data
+from ..validate import discrete_model, fit_percent, simulate_model
 from ._estimate import Estimate
 
 __all__ = ["StructureCandidate", "StructureSelection", "select_order"]
@@ -318,12 +318,15 @@ def _model_residuals(est: Estimate, data: Experiment | ExperimentSet,
 def _validation_fit(est: Estimate, validation: Experiment) -> float:
     """Simulation fit [%] of the estimate on a validation record.
 
-    Kept in one place so the validation route can be switched (a colleague is
-    upgrading validation to estimate the initial state).
+    The model is simulated as :func:`servoid.validate.validate` does (a
+    continuous one discretised with its intersample behaviour, the initial
+    state measured for ARX and fitted otherwise), so the search ranks
+    candidates by the number the report then shows.
     """
     y = validation[est.options["output"]]
     u = np.column_stack([validation[n] for n in est.options["inputs"]])
-    y_sim, start = simulate_from_data(est.model, y, u)
+    model = discrete_model(est, validation.dt)
+    y_sim, start, _ = simulate_model(model, y, u if u.shape[1] > 1 else u[:, 0])
     return float(fit_percent(y[start:], y_sim[start:]))
 
 

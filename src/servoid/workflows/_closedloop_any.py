@@ -18,7 +18,7 @@ from ._options import boolean, choice, integer, number, optional, text
 from ._pem import orders_text
 from ._registry import Method, Option
 
-__all__ = ["CLIV", "INDIRECT", "TWO_STAGE"]
+__all__ = ["CLIV", "INDIRECT", "TWO_STAGE", "controller_from_loop"]
 
 _OUTPUT = Option("output", None, optional(text()), "output channel when the data have several")
 _PEM = (
@@ -63,7 +63,7 @@ def _run_indirect(spec: ExperimentSpec, options: Mapping[str, Any],
                   truth: Mapping[str, float] | None) -> IdentificationResult:
     estimation, validations = spec.records()
     dt = estimation.dt
-    controller, feedback = _loop(spec.loop, dt)
+    controller, feedback = controller_from_loop(spec.loop, dt)
     est = fit_indirect_tf(estimation, controller, options["nb"], options["nf"], options["nk"],
                           feedback=feedback, structure=options["structure"],
                           refine=options["refine"], output=options["output"],
@@ -85,8 +85,9 @@ def _plant_input(est: Estimate, data: Experiment | ExperimentSet) -> Estimate:
     return dataclasses.replace(est, options={**est.options, "input": "u", "inputs": [names[0]]})
 
 
-def _loop(table: Mapping[str, Any], dt: float) -> tuple[TransferFunction | float,
-                                                       TransferFunction | float]:
+def controller_from_loop(table: Mapping[str, Any], dt: float
+                         ) -> tuple[TransferFunction | float, TransferFunction | float]:
+    """The known controller and feedback of ``[loop]`` (discrete at ``dt``)."""
     unknown = sorted(set(table) - set(_LOOP_KEYS))
     if unknown:
         raise OptionError(f"unknown key(s) in [loop]: {', '.join(unknown)}; method = "

@@ -319,6 +319,8 @@ def lti_result(
             all_notes.append(_feedback_note(method, feedback))
     if measured is None and estimation is not None:
         measured = _measured_frf(estimation, estimate, closed_loop)
+    if not characteristics:
+        characteristics = _characteristics(estimate, validations[0])
     reports = tuple(
         validate(estimate, v, input=input_role, output=output,
                  horizon=options.get("horizon", 5), initial=spec.validation.initial,
@@ -355,6 +357,24 @@ def _feedback(data: Experiment | ExperimentSet, estimate: Estimate) -> Any:
             return feedback_test(first, input=inputs[0], output=outputs[0])
     except ServoidError:  # too short or not exciting enough for the test's own ARX
         return None
+
+
+def _characteristics(estimate: Estimate, exp: Experiment) -> list[Any]:
+    """Static gain, time constants, ω_n and ζ with their std, or none for MIMO models."""
+    from ..estimate import modal_parameters
+
+    inputs = estimate.options.get("inputs") or []
+    outputs = outputs_of(estimate)
+    if len(inputs) != 1 or len(outputs) != 1 or estimate.model_function is None:
+        return []
+    units = {"output_unit": exp.unit(outputs[0]) if outputs[0] in exp.names else "",
+             "input_unit": exp.unit(inputs[0]) if inputs[0] in exp.names else ""}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ServoidWarning)
+            return modal_parameters(estimate, **units)
+    except ServoidError:  # e.g. an integrator has no static gain to report
+        return []
 
 
 def _measured_frf(data: Experiment | ExperimentSet, estimate: Estimate,
@@ -453,7 +473,7 @@ def _row_dict(row: OrderRow) -> dict[str, Any]:
 
 
 def _order_lines(rows: Sequence[OrderRow], criterion: str) -> list[str]:
-    table = _order_table(rows, criterion)
+    table = _order_table(rows, criterion, status_width=48)
     widths = [max(len(c), *(len(r[i]) for r in table.rows)) for i, c in enumerate(table.columns)]
     head = "  ".join(c.rjust(w) for c, w in zip(table.columns, widths, strict=True))
     body = ["  ".join(cell.rjust(w) for cell, w in zip(r, widths, strict=True))
@@ -461,7 +481,7 @@ def _order_lines(rows: Sequence[OrderRow], criterion: str) -> list[str]:
     return [head, *body]
 
 
-def _order_table(rows: Sequence[OrderRow], criterion: str) -> Table:
+def _order_table(rows: Sequence[OrderRow], criterion: str, status_width: int = 0) -> Table:
     keys = list(rows[0].orders)
     score_names = list(rows[0].scores)
     columns = (*keys, "parameters", "loss", *score_names, "validation fit %", "status")
@@ -469,8 +489,13 @@ def _order_table(rows: Sequence[OrderRow], criterion: str) -> Table:
     for r in rows:
         body.append((*(_order_text(r.orders[k]) for k in keys), str(r.n_parameters),
                      _num(r.loss), *(_num(r.scores[s]) for s in score_names),
-                     "—" if math.isnan(r.fit) else f"{r.fit:.2f}", r.status))
+                     "—" if math.isnan(r.fit) else f"{r.fit:.2f}",
+                     _clip(r.status, status_width)))
     return Table(columns, tuple(body), f"Ranked by {criterion}; the first row was chosen")
+
+
+def _clip(text: str, width: int) -> str:
+    return text if not width or len(text) <= width else text[: width - 1] + "…"
 
 
 def _order_text(value: Any) -> str:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from . import _arx, _closedloop, _closedloop_any, _frf, _inverse, _n4sid, _pem, _pneumatic
+from . import _arx, _closedloop, _closedloop_any, _frf, _inverse, _n4sid, _pem, _pneumatic, _tf
 from ._registry import registry
 
 __all__ = ["METHODS"]
@@ -12,6 +12,7 @@ METHODS = registry((
     _pem.OE,
     _pem.ARMAX,
     _pem.BJ,
+    _tf.TF,
     _n4sid.N4SID,
     _frf.FRF,
     _closedloop_any.TWO_STAGE,
