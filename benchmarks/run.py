@@ -34,7 +34,10 @@ SUITES: dict[str, str] = {
     "pneumatic": "bench_pneumatic",
     "multistep": "bench_multistep",
     "signals": "bench_signals",
+    "frf": "bench_frf",
     "demo": "bench_demo",
+    "pem": "bench_pem",
+    "subspace": "bench_subspace",
     "studies": "bench_studies",  # slow pytest studies; skipped under --quick
 }
 
