@@ -81,3 +81,19 @@ def test_bad_input(kwargs, error, match):
     args = {"plant": PLANT, "u": np.ones(50), "dt": DT, **kwargs}
     with pytest.raises(error, match=match):
         simulate_lti(args.pop("plant"), args.pop("u"), args.pop("dt"), **args)
+
+
+def test_a_plant_delay_reaches_the_record():
+    import dataclasses
+
+    u = _prbs_like(800, 4)
+    delayed = dataclasses.replace(PLANT, delay=0.025)  # 2.5 samples: 50 fast steps
+    exp = simulate_lti(delayed, u, DT)
+    # the exact ZOH map of a fractional delay (modified z-transform): rounding only
+    assert np.max(np.abs(exp["y"] - c2d(delayed, DT, "zoh").simulate(u))) < 1e-10
+    ctl = TransferFunction([0.3], [1.0], dt=DT)  # a proportional controller: a static gain
+    whole = dataclasses.replace(PLANT, delay=0.02)
+    loop = (ctl * c2d(whole, DT, "zoh")).feedback(1.0)
+    assert np.max(np.abs(simulate_lti_loop(whole, ctl, u, DT)["y"] - loop.simulate(u))) < 1e-9
+    with pytest.raises(DataError, match="whole steps of dt"):
+        simulate_lti_loop(delayed, ctl, u, DT)

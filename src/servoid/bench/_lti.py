@@ -22,6 +22,8 @@ the noisy measurement), which is what makes closed-loop records hard.
 
 from __future__ import annotations
 
+import dataclasses
+
 from typing import Literal
 
 import numpy as np
@@ -102,7 +104,10 @@ def simulate_lti(
         n = uu.size
         u_fast = np.repeat(uu, os_) if intersample == "zoh" else _linear(uu, os_)
         hold = "zoh" if intersample == "zoh" else "foh"
-    y_fast = _run(plant, u_fast, fast_dt, hold)
+    shift = _delay_steps(plant, fast_dt, "dt/oversample")
+    if shift:  # the analog input reaches the plant `shift` fast steps late, from rest
+        u_fast = np.concatenate([np.zeros(shift), u_fast[:-shift]])
+    y_fast = _run(_undelayed(plant), u_fast, fast_dt, hold)
     u_log = uu[::os_] if intersample == "fast" else uu
     if anti_alias is not None:
         aa = realise(butterworth(4, _cutoff(anti_alias, dt)))
@@ -164,6 +169,8 @@ def simulate_lti_loop(
     if rr.ndim != 1 or not np.all(np.isfinite(rr)):
         raise DataError(f"r must be a finite 1-D array, got shape {rr.shape}")
     n = rr.size
+    lag = _delay_steps(plant, dt, "dt")  # a whole number of logging periods: a FIFO of u
+    plant = _undelayed(plant)
     path = plant * butterworth(4, _cutoff(anti_alias, dt)) if anti_alias is not None else plant
     # One logging period with u held = os_ fast steps of the exact ZOH map; composing them
     # keeps the analog simulation at the fast rate without a Python loop over fast steps.
@@ -178,14 +185,17 @@ def simulate_lti_loop(
     u = np.empty(n)
     y = np.empty(n)
     uk = 0.0
+    held = np.zeros(lag + 1)  # held[0]: the value that reaches the plant this period
     for k in range(n):
         # y(k·dt) depends on u(k) only through D, which is zero for a strictly proper path
-        y[k] = c_out @ x + d_out * uk + v[k]
+        y[k] = c_out @ x + d_out * (uk if lag == 0 else held[1]) + v[k]
         e = rr[k] - y[k]
         uk = float(ctl.C[0] @ xc + ctl.D[0, 0] * e)
         xc = ctl.A @ xc + ctl.B[:, 0] * e
         u[k] = uk
-        x = a_step @ x + b_step * uk
+        held = np.roll(held, -1)
+        held[-1] = uk
+        x = a_step @ x + b_step * held[0]
     notes = {"generator": "servoid.bench.simulate_lti_loop", "oversample": str(os_),
              "seed": str(seed)}
     exp = Experiment.from_arrays(dt, r=rr, u=u, y=y, name=name)
@@ -198,6 +208,20 @@ def _check_plant(plant: object, dt: object) -> float:
     if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not dt > 0:
         raise DataError(f"dt must be > 0 s, got {dt!r}")
     return float(dt)
+
+
+def _delay_steps(plant: TransferFunction, step: float, what: str) -> int:
+    """The plant's input delay as a whole number of ``step``s (else a DataError)."""
+    delay = float(getattr(plant, "delay", 0.0))
+    k = int(round(delay / step))
+    if abs(k * step - delay) > 1e-9 * max(step, delay):
+        raise DataError(f"the rig delays the input in whole steps of {what} = {step:g} s; the "
+                        f"plant's delay {delay:g} s is not one: change oversample or the delay")
+    return k
+
+
+def _undelayed(plant: TransferFunction) -> TransferFunction:
+    return dataclasses.replace(plant, delay=0.0) if getattr(plant, "delay", 0.0) else plant
 
 
 def _cutoff(anti_alias: float, dt: float) -> float:

@@ -461,8 +461,12 @@ class TransferFunction:
                 f"delay = {self.delay} s; discretise with c2d (the delay becomes states), or "
                 "drop it on purpose with dataclasses.replace(g, delay=0.0)"
             )
-        a, b, c, d = signal.tf2ss(self.num, self.den)
         n = self.order
+        if n == 0:  # a static gain: no state (tf2ss would return a dummy 1×1 one)
+            gain = float(self.num[-1] / self.den[-1])
+            return StateSpace(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)),
+                              np.array([[gain]]), self.dt, self.method, self.prewarp)
+        a, b, c, d = signal.tf2ss(self.num, self.den)
         return StateSpace(
             np.reshape(a, (n, n)),
             np.reshape(b, (n, 1)),
