@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from servoid import Experiment, ExperimentSet, FileFormatError, OptionError
+from servoid import ChannelError, Experiment, ExperimentSet, FileFormatError, OptionError
 from servoid.data import ExperimentSpec, load_experiment_spec, write_csv, write_experiment_spec
 
 DT = 0.01
@@ -110,3 +110,13 @@ def test_bad_limits():
     doc["channels"]["y"]["limits"] = [1, -1]
     with pytest.raises(FileFormatError, match="low < high"):
         ExperimentSpec.from_dict(doc)
+
+
+def test_validation_record_without_a_channel_names_it(tmp_path):
+    _record(tmp_path, "est.csv", 0.0)
+    rng = np.random.default_rng(1)
+    write_csv(Experiment.from_arrays(DT, u=rng.normal(size=50), y=rng.normal(size=50),
+                                     names={"y": "pos"}), tmp_path / "val.csv")
+    spec = ExperimentSpec.from_dict(_doc("est.csv", {"file": "val.csv"}), base_dir=tmp_path)
+    with pytest.raises(ChannelError, match=r"channel 'y' .* is not in .*val.csv"):
+        spec.records()
