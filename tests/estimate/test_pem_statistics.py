@@ -12,8 +12,9 @@ shares no code with the estimators.  The data lie inside each structure:
 
 Prediction-error estimates are then asymptotically Gaussian with covariance
 σ²(E ψψᵀ)⁻¹/N (Ljung, *System Identification*, 2nd ed., §9.3), which the
-estimators report as σ̂²(ΨᵀΨ)⁻¹; every standardised error z = (θ̂ − θ)/σ̂_θ is
-≈ N(0, 1).  The default suite runs 40 seeds per structure, the slow study 200.
+estimators report as σ̂²(ΨᵀΨ)⁻¹ (OE's default robust covariance reduces to it
+when the residuals are white; coloured noise is in ``test_pem_coloured.py``);
+every standardised error z = (θ̂ − θ)/σ̂_θ is ≈ N(0, 1).  The default suite runs 40 seeds per structure, the slow study 200.
 """
 
 import numpy as np

@@ -21,9 +21,15 @@ The search
 * **Stop**: when the Gauss–Newton step would lower the cost by less than
   ``tol`` relative (or change the predictions by less than 1e-12 of the
   output's RMS); at ``max_iter`` steps with a :class:`ServoidWarning`.
-* **Covariance**: ``σ̂² (ΨᵀΨ)⁻¹`` at the minimum with the exact Ψ and
-  ``σ̂² = Σε²/(N − d)`` (Ljung §9.3); with estimated initial values the
-  Schur complement that accounts for them (see the predictor module).
+* **Covariance** (``covariance=``, :mod:`servoid.estimate._pem_covariance`):
+  ``"white"`` is ``σ̂² (ΨᵀΨ)⁻¹`` at the minimum with the exact Ψ and
+  ``σ̂² = Σε²/(N − d)`` (Ljung §9.3), right when the prediction errors are
+  white; ``"robust"`` is the sandwich ``(ΨᵀΨ)⁻¹ Ψᵀ R̂_ε Ψ (ΨᵀΨ)⁻¹`` with the
+  residuals' autocovariance (an AR model chosen by AIC), right for output
+  error with coloured noise; ``"auto"`` (default) takes ``"robust"`` when
+  na = nc = nd = 0 and ``"white"`` otherwise.  With estimated initial
+  values ΨᵀΨ is the Schur complement that accounts for them (see the
+  predictor module).
 """
 
 from __future__ import annotations
@@ -51,6 +57,7 @@ from ..data import Experiment, ExperimentSet
 from ..models import PolynomialModel
 from ._arx import _warn_if_unstable
 from ._estimate import Estimate
+from ._pem_covariance import COVARIANCES, Covariance, parameter_covariance, resolve
 from ._pem_orders import PemOrders, Polys, SignalData, check_record, prepare
 from ._pem_predictor import Problem, initial_sizes
 from ._pem_start import iv_start, random_start, stabilize
@@ -99,6 +106,7 @@ def fit_pem(
     max_iter: int = 100,
     tol: float = 1e-9,
     start: int = 0,
+    covariance: Covariance = "auto",
 ) -> Estimate:
     """Fit the general polynomial model by prediction error.
 
@@ -142,6 +150,12 @@ def fit_pem(
         First sample of each segment whose prediction error enters the cost
         (the predictors still run from sample 0); a common start makes fits
         of different orders comparable.
+    covariance : {"auto", "white", "robust"}
+        Parameter covariance: ``"white"`` σ̂²(ΨᵀΨ)⁻¹, valid when the
+        prediction errors are white; ``"robust"`` the sandwich with the
+        residuals' autocovariance, valid for coloured noise independent of
+        the input (output error); ``"auto"`` is ``"robust"`` when
+        na = nc = nd = 0 and ``"white"`` otherwise.  See the module notes.
 
     Returns
     -------
@@ -155,7 +169,11 @@ def fit_pem(
         ``converged``, ``start`` (how the start values were made),
         ``reflected`` (roots reflected into the unit circle), ``first_sample``
         (the ``start`` keyword), ``cost`` (Σε²), ``initial_values`` (number
-        eliminated) and, with ``multistart``, a ``multistart`` table: starts,
+        eliminated), ``covariance`` (``"white"`` or ``"robust"``, what
+        ``"auto"`` resolved to), ``covariance_ar_order`` (order of the
+        residual AR model of the robust covariance, 0 when the residuals
+        look white; None for ``"white"``) and, with ``multistart``, a
+        ``multistart`` table: starts,
         how many reached the same minimum (cost within 1e-6), failures, the
         winner and every final cost.
 
@@ -166,14 +184,15 @@ def fit_pem(
     IdentifiabilityError
         A constant input.
     OptionError, OptionTypeError
-        An unknown ``initial``/``input``, or an option of the wrong type.
+        An unknown ``initial``/``input``/``covariance``, or an option of the
+        wrong type.
     ConvergenceError
         The prediction errors overflow at the start, or the search cannot
         lower the cost although the gradient is not small.
     """
     return _fit(data, na, nb, nc, nd, nf, nk, "pem", input=input, output=output,
                 initial=initial, init=init, multistart=multistart, rng=rng,
-                max_iter=max_iter, tol=tol, start=start)
+                max_iter=max_iter, tol=tol, start=start, covariance=covariance)
 
 
 def fit_oe(
@@ -191,6 +210,7 @@ def fit_oe(
     max_iter: int = 100,
     tol: float = 1e-9,
     start: int = 0,
+    covariance: Covariance = "auto",
 ) -> Estimate:
     """Fit an output-error model ``y = Σ B_i/F_i u_i + e``.
 
@@ -207,8 +227,8 @@ def fit_oe(
         Order of F per input.
     nk : int or sequence of int
         Input delay per input [samples].
-    input, output, initial, init, multistart, rng, max_iter, tol, start
-        As in :func:`fit_pem`.
+    input, output, initial, init, multistart, rng, max_iter, tol, start, covariance
+        As in :func:`fit_pem` (``"auto"`` covariance: ``"robust"``).
 
     Returns
     -------
@@ -217,7 +237,7 @@ def fit_oe(
     """
     return _fit(data, 0, nb, 0, 0, nf, nk, "oe", input=input, output=output,
                 initial=initial, init=init, multistart=multistart, rng=rng,
-                max_iter=max_iter, tol=tol, start=start)
+                max_iter=max_iter, tol=tol, start=start, covariance=covariance)
 
 
 def fit_armax(
@@ -236,6 +256,7 @@ def fit_armax(
     max_iter: int = 100,
     tol: float = 1e-9,
     start: int = 0,
+    covariance: Covariance = "auto",
 ) -> Estimate:
     """Fit an ARMAX model ``A y = Σ B_i u_i + C e``.
 
@@ -251,8 +272,8 @@ def fit_armax(
         Order of C.
     nk : int or sequence of int
         Input delay per input [samples].
-    input, output, initial, init, multistart, rng, max_iter, tol, start
-        As in :func:`fit_pem`.
+    input, output, initial, init, multistart, rng, max_iter, tol, start, covariance
+        As in :func:`fit_pem` (``"auto"`` covariance: ``"white"``).
 
     Returns
     -------
@@ -261,7 +282,7 @@ def fit_armax(
     """
     return _fit(data, na, nb, nc, 0, 0, nk, "armax", input=input, output=output,
                 initial=initial, init=init, multistart=multistart, rng=rng,
-                max_iter=max_iter, tol=tol, start=start)
+                max_iter=max_iter, tol=tol, start=start, covariance=covariance)
 
 
 def fit_bj(
@@ -281,6 +302,7 @@ def fit_bj(
     max_iter: int = 100,
     tol: float = 1e-9,
     start: int = 0,
+    covariance: Covariance = "auto",
 ) -> Estimate:
     """Fit a Box–Jenkins model ``y = Σ B_i/F_i u_i + C/D e``.
 
@@ -299,8 +321,8 @@ def fit_bj(
         Order of F per input.
     nk : int or sequence of int
         Input delay per input [samples].
-    input, output, initial, init, multistart, rng, max_iter, tol, start
-        As in :func:`fit_pem`.
+    input, output, initial, init, multistart, rng, max_iter, tol, start, covariance
+        As in :func:`fit_pem` (``"auto"`` covariance: ``"white"``, ``"robust"`` if nc = nd = 0).
 
     Returns
     -------
@@ -309,7 +331,7 @@ def fit_bj(
     """
     return _fit(data, 0, nb, nc, nd, nf, nk, "bj", input=input, output=output,
                 initial=initial, init=init, multistart=multistart, rng=rng,
-                max_iter=max_iter, tol=tol, start=start)
+                max_iter=max_iter, tol=tol, start=start, covariance=covariance)
 
 
 def _fit(
@@ -326,8 +348,10 @@ def _fit(
     max_iter: int,
     tol: float,
     start: int,
+    covariance: Covariance,
 ) -> Estimate:
     check_option("initial", initial, ("zero", "estimate"))
+    check_option("covariance", covariance, COVARIANCES)
     max_iter = as_int("max_iter", max_iter, minimum=0)
     multistart = as_int("multistart", multistart, minimum=0)
     start = as_int("start", start, minimum=0)
@@ -336,6 +360,7 @@ def _fit(
         raise DataError(f"tol is a relative cost decrease and must lie in (0, 1), got {tol:g}")
     sd = prepare(data, input, output)
     orders = PemOrders(na, nb, nc, nd, nf, nk, len(sd.inputs))
+    cov_kind = resolve(covariance, orders)
     estimate_ic = initial == "estimate"
     n_ic = sum(initial_sizes(orders)[1]) + initial_sizes(orders)[0] if estimate_ic else 0
     n_par = orders.n_parameters
@@ -381,7 +406,8 @@ def _fit(
         n_ic_used = problem.ic_rank
     dof = max(n_rows - n_par - n_ic_used, 1)
     sigma2 = best.cost / dof
-    cov, singular = _covariance(best.h, sigma2)
+    cov_result = parameter_covariance(problem, best.theta, best.h, sigma2, dof, cov_kind)
+    cov, singular = cov_result.covariance, cov_result.singular
     reflected = best.reflected + (reflected0 if k_best == 0 else 0)
     status = _status(best, reflected, singular)
     if not best.converged:
@@ -425,6 +451,8 @@ def _fit(
         "initial_values": n_ic_used,
         "max_iter": max_iter,
         "tol": tol,
+        "covariance": cov_result.kind,
+        "covariance_ar_order": cov_result.ar_order,
     }
     if multistart:
         options["multistart"] = {
@@ -588,23 +616,6 @@ def _step(h: NDArray[np.float64], g: NDArray[np.float64], lam: float) -> NDArray
         return linalg.cho_solve(chol, g / s, check_finite=False) / s
     except linalg.LinAlgError:
         return np.linalg.lstsq(hs, g / s, rcond=1e-12)[0] / s
-
-
-def _covariance(h: NDArray[np.float64], sigma2: float) -> tuple[NDArray[np.float64], bool]:
-    """σ̂²·(ΨᵀΨ)⁻¹, and whether ΨᵀΨ was singular (pseudo-inverse used)."""
-    n = h.shape[0]
-    if n == 0:
-        return np.zeros((0, 0)), False
-    s = np.sqrt(np.clip(np.diag(h), 0.0, None))
-    zero = ~(s > 0)
-    s[zero] = 1.0
-    hs = h / np.outer(s, s)
-    lam, vec = np.linalg.eigh(hs)
-    singular = bool(zero.any() or not lam[0] > 1e-12 * lam[-1])
-    keep = lam > 1e-12 * max(float(lam[-1]), 1e-300)
-    inv = (vec[:, keep] / lam[keep]) @ vec[:, keep].T
-    cov = sigma2 * inv / np.outer(s, s)
-    return 0.5 * (cov + cov.T), singular
 
 
 def _status(best: _Search, reflected: int, singular: bool) -> str:

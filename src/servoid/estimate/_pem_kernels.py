@@ -14,7 +14,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["EMPTY", "filt", "is_stable", "reflect", "sum_squares"]
+__all__ = ["EMPTY", "ar_filter", "filt", "is_stable", "reflect", "sum_squares"]
 
 #: A zero-length pulse: "no initial-condition pulse" for :func:`filt`.
 EMPTY = np.zeros(0)
@@ -41,6 +41,24 @@ def filt(num, den, x, out, pad, shift, pulse):  # type: ignore[no-untyped-def]  
             acc += pulse[t - pad]
         for k in range(1, nd):
             acc -= den[k] * out[t - k]
+        out[t] = acc
+
+
+@numba.njit(cache=True, fastmath=True, nogil=True)
+def ar_filter(a, x, out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """``out = x / a(q)`` from rest at index 0 (``a`` monic, any length).
+
+    Unlike :func:`filt` it needs no padding: the recursion only reads
+    ``out[t − k]`` for ``k <= t``, so an AR polynomial longer than the
+    predictor's padding is fine.  ``fastmath`` lets the compiler vectorise
+    the sum over k (only its rounding changes); the recursion over t stays
+    sequential.
+    """
+    p = a.size - 1
+    for t in range(x.size):
+        acc = x[t]
+        for k in range(1, min(p, t) + 1):
+            acc -= a[k] * out[t - k]
         out[t] = acc
 
 

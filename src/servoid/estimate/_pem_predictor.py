@@ -31,6 +31,18 @@ projection; Golub & Pereyra 1973); the predictor then runs with x
 entered as pulses at the filter inputs, its derivative at fixed x is the
 same table above, and the Gauss–Newton matrix is the Schur complement
 ``ΨᵀΨ − ΨᵀΓ (ΓᵀΓ)⁺ ΓᵀΨ`` (the projected Jacobian of Kaufman 1975).
+
+Filtered Gram matrix
+--------------------
+The robust covariance (:mod:`servoid.estimate._pem_covariance`) needs
+``Ψ̃ᵀΨ̃`` with every column of Ψ filtered by ``1/A_v(q)``.  A causal filter
+from rest commutes with the delays that make the columns, so filtering
+the few base signals once and handing them to the same lagged-Gram plan
+gives it (exactly when the sum starts at t = 0 and the signals start at
+rest); with estimated initial values the projected columns
+``Ψ − Γ (ΓᵀΓ)⁺ΓᵀΨ`` are filtered, which is a quadratic form of the
+filtered Gram matrix of [Ψ, Γ].  Either way the result is a Gram matrix,
+so it is positive semidefinite by construction.
 """
 
 from __future__ import annotations
@@ -41,7 +53,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._gram import _assemble, _full_sums
-from ._pem_kernels import EMPTY, filt, sum_squares
+from ._pem_kernels import EMPTY, ar_filter, filt, sum_squares
 from ._pem_orders import PemOrders, Polys, SignalData
 
 __all__ = ["GramPlan", "Problem"]
@@ -221,6 +233,7 @@ class Problem:
         self.n_ic = n_ic
         self.ic_rank = 0
         self._at: NDArray[np.float64] | None = None  # θ whose signals the buffers hold
+        self._meat_plan: GramPlan | None = None  # [Ψ, Γ] without ε, built on first use
 
     def _columns(self) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], int]:
         o = self.orders
@@ -315,3 +328,47 @@ class Problem:
         self.cost(theta)
         return np.concatenate([seg.error_view(self.start).copy() for seg in self.segments]
                               or [np.zeros(0)])
+
+    def errors_at(self, theta: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+        """ε(t), t >= start, per segment at θ (views, valid until the next call)."""
+        self._ensure(theta)
+        return [seg.error_view(self.start) for seg in self.segments]
+
+    def filtered_gram(self, theta: NDArray[np.float64],
+                      ar: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Σ_segments Ψ̃ᵀΨ̃ at θ, Ψ̃ = Ψ/ar(q) (projected when x is estimated)."""
+        self._ensure(theta)
+        co = _Coefs.of(self.orders, theta)
+        n = self.n_theta
+        if self._meat_plan is None:
+            self._meat_plan = GramPlan(self.full_plan.signal[:-1], self.full_plan.lag[:-1])
+        plan = self._meat_plan
+        sign = self.sign[:-1]
+        used = sorted(set(plan.signal.tolist()))
+        out = np.zeros((n, n))
+        for seg in self.segments:
+            seg.gradients(co)
+            z = list(seg.z)
+            done: dict[int, NDArray[np.float64]] = {}
+            for k in used:  # several z entries can share a buffer (the OE aliases)
+                if id(seg.z[k]) not in done:
+                    filtered = np.empty_like(seg.z[k])
+                    ar_filter(ar, seg.z[k], filtered)
+                    done[id(seg.z[k])] = filtered
+                z[k] = done[id(seg.z[k])]
+            gram = plan(tuple(z), self.start_index) * np.outer(sign, sign)
+            if self.n_ic:
+                # the projection Ψ − Γ K uses K from the unfiltered Gram matrix
+                raw = plan(seg.z, self.start_index) * np.outer(sign, sign)
+                inv, _ = _pinv_psd(raw[n:, n:])
+                k_mat = inv @ raw[n:, :n]
+                t = np.vstack([np.eye(n), -k_mat])
+                out += t.T @ gram @ t
+            else:
+                out += gram
+        return 0.5 * (out + out.T)
+
+    def _ensure(self, theta: NDArray[np.float64]) -> None:
+        """Make the buffers hold the prediction errors of θ."""
+        if self._at is None or not np.array_equal(self._at, theta):
+            self.cost(theta)
