@@ -77,6 +77,7 @@ def plot_bode_bands(
         ax_p.semilogx(f, phase, color=color, lw=1.3)
         ax_p.fill_between(f, phase - sigmas * band.phase_std_deg,
                           phase + sigmas * band.phase_std_deg, color=color, alpha=0.2, lw=0)
+    _limit(ax_m, ax_p, bands, measured)
     ax_m.set_ylabel(f"magnitude [dB{' re 1 ' + unit if unit else ''}]")
     ax_p.set_ylabel("phase [°]")
     if coherence is not None:
@@ -180,6 +181,25 @@ def plot_singular_values(
     ax.legend(fontsize=8)
     fig.tight_layout()
     save_figure(fig, path, overwrite)
+
+
+def _limit(ax_m: Any, ax_p: Any, bands: Mapping[str, Any], measured: Any) -> None:
+    """Axis ranges from the models (the measured lines' noise must not squash them)."""
+    if bands:
+        mags = np.concatenate([b.magnitude_db for b in bands.values()])
+        phases = np.concatenate([b.phase_deg for b in bands.values()])
+    elif measured is not None:
+        h = np.asarray(measured.response)[np.asarray(measured.frequency) > 0]
+        mags = 20 * np.log10(np.abs(h))
+        phases = np.degrees(np.unwrap(np.angle(h)))
+        mags, phases = (np.percentile(x, [2, 98]) for x in (mags, phases))
+    else:
+        return
+    mags, phases = mags[np.isfinite(mags)], phases[np.isfinite(phases)]
+    if mags.size:
+        ax_m.set_ylim(mags.min() - 15.0, mags.max() + 10.0)
+    if phases.size:
+        ax_p.set_ylim(phases.min() - 60.0, phases.max() + 60.0)
 
 
 def _roots(model: Any) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:

@@ -10,6 +10,8 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .. import __version__
 from .._errors import ServoidError
 from ..data import Experiment, ExperimentSpec
@@ -145,7 +147,8 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                      "at this amplitude")
     if options["n_poles"] is None:
         return FrfIdentification(spec, frd, numbers, tuple(notes))
-    est = fit_frf(frd, options["n_poles"], options["n_zeros"], delay=options["delay"])
+    target = _without_hold(frd) if options["intersample"] == "zoh" else frd
+    est = fit_frf(target, options["n_poles"], options["n_zeros"], delay=options["delay"])
     est = _with_channels(est, frd, options)
     fitted = spec_numbers(est.model, level_db=options["level_db"],
                           phase_frequency=options["phase_frequency"])
@@ -155,6 +158,23 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
             f"{est.options.get('n_zeros', options['n_zeros'])} zeros)"
     return lti_result(spec, "frf", est, title, validations, options, measured=frd, truth=truth,
                       notes=notes, closed_loop=options["reference"] is not None)
+
+
+def _without_hold(frd: FrequencyResponseData) -> FrequencyResponseData:
+    """The FRF with the zero-order hold's response divided out.
+
+    A record whose input is a DAC staircase measures the sampled system
+    G_d(e^{jωT}) ≈ G(jω)·e^{−jωT/2}·sinc(ωT/2) (the hold's response; the
+    aliased terms are neglected, valid where G has rolled off well before
+    the Nyquist frequency), so the continuous G is fitted to G_d divided by
+    the hold.
+    """
+    if frd.dt is None:
+        return frd
+    wt2 = np.pi * np.asarray(frd.frequency) * frd.dt  # ωT/2
+    hold = np.exp(-1j * wt2) * np.sinc(wt2 / np.pi)
+    var = None if frd.variance is None else np.asarray(frd.variance) / np.abs(hold) ** 2
+    return dataclasses.replace(frd, response=np.asarray(frd.response) / hold, variance=var)
 
 
 def _with_channels(est: Any, frd: FrequencyResponseData, options: Mapping[str, Any]) -> Any:
@@ -208,7 +228,8 @@ FRF = Method(
                "its zeros (default n_poles − 1)"),
         Option("delay", 0.0, number(nonneg=True, unit="s"), "its input delay [s]"),
         Option("intersample", "zoh", choice(("zoh", "foh", "bandlimited")),
-               "how the logged input behaves between samples, for validating the fit"),
+               "the logged input between samples; zoh: the hold's response is divided out of "
+               "the FRF before the fit, and the fit is validated with a ZOH"),
         Option("horizon", 5, integer(minimum=1), "k of the k-step prediction fit [samples]"),
     ),
     run=run,
