@@ -521,13 +521,20 @@ def _model_text(result: IdentificationResult) -> str:
     how = {"arx": "linear least squares", "oe": "prediction error (Gauss–Newton on the exact "
            "gradient)", "armax": "prediction error (Gauss–Newton on the exact gradient)",
            "bj": "prediction error (Gauss–Newton on the exact gradient)",
-           "tf": "refined instrumental variables (SRIVC)", "n4sid": "subspace projection"}
+           "tf": "refined instrumental variables (SRIVC)", "n4sid": "subspace projection",
+           "frf": "frequency-domain least squares refined by maximum likelihood on the FRF",
+           "two-stage": "the two-stage method (FIR r → u, then prediction error)",
+           "cliv": "closed-loop instrumental variables (the reference as instrument)",
+           "indirect": "the indirect approach (closed loop r → y with the known controller)"}
     parts = [f"{result.title} by {how.get(result.method, result.method)} on {est.n_samples} "
              f"samples; residual variance {est.noise_variance:.4g}; status {est.status}."]
     if "condition" in o:
         parts.append(f"Scaled condition number {o['condition']:.3g} ({o.get('solver')} route).")
     if "iterations" in o:
         parts.append(f"{o['iterations']} iterations.")
+    if o.get("covariance") == "robust":
+        parts.append("The covariance allows for coloured residuals (sandwich with an AR model of "
+                     "the residuals).")
     parts.append("Bode bands are ±2σ from the parameter covariance (delta method).")
     return " ".join(parts)
 
