@@ -23,7 +23,6 @@ the noisy measurement), which is what makes closed-loop records hard.
 from __future__ import annotations
 
 import dataclasses
-
 from typing import Literal
 
 import numpy as np
@@ -213,7 +212,7 @@ def _check_plant(plant: object, dt: object) -> float:
 def _delay_steps(plant: TransferFunction, step: float, what: str) -> int:
     """The plant's input delay as a whole number of ``step``s (else a DataError)."""
     delay = float(getattr(plant, "delay", 0.0))
-    k = int(round(delay / step))
+    k = round(delay / step)
     if abs(k * step - delay) > 1e-9 * max(step, delay):
         raise DataError(f"the rig delays the input in whole steps of {what} = {step:g} s; the "
                         f"plant's delay {delay:g} s is not one: change oversample or the delay")

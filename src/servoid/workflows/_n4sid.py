@@ -8,7 +8,7 @@ from typing import Any
 from .._checks import as_int_list, as_str, type_error
 from .._errors import DataError
 from ..data import ExperimentSpec
-from ..estimate import fit_oe, fit_n4sid, to_polynomial
+from ..estimate import fit_n4sid, fit_oe, to_polynomial
 from ._arx import HORIZON, ROLE
 from ._lti import IdentificationResult, lti_result
 from ._options import boolean, choice, integer, optional

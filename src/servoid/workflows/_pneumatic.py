@@ -231,12 +231,11 @@ def _refine(value: Any, where: str = "[identify]", name: str = "refine") -> bool
     if isinstance(value, bool):
         return value
     if isinstance(value, (list, tuple)):
-        names = [as_str(f"refine[{i}]", v, where="[identify]") for i, v in enumerate(value)]
-        for name in names:
-            check_option("[identify] refine", name, REFINABLE)
+        names = [as_str(f"refine[{i}]", v, where=where) for i, v in enumerate(value)]
+        for item in names:
+            check_option(f"{where} {name}", item, REFINABLE)
         return names
-    raise type_error("refine", value, "true, false or a list of parameter names",
-                     where="[identify]")
+    raise type_error(name, value, "true, false or a list of parameter names", where=where)
 
 
 def _controller(loop: Mapping[str, Any], inline: Any) -> PositionController | None:
