@@ -35,7 +35,14 @@ from ..report import (
 )
 from ..validate import ValidationReport, validate
 from ._arx import HORIZON
-from ._common import parameter_table, read_truth, report_options, sha256, validation_section
+from ._common import (
+    parameter_table,
+    read_truth,
+    report_options,
+    sha256,
+    spec_inputs,
+    validation_section,
+)
 from ._options import choice, choices, integer, number, optional
 from ._registry import FigureWriter, Method, Option
 
@@ -105,14 +112,7 @@ class ClosedLoopIdentification:
 
     def inputs(self) -> tuple[Path, ...]:
         """Every file the run read."""
-        spec = self.spec
-        out = [*spec.data_paths, *spec.validation_paths]
-        if spec.source:
-            out.append(Path(spec.source))
-            truth = report_options(spec.report).get("truth")
-            if truth:
-                out.append(spec.source.parent / truth)
-        return tuple(out)
+        return spec_inputs(self.spec)
 
     def figures(self) -> dict[str, FigureWriter]:
         """Validation, residuals, Bode of the plant, pole maps."""

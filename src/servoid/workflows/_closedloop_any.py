@@ -14,19 +14,13 @@ from ..estimate import Estimate
 from ..models import TransferFunction
 from ._arx import HORIZON
 from ._lti import IdentificationResult, lti_result
-from ._options import boolean, choice, integer, number, optional, text
-from ._pem import orders_text
+from ._options import boolean, choice, integer, optional, text
+from ._pem import SEARCH, orders_text
 from ._registry import Method, Option
 
 __all__ = ["CLIV", "INDIRECT", "TWO_STAGE", "controller_from_loop"]
 
 _OUTPUT = Option("output", None, optional(text()), "output channel when the data have several")
-_PEM = (
-    Option("multistart", 0, integer(minimum=0), "extra random stable starts; the best wins"),
-    Option("seed", 0, integer(minimum=0), "seed of the random starts"),
-    Option("max_iter", 100, integer(minimum=1), "most Gauss–Newton iterations per start"),
-    Option("tol", 1e-9, number(positive=True), "relative cost decrease that ends the search"),
-)
 _LOOP_KEYS = ("controller", "feedback")
 
 
@@ -127,7 +121,7 @@ TWO_STAGE = Method(
         Option("structure", "oe", choice(("oe", "bj")), "stage-2 structure"),
         Option("nc", 1, integer(minimum=0), "BJ noise zeros (structure = \"bj\")"),
         Option("nd", 1, integer(minimum=0), "BJ noise poles (structure = \"bj\")"),
-        *_PEM,
+        *SEARCH,
         HORIZON,
     ),
     run=_run_two_stage,
@@ -159,7 +153,7 @@ INDIRECT = Method(
         Option("nk", 1, integer(minimum=0), "plant delay [samples]"),
         Option("structure", "oe", choice(("oe", "arx")), "closed-loop fit of r → y"),
         Option("refine", True, boolean(), "refine by output error with the plant as parameters"),
-        *_PEM,
+        *SEARCH,
         HORIZON,
     ),
     run=_run_indirect,

@@ -14,7 +14,7 @@ from ..report import Figure, Section, Table
 from ..validate import ValidationReport
 
 __all__ = ["REPORT_KEYS", "check_outputs", "parameter_table", "read_truth", "report_options",
-           "sha256", "validation_section"]
+           "sha256", "spec_inputs", "validation_section"]
 
 REPORT_KEYS = ("folder", "truth")
 
@@ -42,6 +42,17 @@ def read_truth(path: Path, names: Sequence[str]) -> dict[str, float]:
     if not all(k in data for k in names) and isinstance(data.get("parameters"), Mapping):
         data = data["parameters"]
     return {k: as_float(k, data[k], where=f"truth file {path}:") for k in names if k in data}
+
+
+def spec_inputs(spec: Any) -> tuple[Path, ...]:
+    """Every file a run of ``spec`` reads: data, validation records, the TOML, the truth."""
+    out = [*spec.data_paths, *spec.validation_paths]
+    if spec.source:
+        out.append(Path(spec.source))
+        truth = report_options(spec.report).get("truth")
+        if truth:
+            out.append(spec.source.parent / truth)
+    return tuple(out)
 
 
 def check_outputs(targets: Sequence[Path], inputs: Sequence[Path], overwrite: bool) -> None:

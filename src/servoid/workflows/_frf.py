@@ -18,7 +18,7 @@ from ..data import Experiment, ExperimentSpec
 from ..estimate import estimate_frf, fit_frf
 from ..models import FrequencyResponseData, bandwidth, phase_lag, resonance_peak
 from ..report import Figure, Page, Section, Table, plot_bode_bands
-from ._common import report_options, sha256
+from ._common import sha256, spec_inputs
 from ._lti import IdentificationResult, lti_result
 from ._options import choice, integer, number, optional, text
 from ._registry import FigureWriter, Method, Option
@@ -75,13 +75,7 @@ class FrfIdentification:
 
     def inputs(self) -> tuple[Path, ...]:
         """Every file the run read."""
-        out = [*self.spec.data_paths, *self.spec.validation_paths]
-        if self.spec.source:
-            out.append(Path(self.spec.source))
-            truth = report_options(self.spec.report).get("truth")
-            if truth:
-                out.append(self.spec.source.parent / truth)
-        return tuple(out)
+        return spec_inputs(self.spec)
 
     def figures(self) -> dict[str, FigureWriter]:
         """The measured Bode diagram with coherence or ±2σ."""

@@ -35,11 +35,19 @@ from ..report import (
     plot_validation,
 )
 from ..validate import ValidationReport, validate
-from ._common import parameter_table, read_truth, report_options, sha256, validation_section
+from ._common import (
+    parameter_table,
+    read_truth,
+    report_options,
+    sha256,
+    spec_inputs,
+    validation_section,
+)
 from ._registry import FigureWriter
 
 __all__ = ["IdentificationResult", "OrderRow", "gain_unit", "lti_result", "model_dict",
-           "n_inputs", "on_edge", "order_grid", "outputs_of"]
+           "fit_or_search", "n_inputs", "on_edge", "order_grid",
+           "outputs_of"]
 
 
 @dataclass(frozen=True)
@@ -170,14 +178,7 @@ class IdentificationResult:
     # -- files ------------------------------------------------------------------------------
     def inputs(self) -> tuple[Path, ...]:
         """Every file the run read."""
-        spec = self.spec
-        out = [*spec.data_paths, *spec.validation_paths]
-        if spec.source:
-            out.append(Path(spec.source))
-            truth = report_options(spec.report).get("truth")
-            if truth:
-                out.append(spec.source.parent / truth)
-        return tuple(out)
+        return spec_inputs(self.spec)
 
     def figures(self) -> dict[str, FigureWriter]:
         """Validation and residual plots per record, Bode, pole–zero map."""
@@ -269,6 +270,26 @@ def order_grid(options: Mapping[str, Any], keys: Sequence[str],
         else:
             fixed[key] = value
     return fixed, grid
+
+
+def fit_or_search(
+    fit: Any, estimation: Experiment | ExperimentSet, validation: Experiment,
+    fixed: Mapping[str, Any], grid: Mapping[str, Sequence[int]], criterion: str,
+    **settings: Any,
+) -> tuple[Estimate, tuple[OrderRow, ...], list[str]]:
+    """Fit once, or search a grid (then the ranking rows and the orders on its edge)."""
+    from ..estimate import select_order
+
+    if not grid:
+        return fit(estimation, **fixed, **settings), (), []
+    selection = select_order(fit, estimation, grid, validation=validation,
+                             criterion="bic" if criterion == "mdl" else criterion,
+                             **fixed, **settings)
+    rows = tuple(
+        OrderRow(dict(c.orders), c.n_parameters, c.loss, {"aic": c.aic, "bic": c.bic,
+                                                            "fpe": c.fpe}, c.fit, c.status)
+        for c in selection.ranked())
+    return selection.estimate, rows, list(selection.edge)
 
 
 def on_edge(chosen: Mapping[str, int], grid: Mapping[str, Sequence[int]],

@@ -7,13 +7,13 @@ from functools import partial
 from typing import Any
 
 from ..data import ExperimentSpec
-from ..estimate import Estimate, StructureSelection, fit_armax, fit_bj, fit_oe, select_order
+from ..estimate import Estimate, fit_armax, fit_bj, fit_oe
 from ._arx import HORIZON, OUTPUT, ROLE
-from ._lti import IdentificationResult, OrderRow, lti_result, n_inputs, order_grid
+from ._lti import IdentificationResult, fit_or_search, lti_result, n_inputs, order_grid
 from ._options import choice, integer, number, orders
 from ._registry import Method, Option
 
-__all__ = ["ARMAX", "BJ", "OE", "search_options"]
+__all__ = ["ARMAX", "BJ", "OE", "SEARCH", "orders_text", "search_options"]
 
 _LOWEST = {"na": 0, "nb": 1, "nc": 0, "nd": 0, "nf": 0, "nk": 0}
 _ORDERS = {"oe": ("nb", "nf", "nk"), "armax": ("na", "nb", "nc", "nk"),
@@ -22,16 +22,21 @@ _FITS: dict[str, Callable[..., Estimate]] = {"oe": fit_oe, "armax": fit_armax, "
 _TITLES = {"oe": "OE", "armax": "ARMAX", "bj": "BJ"}
 
 
+SEARCH = (
+    Option("multistart", 0, integer(minimum=0), "extra random stable starts; the best wins"),
+    Option("seed", 0, integer(minimum=0), "seed of the random starts"),
+    Option("max_iter", 100, integer(minimum=1), "most Gauss–Newton iterations per start"),
+    Option("tol", 1e-9, number(positive=True), "relative cost decrease that ends the search"),
+)
+
+
 def search_options() -> tuple[Option, ...]:
-    """The options every iterative black-box method shares."""
+    """The options every prediction-error method shares."""
     return (
         Option("initial", "estimate", choice(("zero", "estimate")),
                "initial conditions of the predictor: estimated (a record that does not start "
                "at rest) or zero"),
-        Option("multistart", 0, integer(minimum=0), "extra random stable starts; the best wins"),
-        Option("seed", 0, integer(minimum=0), "seed of the random starts"),
-        Option("max_iter", 100, integer(minimum=1), "most Gauss–Newton iterations per start"),
-        Option("tol", 1e-9, number(positive=True), "relative cost decrease that ends the search"),
+        *SEARCH,
         Option("criterion", "aic", choice(("aic", "bic", "mdl", "fpe", "fit")),
                "order-search criterion (bic = mdl; fit: simulation fit on the validation data)"),
     )
@@ -46,31 +51,12 @@ def run(structure: str, spec: ExperimentSpec, options: Mapping[str, Any],
     settings = {"input": options["input"], "output": options["output"],
                 "initial": options["initial"], "multistart": options["multistart"],
                 "rng": options["seed"], "max_iter": options["max_iter"], "tol": options["tol"]}
-    fit = _FITS[structure]
-    rows: tuple[OrderRow, ...] = ()
-    edge: list[str] = []
-    if grid:
-        criterion = "bic" if options["criterion"] == "mdl" else options["criterion"]
-        selection = select_order(fit, estimation, grid, criterion=criterion,
-                                 validation=validations[0], **fixed, **settings)
-        estimate = selection.estimate
-        rows = order_rows(selection)
-        edge = list(selection.edge)
-    else:
-        estimate = fit(estimation, **{k: fixed[k] for k in keys}, **settings)
+    estimate, rows, edge = fit_or_search(_FITS[structure], estimation, validations[0], fixed,
+                                         grid, options["criterion"], **settings)
     title = f"{_TITLES[structure]} ({orders_text(estimate.options, keys)})"
     return lti_result(spec, structure, estimate, title, validations, options, orders=rows,
                       criterion=options["criterion"] if grid else "", edge=edge, truth=truth,
                       estimation=estimation)
-
-
-def order_rows(selection: StructureSelection) -> tuple[OrderRow, ...]:
-    """The candidates of a structure search as report rows, best first."""
-    return tuple(
-        OrderRow(dict(c.orders), c.n_parameters, c.loss,
-                 {"aic": c.aic, "bic": c.bic, "fpe": c.fpe}, c.fit,
-                 c.status)
-        for c in selection.ranked())
 
 
 def orders_text(options: Mapping[str, Any], keys: Sequence[str]) -> str:

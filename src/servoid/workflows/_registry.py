@@ -139,8 +139,10 @@ class Method:
         where = "[identify]"
         out = {}
         for option in self.options:
-            value = table.get(option.name, option.default)
-            out[option.name] = value if option.name not in table else option.check(value, where, option.name)
+            if option.name in table:
+                out[option.name] = option.check(table[option.name], where, option.name)
+            else:
+                out[option.name] = option.default
         return out
 
     def describe(self) -> str:

@@ -8,12 +8,11 @@ from functools import partial
 from typing import Any
 
 from ..data import Experiment, ExperimentSet, ExperimentSpec
-from ..estimate import Estimate, fit_tf, select_order
+from ..estimate import Estimate, fit_tf
 from ._arx import HORIZON, OUTPUT
 from ._closedloop_any import controller_from_loop
-from ._lti import IdentificationResult, lti_result, n_inputs, order_grid
+from ._lti import IdentificationResult, fit_or_search, lti_result, n_inputs, order_grid
 from ._options import choice, integer, number, optional, orders
-from ._pem import order_rows
 from ._registry import Method, Option
 
 __all__ = ["TF"]
@@ -33,19 +32,10 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         settings.update(instrument="r", controller=controller)
     fixed, grid = order_grid(options, ("n_poles", "n_zeros"), n_inputs(estimation, "u"))
     fit = partial(_fit, estimation_input=_input_name(estimation))
-    rows = ()
-    edge: list[str] = []
-    if grid:
-        if fixed.get("n_zeros") is None:
-            fixed.pop("n_zeros", None)
-        criterion = "bic" if options["criterion"] == "mdl" else options["criterion"]
-        selection = select_order(fit, estimation, grid, criterion=criterion,
-                                 validation=validations[0], **fixed, **settings)
-        estimate = selection.estimate
-        rows = order_rows(selection)
-        edge = list(selection.edge)
-    else:
-        estimate = fit(estimation, fixed["n_poles"], fixed["n_zeros"], **settings)
+    if fixed.get("n_zeros", 0) is None:
+        fixed.pop("n_zeros")  # the estimator's default, n_poles − 1
+    estimate, rows, edge = fit_or_search(fit, estimation, validations[0], fixed, grid,
+                                         options["criterion"], **settings)
     o = estimate.options
     title = (f"continuous transfer function ({o['n_poles']} poles, {o['n_zeros']} zeros"
              + (f", delay {o['delay']:g} s" if o["delay"] else "") + f", {o['intersample']})")
