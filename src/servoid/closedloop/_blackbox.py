@@ -32,8 +32,8 @@ from .._checks import as_bool, as_int
 from .._errors import DataError, ServoidWarning, check_option
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate, fit_bj, fit_iv, fit_oe
+from ..estimate._covariance import Covariance
 from ._channels import aic_order, check_excites, ls_fit, output_name, reference_name, single_name
-from ._coloured import oe_covariance
 
 __all__ = ["fit_cliv", "fit_two_stage"]
 
@@ -159,9 +159,11 @@ def fit_two_stage(
     stage2_data: Experiment | ExperimentSet = stage2[0] if len(stage2) == 1 else stage2
     pem = {"multistart": multistart, "rng": rng, "max_iter": max_iter, "tol": tol}
     if structure == "oe":
-        est = fit_oe(stage2_data, nb, nf, nk, **pem)  # type: ignore[arg-type]
-        cov, ar = oe_covariance(est.model, ur, ys)
-        note = f"sandwich, AR({ar}) residual spectrum; stage-1 error not counted"
+        # the OE fit's own covariance is already the coloured-noise sandwich
+        est = fit_oe(stage2_data, nb, nf, nk, covariance="robust", **pem)  # type: ignore[arg-type]
+        cov = est.covariance
+        note = (f"sandwich, AR({est.options['covariance_ar_order']}) residual spectrum; "
+                "stage-1 error not counted")
     else:
         est = fit_bj(stage2_data, nb, nc, nd, nf, nk, **pem)  # type: ignore[arg-type]
         cov, note = est.covariance, "bj (noise model); stage-1 error not counted"
@@ -191,6 +193,7 @@ def fit_cliv(
     *,
     output: str | None = None,
     iterations: int = 1,
+    covariance: Covariance = "auto",
 ) -> Estimate:
     """Fit the plant by closed-loop IV, instruments from r.
 
@@ -215,12 +218,16 @@ def fit_cliv(
         Output channel name when there are several.
     iterations : int
         Refinement passes of the IV (see :func:`~servoid.estimate.fit_iv`).
+    covariance : {"auto", "white", "robust"}
+        As in :func:`~servoid.estimate.fit_iv`: ``"auto"`` is the sandwich
+        with the residual's own autocovariance, right for any noise colour.
 
     Returns
     -------
     Estimate
         Method ``"cliv"``; parameters ``a1…, b0…`` as in
-        :func:`~servoid.estimate.fit_arx`.
+        :func:`~servoid.estimate.fit_arx`; ``options["covariance"]`` says
+        which covariance was used.
 
     Raises
     ------
@@ -233,7 +240,8 @@ def fit_cliv(
     r_name = reference_name(data, "closed-loop IV")
     check_excites(r_name, [np.asarray(seg[r_name]) for seg in segments], "r")
     single_name(segments[0], "u", None, "plant input")
-    est = fit_iv(data, na, nb, nk, instrument="r", output=output, iterations=iterations)
+    est = fit_iv(data, na, nb, nk, instrument="r", output=output, iterations=iterations,
+                 covariance=covariance)
     return dataclasses.replace(est, method="cliv", options={**est.options, "reference": r_name})
 
 

@@ -7,13 +7,15 @@ the residual is the sensitivity-filtered noise, far from white, so the
 covariance is the sandwich (Ljung, *System Identification*, 2nd ed.,
 §9.3, eq. 9.42 with the noise model fixed at 1)::
 
-    P = (ΨᵀΨ)⁻¹ · ΨᵀΣ_wΨ · (ΨᵀΨ)⁻¹
+    P = (ΨᵀΨ)⁻¹ · Σ_τ r_w(τ) Σ_t ψ(t) ψ(t−τ)ᵀ · (ΨᵀΨ)⁻¹
 
-where ψ(t) = ∂ŷ(t)/∂θ depends only on the noise-free input and Σ_w is the
-covariance of the residual.  Σ_w comes from an AR model ``D(q) w = e`` of
-the residual (order by AIC): ``Σ_w = σ_e²·L·Lᵀ`` with L the lower
-triangular Toeplitz matrix of 1/D, so ``ΨᵀΣ_wΨ = σ_e²·ZᵀZ`` with
-``Z = Lᵀ Ψ``, the columns of Ψ filtered by 1/D backwards in time.
+where ψ(t) = ∂ŷ(t)/∂θ depends only on the noise-free input and r_w is the
+autocovariance of the residual, extended by an AR model chosen by AIC.
+The formula and its estimate are those of every other estimator's robust
+covariance, :func:`servoid.estimate._covariance.sandwich_covariance`; this
+module only supplies ψ for the OE model of the closed loop, which the
+one-step indirect refinement parameterises by the plant.  Fits made with
+:func:`~servoid.estimate.fit_oe` carry the same covariance already.
 """
 
 from __future__ import annotations
@@ -24,43 +26,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal as sps
 
-from ..models import PolynomialModel
-from ._channels import aic_order, lag_matrix, ls_fit
+from ..estimate._covariance import filtered_gram, sandwich_covariance
 
-__all__ = ["oe_covariance", "oe_gradient", "sandwich"]
-
-#: Largest AR order tried for the residual spectrum.
-_MAX_AR = 40
-
-
-def oe_covariance(
-    model: PolynomialModel,
-    inputs: Sequence[NDArray[np.float64]],
-    outputs: Sequence[NDArray[np.float64]],
-) -> tuple[NDArray[np.float64], int]:
-    """Return the coloured-noise covariance of an OE fit and the AR order.
-
-    Parameters
-    ----------
-    model : PolynomialModel
-        Single-input OE model ``y = B/F u(t − nk)`` (parameters b0…, f1…).
-    inputs, outputs : sequence of ndarray
-        The input and output of each segment, as fitted from rest.
-
-    Returns
-    -------
-    covariance : ndarray
-        Sandwich covariance of (b0…, f1…).
-    ar_order : int
-        Order of the AR model of the residual.
-    """
-    b, f, nk = model.b[0], model.f[0], model.nk[0]  # type: ignore[index]
-    psis, resids = [], []
-    for u, y in zip(inputs, outputs, strict=True):
-        yhat, psi = oe_gradient(b, f, nk, u)
-        psis.append(psi)
-        resids.append(np.asarray(y - yhat, dtype=float))
-    return sandwich(psis, resids)
+__all__ = ["oe_gradient", "sandwich"]
 
 
 def oe_gradient(
@@ -79,53 +47,21 @@ def oe_gradient(
 def sandwich(
     psis: Sequence[NDArray[np.float64]], resids: Sequence[NDArray[np.float64]]
 ) -> tuple[NDArray[np.float64], int]:
-    """``R⁻¹·M·R⁻¹`` with R = ΣΨᵀΨ and M = ΨᵀΣ_wΨ from an AR model of the residual."""
-    d, sigma2, p = _ar_whitener(resids)
-    n = psis[0].shape[1]
-    hess = np.zeros((n, n))
-    meat = np.zeros_like(hess)
-    for psi in psis:
-        hess += psi.T @ psi
-        z = sps.lfilter([1.0], d, psi[::-1], axis=0)[::-1]
-        meat += z.T @ z
-    inv = np.linalg.pinv(hess)
-    cov = sigma2 * inv @ meat @ inv
-    return 0.5 * (cov + cov.T), p
+    """Robust covariance of an OE fit from ψ and its residuals.
+
+    Returns the sandwich ``(ΨᵀΨ)⁻¹·Ψᵀ R̂_w Ψ·(ΨᵀΨ)⁻¹`` and the order of the
+    residual AR model behind R̂_w.
+    """
+    hess = sum(psi.T @ psi for psi in psis)
+    n = sum(w.size for w in resids)
+    dof = max(n - hess.shape[0], 1)
+    sigma2 = float(sum(w @ w for w in resids)) / dof
+    result = sandwich_covariance("robust", np.asarray(hess), sigma2, dof, lambda: resids,
+                                 lambda ar: filtered_gram(psis, ar), gram_bread=True)
+    return result.covariance, int(result.ar_order or 0)
 
 
 def _delay(x: NDArray[np.float64], k: int) -> NDArray[np.float64]:
     if k == 0:
         return x
     return np.concatenate([np.zeros(k), x[:-k]])
-
-
-def _ar_whitener(
-    resids: Sequence[NDArray[np.float64]],
-) -> tuple[NDArray[np.float64], float, int]:
-    """Monic D with D(q)·w ≈ white, the innovation variance and the order."""
-    total = sum(w.size for w in resids)
-    p_max = int(min(_MAX_AR, max(total // 50, 0)))
-    if p_max == 0:
-        return np.ones(1), float(np.mean(np.concatenate(resids) ** 2)), 0
-    phi, target = [], []
-    for w in resids:
-        rows = np.arange(p_max, w.size)
-        if rows.size:
-            phi.append(lag_matrix(w, rows, range(1, p_max + 1)))
-            target.append(w[rows])
-    x, t = np.vstack(phi), np.concatenate(target)
-    p = aic_order(x, t, list(range(p_max + 1)))
-    if p == 0:
-        return np.ones(1), float(t @ t / t.size), 0
-    coef, e, _ = ls_fit(x[:, :p], t)
-    return _stable(np.concatenate([[1.0], -coef])), float(e @ e / t.size), p
-
-
-def _stable(d: NDArray[np.float64]) -> NDArray[np.float64]:
-    # least squares AR fits are stable in practice; a root outside would blow up the filter
-    roots = np.roots(d)
-    outside = np.abs(roots) >= 1.0
-    if not outside.any():
-        return d
-    roots[outside] = 1.0 / np.conj(roots[outside])
-    return np.real(np.poly(roots))

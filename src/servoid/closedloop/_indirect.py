@@ -60,7 +60,7 @@ from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate, fit_arx, fit_iv, fit_oe
 from ..models import PolynomialModel, TransferFunction
 from ._channels import check_excites, output_name, reference_name
-from ._coloured import oe_covariance, oe_gradient, sandwich
+from ._coloured import oe_gradient, sandwich
 
 __all__ = ["fit_indirect_tf"]
 
@@ -203,7 +203,7 @@ def fit_indirect_tf(
     rs = [np.asarray(seg[r_name], dtype=float) for seg in segments]
     ys = [np.asarray(seg[y_name], dtype=float) for seg in segments]
     orders_cl = (nb_cl, nf_cl, nk_cl)
-    fits = _step1(data, structure, orders_cl, y_name, rs, ys, refine,
+    fits = _step1(data, structure, orders_cl, y_name, refine,
                   {"multistart": multistart, "rng": rng, "max_iter": max_iter, "tol": tol})
     starts = [(fit, *loop_map.project(fit.theta, fit.covariance, orders_cl)) for fit in fits]
     primary, theta, cov = starts[0]
@@ -310,8 +310,6 @@ def _step1(
     structure: Structure,
     orders: tuple[int, int, int],
     y_name: str,
-    rs: list[NDArray[np.float64]],
-    ys: list[NDArray[np.float64]],
     refine: bool,
     pem: dict[str, Any],
 ) -> list[_Step1]:
@@ -325,9 +323,11 @@ def _step1(
             with warnings.catch_warnings():
                 if refine:  # the refinement finishes the search; its own status counts
                     warnings.filterwarnings("ignore", ".*stopped at max_iter", ServoidWarning)
-                cl = fit_oe(data, nb_cl, nf_cl, nk_cl, input="r", output=y_name, **pem)
-            cov, ar = oe_covariance(cl.model, rs, ys)
-            fits.append(_Step1(cl, np.asarray(cl.parameters), cov,
+                # the OE fit's own covariance is already the coloured-noise sandwich
+                cl = fit_oe(data, nb_cl, nf_cl, nk_cl, input="r", output=y_name,
+                            covariance="robust", **pem)
+            ar = cl.options["covariance_ar_order"]
+            fits.append(_Step1(cl, np.asarray(cl.parameters), cl.covariance,
                                f"sandwich, AR({ar}) residual spectrum", "oe"))
         except (ConvergenceError, IdentifiabilityError) as exc:
             if not refine:

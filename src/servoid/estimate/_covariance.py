@@ -1,76 +1,102 @@
-"""Parameter covariance of the prediction-error fits: white and robust.
+"""Parameter covariance for coloured residuals: white and robust.
 
-At the minimum θ̂ of Σε² the estimate is, to first order,
-``θ̂ − θ₀ ≈ (ΨᵀΨ)⁻¹ Ψᵀ ε`` with Ψ the gradient of the predictions, so
+Prediction error, instrumental variables and refined IV all leave, to
+first order, an error of the form
 
-``P = (ΨᵀΨ)⁻¹ · Ψᵀ R_ε Ψ · (ΨᵀΨ)⁻¹,   Ψᵀ R_ε Ψ = Σ_τ r_ε(τ) Σ_t ψ(t) ψ(t−τ)ᵀ``
+``θ̂ − θ₀ ≈ B⁻¹ Σ_t ζ(t) ε(t)``
 
-whenever ψ does not depend on the noise: output error, and the G part of
-Box–Jenkins, in open loop (Ljung, *System Identification*, 2nd ed., §9.3;
-Söderström & Stoica, *System Identification*, 1989, ch. 7).
+with ζ(t) independent of the noise ε, so their covariance is the sandwich
+
+``P = B⁻¹ · Z̄ᵀ R_ε Z̄ · B⁻ᵀ,   Z̄ᵀ R_ε Z̄ = Σ_τ r_ε(τ) Σ_t ζ(t) ζ(t−τ)ᵀ``
+
+(Z̄ stacks the rows ζ(t)ᵀ):
+
+* **prediction error** at the minimum of Σε², where ψ does not depend on
+  the noise (output error, and the G part of Box–Jenkins, in open loop):
+  ζ = ψ the gradient of the predictions and ``B = ΨᵀΨ`` (Ljung, *System
+  Identification*, 2nd ed., §9.3; Söderström & Stoica, *System
+  Identification*, 1989, ch. 7);
+* **instrumental variables** ``θ̂ = (Σ ζφᵀ)⁻¹ Σ ζ y``: ζ the (prefiltered)
+  instruments and ``B = M = Σ ζ φᵀ``, ε the (prefiltered) equation error
+  (Söderström & Stoica, *Instrumental Variable Methods for System
+  Identification*, 1983, §4.3, eq. 4.21 with its ``Σ_τ`` sum);
+* **refined IV** (SRIVC): ζ the filtered instruments, which are the
+  gradient of the simulated output, so in open loop ``B = Σ ζζᵀ`` exactly
+  as for output error, and in closed loop ``B = M`` (Young, *Recursive
+  Estimation and Time-Series Analysis*, 2nd ed., 2011, §7.3 and §8.2).
 
 ``"white"``
-    ``r_ε(τ) = σ̂² δ(τ)``: ``P = σ̂² (ΨᵀΨ)⁻¹``, the asymptotic covariance
-    when the model's noise description is right, so the prediction
-    errors are white (Ljung §9.3).
+    ``r_ε(τ) = σ̂² δ(τ)``: ``P = σ̂² B⁻¹ Z̄ᵀZ̄ B⁻ᵀ`` (``σ̂² B⁻¹`` when ``B = Z̄ᵀZ̄``),
+    the asymptotic covariance when the estimator's noise description is
+    right, so its residuals are white (Ljung §9.3).
 ``"robust"``
-    The sandwich with the residuals' own autocovariance.  An output-error
-    fit does not model the noise: on a real rig its residual is coloured,
-    and the white formula misstates the standard deviations (by up to
-    ×2.4 on the coloured test record).  The sum runs over every lag of the
-    record, with ``r̂_ε(τ)`` the sample autocovariance for |τ| <= p and its
+    The sandwich with the residuals' own autocovariance.  An estimator
+    without a noise model (output error, SRIVC, the basic IV) leaves the
+    noise's colour in its residual, and the white formula then misstates
+    the standard deviations: by up to ×2.4 for OE and ×4 for SRIVC on the
+    coloured test records.  The sum runs over every lag of the record, with
+    ``r̂_ε(τ)`` the sample autocovariance for |τ| <= p and its
     maximum-entropy (autoregressive) extension beyond: a Yule–Walker AR(p)
     model ``A_v(q) ε = η`` reproduces r̂_ε(0…p) exactly (Levinson–Durbin)
     and implies ``R_ε ≈ σ_η² A_v⁻¹A_v⁻ᵀ`` (with the AR process started from
-    rest), so ``Ψᵀ R_ε Ψ = σ_η² Ψ̃ᵀΨ̃`` with ``Ψ̃ = Ψ/A_v(q)``: one Gram
+    rest), so ``Z̄ᵀ R_ε Z̄ = σ_η² Z̃ᵀZ̃`` with ``Z̃ = Z̄/A_v(q)``: one Gram
     matrix of filtered signals, positive semidefinite by construction.
     The order p minimises AIC, ``N ln σ_p² + 2p`` over
     ``p <= min(10·log10 N, N − 1)``: AIC is asymptotically efficient for
     an AR(∞) noise such as the ARMA noise of a real sensor (Shibata 1980)
     — the autoregressive-sieve HAC estimator (Berk 1974; den Haan &
     Levin 1997).  With white residuals AIC picks p = 0 and the result is
-    exactly the white formula.
+    exactly the white formula.  σ_η² carries the same N/(N − d)
+    degrees-of-freedom correction as ``σ̂² = Σε²/(N − d)``.
+``"auto"``
+    ``"robust"`` where the estimator has no noise model of its own (its
+    residuals are coloured whenever the noise is), ``"white"`` where it
+    has one (when that model is right its residuals are white and the
+    white formula is the efficient one).  The premise that ζ is
+    independent of the noise holds for the plant parameters of output
+    error and IV, open loop or with instruments from the reference; it
+    fails for the A, C and D of prediction error, whose ψ are filtered
+    outputs and errors — coloured residuals there say the noise model is
+    too simple, which is better fixed by raising its orders.
 
 Why not a lag window?  A Bartlett (Newey–West) window truncated at M keeps
 the estimate positive semidefinite but both truncates and tapers Σ_τ
-r_ε(τ)·Σ_t ψψᵀ, whose terms decay only as the product of the noise's and
-the plant's memories.  On 200 seeded records of the test rig (second-order
+r_ε(τ)·Σ_t ζζᵀ, whose terms decay only as the product of the noise's and
+the plant's memories.  On 200 seeded records of the OE test rig (second-order
 plant; noise (1 + 0.5q⁻¹)/(1 − 0.9q⁻¹), three other ARMA noises and white
 noise; N = 500 and 2000), Bartlett windows with Newey–West's M = 4(N/100)^(2/9)
 or with M = the first lag inside the ±2/√N band missed 95 % coverage by
 up to 5 points (both over and under), while the AR extension stayed
 within a point of the sandwich built from the true noise autocovariance.
-
-``"auto"`` is ``"robust"`` for output-error structures (na = nc = nd = 0:
-no noise model, coloured residuals are the rule) and ``"white"`` for
-structures with a noise model (when that model is right its residuals are
-white and the white formula is the efficient one).  ``"robust"`` may be
-asked for any structure; its premise that ψ is independent of the noise
-holds for the B and F parameters in open loop but not for A, C and D,
-whose ψ are filtered outputs and errors — coloured residuals there say
-the noise model is too simple, which is better fixed by raising nc/nd.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import signal as sps
 
 from ._gram import _full_sums
-from ._pem_orders import PemOrders
-from ._pem_predictor import Problem
 
-__all__ = ["COVARIANCES", "Covariance", "CovarianceResult", "parameter_covariance",
-           "residual_ar"]
+if TYPE_CHECKING:
+    from ._pem_predictor import Problem
+
+__all__ = ["COVARIANCES", "Covariance", "CovarianceResult", "filtered_gram",
+           "parameter_covariance", "residual_ar", "resolve", "sandwich_covariance"]
 
 Covariance = Literal["auto", "white", "robust"]
 COVARIANCES: tuple[str, ...] = ("auto", "white", "robust")
 
-#: Relative eigenvalue floor of the scaled ΨᵀΨ below which a direction is
-#: not determined and the pseudo-inverse drops it (about 5000 ε of double precision).
+#: Σ_segments Z̃ᵀZ̃ for an AR polynomial (``[1.0]``: the unfiltered Z̄ᵀZ̄).
+GramFunction = Callable[[NDArray[np.float64]], NDArray[np.float64]]
+
+#: Relative eigenvalue floor of the scaled ΨᵀΨ (singular-value floor of a
+#: scaled M) below which a direction is not determined and the
+#: pseudo-inverse drops it (about 5000 ε of double precision).
 _RANK_TOL = 1e-12
 #: The Levinson recursion stops when the prediction-error variance of the
 #: residual falls below this fraction of its variance: a residual predicted to
@@ -80,7 +106,7 @@ _PREDICTABLE = 1e-26
 
 @dataclass(frozen=True, slots=True)
 class CovarianceResult:
-    """A covariance, whether ΨᵀΨ was singular, and how it was made."""
+    """A covariance, whether B was singular, and how it was made."""
 
     covariance: NDArray[np.float64]
     singular: bool
@@ -88,38 +114,103 @@ class CovarianceResult:
     ar_order: int | None  # order of the residual AR model (robust only)
 
 
-def resolve(kind: str, orders: PemOrders) -> str:
-    """The covariance actually used: ``"auto"`` resolved by the structure."""
+def resolve(kind: str, noise_model: bool) -> str:
+    """The covariance used: ``"auto"`` resolved by the estimator.
+
+    ``noise_model`` says whether the estimator models the noise itself
+    (then ``"white"``), else ``"robust"`` (see the module notes).
+    """
     if kind == "auto":
-        output_error = orders.na == 0 and orders.nc == 0 and orders.nd == 0
-        return "robust" if output_error else "white"
+        return "white" if noise_model else "robust"
     return kind
+
+
+def sandwich_covariance(
+    kind: str,
+    bread: NDArray[np.float64],
+    sigma2: float,
+    dof: int,
+    residuals: Callable[[], Sequence[NDArray[np.float64]]],
+    gram: GramFunction,
+    *,
+    gram_bread: bool = False,
+) -> CovarianceResult:
+    """White or robust covariance ``B⁻¹·Z̄ᵀR_εZ̄·B⁻ᵀ`` (kind resolved).
+
+    Parameters
+    ----------
+    kind : {"white", "robust"}
+        The resolved choice (:func:`resolve`).
+    bread : ndarray, shape (d, d)
+        B: ΨᵀΨ (prediction error, SRIVC in open loop) or ``M = Σ ζφᵀ`` (IV).
+    sigma2 : float
+        ``σ̂² = Σε²/dof``.
+    dof : int
+        Degrees of freedom N − d of σ̂².
+    residuals : callable
+        Returns the residual ε of each segment (only called for ``"robust"``).
+    gram : callable
+        Maps a monic AR polynomial A_v to ``Σ_segments Z̃ᵀZ̃``, ``Z̃ = Z̄/A_v(q)``;
+        ``gram([1.0])`` is Z̄ᵀZ̄.
+    gram_bread : bool
+        B is Z̄ᵀZ̄ itself (ζ = ψ): the white formula is then ``σ̂² B⁻¹``
+        and `gram` is not called for it.
+
+    Returns
+    -------
+    CovarianceResult
+        The covariance, whether B was singular (a pseudo-inverse was used),
+        the kind and the residual AR order (None for ``"white"``).
+    """
+    inv, singular = _pinv_psd(bread) if gram_bread else _pinv(bread)
+    if inv.size == 0:
+        return CovarianceResult(np.zeros((0, 0)), singular, "white", None)
+    order: int | None = None
+    meat: NDArray[np.float64] | None = None
+    if kind == "robust":
+        errors = list(residuals())
+        n = sum(e.size for e in errors)
+        ar, innovation = residual_ar(errors, n)
+        order = ar.size - 1
+        if order:
+            meat = innovation * n / dof * gram(ar)
+    if meat is None:  # white, or robust with white residuals: exactly the white formula
+        if gram_bread:
+            return CovarianceResult(_sym(sigma2 * inv), singular, kind, order)
+        meat = sigma2 * gram(np.ones(1))
+    return CovarianceResult(_sym(inv @ meat @ inv.T), singular, kind, order)
+
+
+def filtered_gram(instruments: Sequence[NDArray[np.float64]],
+                  ar: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Σ_segments Z̃ᵀZ̃ with Z̃ = Z/ar(q), filtered from rest.
+
+    ``instruments`` holds one (N_k, d) matrix Z per segment, rows ζ(t)ᵀ.
+    """
+    d = instruments[0].shape[1]
+    out = np.zeros((d, d))
+    for z in instruments:
+        zf = z if ar.size == 1 else sps.lfilter([1.0], ar, z, axis=0)
+        out += zf.T @ zf
+    return _sym(out)
 
 
 def parameter_covariance(problem: Problem, theta: NDArray[np.float64],
                          h: NDArray[np.float64], sigma2: float, dof: int,
                          kind: str) -> CovarianceResult:
-    """The white or robust covariance of θ̂ (``kind`` already resolved).
+    """Prediction-error covariance of θ̂ (``kind`` resolved).
 
     ``h`` is ΨᵀΨ at θ (the Schur complement with estimated initial values),
-    ``sigma2 = Σε²/dof``.
+    ``sigma2 = Σε²/dof``; the filtered Gram matrix comes from the
+    predictor's lagged-product plan.
     """
-    inv, singular = _pinv(h)
-    if kind == "white" or inv.size == 0:
-        return CovarianceResult(_sym(sigma2 * inv), singular, "white", None)
-    errors = problem.errors_at(theta)
-    n = sum(e.size for e in errors)
-    ar, innovation = residual_ar(errors, n)
-    if ar.size == 1:  # white residuals: the sandwich is σ̂²·H⁺HH⁺ = σ̂²·H⁺ exactly
-        return CovarianceResult(_sym(sigma2 * inv), singular, "robust", 0)
-    # the same N/(N − d) degrees-of-freedom correction as σ̂² = Σε²/(N − d)
-    meat = innovation * n / dof * problem.filtered_gram(theta, ar)
-    return CovarianceResult(_sym(inv @ meat @ inv), singular, "robust", ar.size - 1)
+    return sandwich_covariance(kind, h, sigma2, dof, lambda: problem.errors_at(theta),
+                               lambda ar: problem.filtered_gram(theta, ar), gram_bread=True)
 
 
-def residual_ar(errors: list[NDArray[np.float64]],
+def residual_ar(errors: Sequence[NDArray[np.float64]],
                 n: int) -> tuple[NDArray[np.float64], float]:
-    """AR model ``A_v ε = η`` of the pooled residuals by Yule–Walker and AIC.
+    """AR model ``A_v ε = η`` of the residuals by Yule–Walker and AIC.
 
     Returns the monic A_v (``[1.0]`` for white residuals) and the
     innovation variance σ_η² (biased, Σ/N normalisation).
@@ -146,18 +237,22 @@ def residual_ar(errors: list[NDArray[np.float64]],
     return best_a, float(best_err)
 
 
-def _autocovariance(errors: list[NDArray[np.float64]], max_lag: int) -> NDArray[np.float64]:
-    """Σ_segments Σ_t ε(t) ε(t + τ), τ = 0…max_lag (lags never cross segments)."""
+def _autocovariance(errors: Sequence[NDArray[np.float64]],
+                    max_lag: int) -> NDArray[np.float64]:
+    """Σ_t ε(t) ε(t + τ), τ = 0…max_lag, summed over segments.
+
+    Lags never cross segments.
+    """
     keys = np.zeros((max_lag + 1, 3), dtype=np.int64)
     keys[:, 2] = np.arange(max_lag + 1)
     out = np.zeros(max_lag + 1)
     for e in errors:
         if e.size:
-            _full_sums((np.ascontiguousarray(e),), keys, out)
+            _full_sums((np.ascontiguousarray(e, dtype=np.float64),), keys, out)
     return out
 
 
-def _pinv(h: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
+def _pinv_psd(h: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
     """(ΨᵀΨ)⁺ after equilibration, and whether ΨᵀΨ was singular."""
     n = h.shape[0]
     if n == 0:
@@ -171,6 +266,24 @@ def _pinv(h: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
     keep = lam > _RANK_TOL * max(float(lam[-1]), 1e-300)
     inv = (vec[:, keep] / lam[keep]) @ vec[:, keep].T
     return inv / np.outer(s, s), singular
+
+
+def _pinv(m: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
+    """M⁺ after row and column equilibration; whether M was singular."""
+    n = m.shape[0]
+    if n == 0:
+        return np.zeros((0, 0)), False
+    rows = np.sqrt(np.einsum("ij,ij->i", m, m))
+    cols = np.sqrt(np.einsum("ij,ij->j", m, m))
+    zero = ~(rows > 0) | ~(cols > 0)
+    rows[~(rows > 0)] = 1.0
+    cols[~(cols > 0)] = 1.0
+    u, sv, vt = np.linalg.svd(m / np.outer(rows, cols))
+    # singular values of M are those of Z̄ᵀΦ: compare them as eigenvalues of ΨᵀΨ above
+    singular = bool(zero.any() or not sv[-1] > _RANK_TOL * sv[0])
+    keep = sv > _RANK_TOL * max(float(sv[0]), 1e-300)
+    inv = (vt[keep].T / sv[keep]) @ u[:, keep].T
+    return inv / np.outer(cols, rows), singular
 
 
 def _sym(m: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -21,7 +21,7 @@ The search
 * **Stop**: when the Gauss–Newton step would lower the cost by less than
   ``tol`` relative (or change the predictions by less than 1e-12 of the
   output's RMS); at ``max_iter`` steps with a :class:`ServoidWarning`.
-* **Covariance** (``covariance=``, :mod:`servoid.estimate._pem_covariance`):
+* **Covariance** (``covariance=``, :mod:`servoid.estimate._covariance`):
   ``"white"`` is ``σ̂² (ΨᵀΨ)⁻¹`` at the minimum with the exact Ψ and
   ``σ̂² = Σε²/(N − d)`` (Ljung §9.3), right when the prediction errors are
   white; ``"robust"`` is the sandwich ``(ΨᵀΨ)⁻¹ Ψᵀ R̂_ε Ψ (ΨᵀΨ)⁻¹`` with the
@@ -56,8 +56,8 @@ from .._errors import (
 from ..data import Experiment, ExperimentSet
 from ..models import PolynomialModel
 from ._arx import _warn_if_unstable
+from ._covariance import COVARIANCES, Covariance, parameter_covariance, resolve
 from ._estimate import Estimate
-from ._pem_covariance import COVARIANCES, Covariance, parameter_covariance, resolve
 from ._pem_orders import PemOrders, Polys, SignalData, check_record, prepare
 from ._pem_predictor import Problem, initial_sizes
 from ._pem_start import iv_start, random_start, stabilize
@@ -360,7 +360,7 @@ def _fit(
         raise DataError(f"tol is a relative cost decrease and must lie in (0, 1), got {tol:g}")
     sd = prepare(data, input, output)
     orders = PemOrders(na, nb, nc, nd, nf, nk, len(sd.inputs))
-    cov_kind = resolve(covariance, orders)
+    cov_kind = resolve(covariance, noise_model=bool(orders.na or orders.nc or orders.nd))
     estimate_ic = initial == "estimate"
     n_ic = sum(initial_sizes(orders)[1]) + initial_sizes(orders)[0] if estimate_ic else 0
     n_par = orders.n_parameters

@@ -34,7 +34,7 @@ same table above, and the Gauss–Newton matrix is the Schur complement
 
 Filtered Gram matrix
 --------------------
-The robust covariance (:mod:`servoid.estimate._pem_covariance`) needs
+The robust covariance (:mod:`servoid.estimate._covariance`) needs
 ``Ψ̃ᵀΨ̃`` with every column of Ψ filtered by ``1/A_v(q)``.  A causal filter
 from rest commutes with the delays that make the columns, so filtering
 the few base signals once and handing them to the same lagged-Gram plan

@@ -53,15 +53,22 @@ idea of Forssell & Ljung, "A projection method for closed-loop system
 identification", IEEE TAC 45(11), 2000); the regressors stay the measured
 u and y.
 
-**Covariance.**  ``σ̂²·(Σ φ̂_f φ̂_fᵀ)⁻¹`` with the filtered instruments at
-the estimate (Young 2011; Garnier, Gilson & Young 2008),
-σ̂² the variance of the output error y − Ĝu.  It assumes white output
-noise; with coloured noise SRIVC stays consistent but this covariance is
-not its own (the refined RIVC with a noise model would be).  For the
-closed-loop variant it is the instrumental-variable covariance
-``σ̂²·M⁻¹(Σφ̂_fφ̂_fᵀ)M⁻ᵀ``, M = Σ φ̂_f φ_fᵀ, which equals the former when the
-instruments are the noise-free part of the regressors (Söderström & Stoica,
-*Instrumental Variable Methods for System Identification*, Springer 1983).
+**Covariance.**  At the fixed point ``θ̂ − θ₀ ≈ B⁻¹ Σ_t φ̂_f(t) ε(t)``, ε
+the output error, so the covariance is the instrumental-variable sandwich
+``B⁻¹ [Σ_τ r_ε(τ) Σ_t φ̂_f(t) φ̂_f(t−τ)ᵀ] B⁻ᵀ`` (Söderström & Stoica,
+*Instrumental Variable Methods for System Identification*, Springer 1983,
+§4.3; Young 2011, §7.3), with ``B = Σ φ̂_f φ̂_fᵀ`` in open loop (the
+instruments are the output-error gradient, so this is the output-error
+covariance) and ``B = M = Σ φ̂_f φ_fᵀ`` in closed loop, where the
+instruments are the noise-free part of the regressors only in the limit.
+``covariance="white"`` takes ``r_ε(τ) = σ̂² δ(τ)``: ``σ̂²·(Σ φ̂_f φ̂_fᵀ)⁻¹``,
+resp. ``σ̂²·M⁻¹(Σφ̂_fφ̂_fᵀ)M⁻ᵀ`` (Young 2011; Garnier, Gilson & Young 2008),
+right only for white output noise.  SRIVC has no noise model, so with
+coloured noise its estimate stays consistent but that formula is not its
+covariance (×4 too small on the coloured test records); ``"robust"``, the
+default, estimates r_ε from an AR model of the output error (order by AIC)
+— the shared estimate of :mod:`servoid.estimate._covariance`, exactly
+the white formula when the residuals look white.
 
 **Scaling.**  Time is scaled internally by ω₀ [rad/s], the geometric mean
 of the starting model's pole magnitudes, so that the filters' coefficients
@@ -100,6 +107,14 @@ from .._errors import (
 )
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import TransferFunction
+from ._covariance import (
+    COVARIANCES,
+    Covariance,
+    CovarianceResult,
+    filtered_gram,
+    resolve,
+    sandwich_covariance,
+)
 from ._estimate import Estimate
 from ._hybrid import HOLDS, Hold, filter_bank
 from ._srivc_loop import fir_projection, loop_sensitivity, projection_order
@@ -142,6 +157,7 @@ class _Pass:
     g_iv: NDArray[np.float64]  # Σ φ̂_f (y_f^{(n)} − φ_fᵀθ)
     s_zz: NDArray[np.float64]  # Σ φ̂_f φ̂_fᵀ
     residuals: tuple[NDArray[np.float64], ...]  # y − x̂ per segment
+    instruments: tuple[NDArray[np.float64], ...]  # φ̂_f per segment, rows ζ(t)ᵀ
     merit: float  # Σ(y − x̂)² in open loop, Σ(y − Ĝû)² in closed loop
 
 
@@ -159,6 +175,7 @@ def fit_tf(
     max_iter: int = 50,
     tol: float = 1e-8,
     init: TransferFunction | None = None,
+    covariance: Covariance = "auto",
 ) -> Estimate:
     """Fit a continuous transfer function by SRIVC (or CLSRIVC).
 
@@ -197,6 +214,11 @@ def fit_tf(
     init : TransferFunction, optional
         Continuous starting model with n poles and at most m zeros; by
         default the best LSSVF estimate on a grid of filter bandwidths.
+    covariance : {"auto", "white", "robust"}
+        ``"white"`` assumes white output noise; ``"robust"`` is the
+        sandwich with the output error's own autocovariance, right for
+        coloured noise; ``"auto"`` is ``"robust"`` (SRIVC has no noise
+        model).  See the module notes.
 
     Returns
     -------
@@ -204,7 +226,10 @@ def fit_tf(
         ``model`` is the continuous :class:`~servoid.models.TransferFunction`
         with `delay`; ``parameters`` are ``b_m … b_0, a_1 … a_n`` as in the
         module formula (names ``"b2", "b1", "b0", "a1", "a2"`` for n = m = 2);
-        ``covariance`` is the SRIVC covariance (module notes);
+        ``covariance`` is the SRIVC covariance (module notes), and
+        ``options["covariance"]`` says which (``"white"`` or ``"robust"``),
+        ``options["covariance_ar_order"]`` the order of the residual AR
+        model (None for ``"white"``);
         ``noise_variance`` the output-error variance; ``model_function``
         maps θ to the model.  ``method`` is ``"srivc"`` or ``"clsrivc"``.
 
@@ -243,6 +268,8 @@ def fit_tf(
     problem, n_par, units, output_name = _setup(
         data, n_poles, n_zeros, delay, intersample, input, output, instrument, controller
     )
+    check_option("covariance", covariance, COVARIANCES)
+    cov_kind = resolve(covariance, noise_model=False)
     max_iter = as_int("max_iter", max_iter, minimum=1)
     tol = as_float("tol", tol, positive=True)
     n, m = problem.n, problem.m
@@ -282,10 +309,11 @@ def fit_tf(
     resid = final.residuals
     n_res = sum(e.size for e in resid)
     sse = float(sum(e @ e for e in resid))
-    sigma2 = sse / max(n_res - n_par, 1)
-    cov_scaled = _covariance(final, sigma2, problem.closed_loop)
+    dof = max(n_res - n_par, 1)
+    sigma2 = sse / dof
+    cov_result = _covariance(final, sigma2, dof, problem.closed_loop, cov_kind)
     params = theta * scale
-    cov = cov_scaled * np.outer(scale, scale)
+    cov = cov_result.covariance * np.outer(scale, scale)
     tau = problem.delay_s
 
     def model_function(th: NDArray[np.float64]) -> TransferFunction:
@@ -338,6 +366,8 @@ def fit_tf(
             "output": output_name,
             "time_scale": omega0,
             "segments": len(problem.segments),
+            "covariance": cov_result.kind,
+            "covariance_ar_order": cov_result.ar_order,
             **start,
         },
         units=units,
@@ -627,7 +657,7 @@ def _srivc_pass(problem: _Problem, theta: NDArray[np.float64], h: float,
     m_iv = np.zeros((n_par, n_par))
     g_iv = np.zeros(n_par)
     s_zz = np.zeros((n_par, n_par))
-    residuals = []
+    residuals, instruments = [], []
     merit = 0.0
     eye = np.eye(n + 1)
     ctl_model = _instrument_model(problem, theta, a_f, omega0)
@@ -653,7 +683,8 @@ def _srivc_pass(problem: _Problem, theta: NDArray[np.float64], h: float,
         g_iv += zeta.T @ resid
         s_zz += zeta.T @ zeta
         residuals.append(eps)
-    return _Pass(m_iv, g_iv, s_zz, tuple(residuals), merit)
+        instruments.append(zeta)
+    return _Pass(m_iv, g_iv, s_zz, tuple(residuals), tuple(instruments), merit)
 
 
 def _advance(
@@ -708,13 +739,20 @@ def _solve(m_iv: NDArray[np.float64], g: NDArray[np.float64],
     return np.linalg.solve(scaled, g / d) / d
 
 
-def _covariance(final: _Pass, sigma2: float, closed_loop: bool) -> NDArray[np.float64]:
-    d = np.sqrt(np.diag(final.s_zz))
-    s_inv = np.linalg.inv(final.s_zz / np.outer(d, d)) / np.outer(d, d)
-    if not closed_loop:
-        return sigma2 * s_inv
-    m_inv = np.linalg.inv(final.m_iv / np.outer(d, d)) / np.outer(d, d)
-    return sigma2 * m_inv @ final.s_zz @ m_inv.T
+def _covariance(final: _Pass, sigma2: float, dof: int, closed_loop: bool,
+                kind: str) -> CovarianceResult:
+    """The SRIVC sandwich covariance in scaled time.
+
+    ``B⁻¹·Σ_τ r̂_ε(τ)Σ_t φ̂_f(t)φ̂_f(t−τ)ᵀ·B⁻ᵀ`` (module notes): B is
+    Σφ̂_fφ̂_fᵀ in open loop (φ̂_f is the output-error gradient) and M in
+    closed loop; ε the output error y − x̂.
+    """
+
+    def gram(ar: NDArray[np.float64]) -> NDArray[np.float64]:
+        return final.s_zz if ar.size == 1 else filtered_gram(final.instruments, ar)
+
+    return sandwich_covariance(kind, final.m_iv if closed_loop else final.s_zz, sigma2, dof,
+                               lambda: final.residuals, gram, gram_bread=not closed_loop)
 
 
 # -- closed-loop instruments ---------------------------------------------------------------
