@@ -15,7 +15,7 @@ from ..models import TransferFunction
 from ._arx import HORIZON
 from ._lti import IdentificationResult, lti_result
 from ._options import boolean, choice, integer, optional, text
-from ._pem import SEARCH, orders_text
+from ._pem import COVARIANCE, SEARCH, orders_text
 from ._registry import Method, Option
 
 __all__ = ["CLIV", "INDIRECT", "TWO_STAGE", "controller_from_loop"]
@@ -46,7 +46,8 @@ def _run_cliv(spec: ExperimentSpec, options: Mapping[str, Any],
               truth: Mapping[str, float] | None) -> IdentificationResult:
     estimation, validations = spec.records()
     est = fit_cliv(estimation, options["na"], options["nb"], options["nk"],
-                   output=options["output"], iterations=options["iterations"])
+                   output=options["output"], iterations=options["iterations"],
+                   covariance=options["covariance"])
     est = _plant_input(est, estimation)
     title = f"plant by closed-loop IV ({orders_text(est.options, ('na', 'nb', 'nk'))})"
     return lti_result(spec, "cliv", est, title, validations, options, truth=truth,
@@ -137,6 +138,7 @@ CLIV = Method(
         Option("nb", 2, integer(minimum=1), "B coefficients"),
         Option("nk", 1, integer(minimum=0), "delay [samples]"),
         Option("iterations", 2, integer(minimum=1), "refined-IV passes"),
+        COVARIANCE,
         HORIZON,
     ),
     run=_run_cliv,

@@ -553,7 +553,7 @@ def _model_text(result: IdentificationResult) -> str:
         parts.append(f"Scaled condition number {o['condition']:.3g} ({o.get('solver')} route).")
     if "iterations" in o:
         parts.append(f"{o['iterations']} iterations.")
-    if o.get("covariance") == "robust":
+    if str(o.get("covariance", "")).startswith(("robust", "sandwich")):
         parts.append("The covariance allows for coloured residuals (sandwich with an AR model of "
                      "the residuals).")
     parts.append("Bode bands are ±2σ from the parameter covariance (delta method).")

@@ -13,7 +13,7 @@ from ._lti import IdentificationResult, fit_or_search, lti_result, n_inputs, ord
 from ._options import choice, integer, number, orders
 from ._registry import Method, Option
 
-__all__ = ["ARMAX", "BJ", "OE", "SEARCH", "orders_text", "search_options"]
+__all__ = ["ARMAX", "BJ", "COVARIANCE", "OE", "SEARCH", "orders_text", "search_options"]
 
 _LOWEST = {"na": 0, "nb": 1, "nc": 0, "nd": 0, "nf": 0, "nk": 0}
 _ORDERS = {"oe": ("nb", "nf", "nk"), "armax": ("na", "nb", "nc", "nk"),
@@ -22,6 +22,10 @@ _FITS: dict[str, Callable[..., Estimate]] = {"oe": fit_oe, "armax": fit_armax, "
 _TITLES = {"oe": "OE", "armax": "ARMAX", "bj": "BJ"}
 
 
+COVARIANCE = Option(
+    "covariance", "auto", choice(("auto", "white", "robust")),
+    "parameter covariance: robust allows for coloured residuals (auto: robust where the model "
+    "has no noise model of its own)")
 SEARCH = (
     Option("multistart", 0, integer(minimum=0), "extra random stable starts; the best wins"),
     Option("seed", 0, integer(minimum=0), "seed of the random starts"),
@@ -37,6 +41,7 @@ def search_options() -> tuple[Option, ...]:
                "initial conditions of the predictor: estimated (a record that does not start "
                "at rest) or zero"),
         *SEARCH,
+        COVARIANCE,
         Option("criterion", "aic", choice(("aic", "bic", "mdl", "fpe", "fit")),
                "order-search criterion (bic = mdl; fit: simulation fit on the validation data)"),
     )
@@ -50,7 +55,8 @@ def run(structure: str, spec: ExperimentSpec, options: Mapping[str, Any],
     fixed, grid = order_grid(options, keys, n_inputs(estimation, options["input"]))
     settings = {"input": options["input"], "output": options["output"],
                 "initial": options["initial"], "multistart": options["multistart"],
-                "rng": options["seed"], "max_iter": options["max_iter"], "tol": options["tol"]}
+                "rng": options["seed"], "max_iter": options["max_iter"], "tol": options["tol"],
+                "covariance": options["covariance"]}
     estimate, rows, edge = fit_or_search(_FITS[structure], estimation, validations[0], fixed,
                                          grid, options["criterion"], **settings)
     title = f"{_TITLES[structure]} ({orders_text(estimate.options, keys)})"

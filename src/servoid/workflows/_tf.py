@@ -13,6 +13,7 @@ from ._arx import HORIZON, OUTPUT
 from ._closedloop_any import controller_from_loop
 from ._lti import IdentificationResult, fit_or_search, lti_result, n_inputs, order_grid
 from ._options import choice, integer, number, optional, orders
+from ._pem import COVARIANCE
 from ._registry import Method, Option
 
 __all__ = ["TF"]
@@ -27,7 +28,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         if closed and "controller" in spec.loop else None
     settings = {"delay": options["delay"], "intersample": options["intersample"],
                 "output": options["output"], "max_iter": options["max_iter"],
-                "tol": options["tol"]}
+                "tol": options["tol"], "covariance": options["covariance"]}
     if closed:
         settings.update(instrument="r", controller=controller)
     fixed, grid = order_grid(options, ("n_poles", "n_zeros"), n_inputs(estimation, "u"))
@@ -46,11 +47,12 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
 
 def _fit(data: Experiment | ExperimentSet, n_poles: int, n_zeros: int | None = None, *,
          estimation_input: str, delay: float, intersample: str, output: str | None,
-         max_iter: int, tol: float, instrument: str | None = None,
+         max_iter: int, tol: float, covariance: str, instrument: str | None = None,
          controller: Any = None) -> Estimate:
     # explicit keywords: select_order passes `start` only to estimators that take it
     est = fit_tf(data, n_poles, n_zeros, delay=delay, intersample=intersample, output=output,
-                 max_iter=max_iter, tol=tol, instrument=instrument, controller=controller)
+                 max_iter=max_iter, tol=tol, instrument=instrument, controller=controller,
+                 covariance=covariance)
     # the registry's results name the input channel and its role like every other method
     return dataclasses.replace(est, options={**est.options, "input": "u",
                                              "inputs": [estimation_input]})
@@ -78,6 +80,7 @@ TF = Method(
                "\"r\": closed loop, the reference as instrument ([loop] controller if known)"),
         Option("max_iter", 50, integer(minimum=1), "most refined-IV iterations"),
         Option("tol", 1e-8, number(positive=True), "relative change that ends the iterations"),
+        COVARIANCE,
         Option("criterion", "aic", choice(("aic", "bic", "mdl", "fpe", "fit")),
                "order-search criterion (bic = mdl; fit: simulation fit on the validation data)"),
         HORIZON,
