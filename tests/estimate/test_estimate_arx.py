@@ -214,7 +214,7 @@ def test_missing_input_role():
 def test_several_outputs_need_output():
     rng = np.random.default_rng(0)
     exp = Experiment.from_arrays(DT, u=rng.normal(size=100), y=rng.normal(size=(100, 2)))
-    with pytest.raises(DataError, match=r"2 outputs \(y0, y1\); ARX fits one: pass output="):
+    with pytest.raises(DataError, match=r"2 outputs \(y0, y1\); the model fits one: pass output="):
         fit_arx(exp, 1, 1, 1)
     assert fit_arx(exp, 1, 1, 1, output="y1").options["output"] == "y1"
 

@@ -11,9 +11,11 @@ from numpy.typing import NDArray
 from scipy import signal as sps
 
 from .._checks import as_int
-from .._errors import DataError, IdentifiabilityError, ServoidWarning, check_option
+from .._errors import DataError, ServoidWarning, check_option
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import PolynomialModel
+from ._channels import check_not_constant
+from ._channels import output_name as _channel_output
 from ._estimate import Estimate
 from ._gram import lagged_gram
 from ._ls import LeastSquaresResult, LsMethod, lstsq, solve_gram
@@ -120,7 +122,7 @@ def fit_arx(
     input_names = first.names_of(input)
     if not input_names:
         first.signal(input)  # raises a DataError naming what exists
-    output_name = _output_name(first, output)
+    output_name = _channel_output(first, output)
     orders = ArxOrders(na, nb, nk, len(input_names))
     start = orders.max_lag if start is None else int(start)
     if start < orders.max_lag:
@@ -136,7 +138,7 @@ def fit_arx(
         )
     signals = [_signals(seg, output_name, input_names) for seg in segments]
     for k, name in enumerate(input_names, start=1):
-        _check_not_constant(name, [z[k] for z in signals])
+        check_not_constant(name, [z[k] for z in signals])
     names = _parameter_names(orders, input_names)
     sig, lag = orders.columns()
 
@@ -211,21 +213,6 @@ def fit_arx(
     )
 
 
-def _output_name(exp: Experiment, output: str | None) -> str:
-    outputs = exp.names_of("y")
-    if output is not None:
-        exp.channel(output)
-        return output
-    if not outputs:
-        exp.signal("y")
-    if len(outputs) > 1:
-        raise DataError(
-            f"the experiment has {len(outputs)} outputs ({', '.join(outputs)}); ARX fits one: "
-            "pass output=<name>"
-        )
-    return outputs[0]
-
-
 def _signals(
     seg: Experiment, output: str, inputs: Sequence[str]
 ) -> tuple[NDArray[np.float64], ...]:
@@ -261,18 +248,6 @@ def _equation_error(
     for i, (b, k) in enumerate(zip(b_list, nk, strict=True)):
         e -= sps.lfilter(np.concatenate([np.zeros(k), b]), [1.0], z[i + 1])
     return e
-
-
-def _check_not_constant(name: str, pieces: Sequence[NDArray[np.float64]]) -> None:
-    low = min(float(p.min()) for p in pieces)
-    high = max(float(p.max()) for p in pieces)
-    if high - low <= 1e-12 * max(abs(low), abs(high), 1e-300):
-        count = sum(p.size for p in pieces)
-        raise IdentifiabilityError(
-            f"input {name!r} is constant ({low:.6g} for all {count} samples): it "
-            "is not persistently exciting, so no dynamics can be identified. Excite the "
-            "system with a PRBS, multisine or chirp (servoid excite)"
-        )
 
 
 def _parameter_names(orders: ArxOrders, inputs: Sequence[str]) -> tuple[str, ...]:

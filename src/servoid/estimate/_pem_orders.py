@@ -19,7 +19,8 @@ from .._checks import as_int
 from .._errors import DataError, check_option
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import PolynomialModel
-from ._arx import _check_not_constant, _output_name, _per_input
+from ._arx import _per_input
+from ._channels import check_not_constant, output_name
 from ._pem_kernels import sum_squares
 
 __all__ = ["LARGEST_VALUE", "PemOrders", "Polys", "SignalData", "check_record", "prepare"]
@@ -205,7 +206,7 @@ def prepare(
     inputs = first.names_of(input)  # type: ignore[arg-type]
     if not inputs:
         first.signal(input)  # type: ignore[arg-type]  # raises a DataError naming what exists
-    out_name = _output_name(first, output)
+    out_name = output_name(first, output)
     refs: tuple[str, ...] = ()
     if with_reference:
         refs = first.names_of("r")
@@ -227,9 +228,9 @@ def prepare(
                 "double precision when squared. Rescale the channel (calibrate it to SI units)"
             )
     for k, name in enumerate(inputs):
-        _check_not_constant(name, [u[k] for u in us])
+        check_not_constant(name, [u[k] for u in us])
     for k, name in enumerate(refs):
-        _check_not_constant(name, [r[k] for r in rs])
+        check_not_constant(name, [r[k] for r in rs])
     return SignalData(ys, us, rs, tuple(inputs), out_name, tuple(refs), first.dt)
 
 

@@ -107,6 +107,8 @@ from .._errors import (
 )
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import TransferFunction
+from ._channels import check_not_constant
+from ._channels import output_name as channel_output
 from ._covariance import (
     COVARIANCES,
     Covariance,
@@ -414,7 +416,7 @@ def _setup(
     dt = segments[0].dt
     ctl = _check_controller(controller, dt) if controller is not None else None
     n_par = n + m + 1
-    output_name = _output_name(segments[0], output)
+    output_name = channel_output(segments[0], output)
     parts = []
     for seg in segments:
         u = seg.signal(input)  # type: ignore[arg-type]
@@ -441,9 +443,9 @@ def _setup(
             f"fit_tf with {n} poles and {m} zeros ({n_par} parameters) needs at least {need} "
             f"samples (and 4 per segment), got {n_total}; use a longer record or lower orders"
         )
-    _check_not_constant(input, [p[0] for p in parts])  # type: ignore[arg-type]
+    check_not_constant(input, [p[0] for p in parts])  # type: ignore[arg-type]
     if closed:
-        _check_not_constant("r", [p[2] for p in parts])  # type: ignore[misc]
+        check_not_constant("r", [p[2] for p in parts])  # type: ignore[misc]
     problem = _Problem(
         segments=tuple(_Segment(u, y, r, None) for u, y, r in parts),
         n=n, m=m, dt=dt, hold=intersample,  # type: ignore[arg-type]
@@ -472,29 +474,6 @@ def _check_controller(controller: object, dt: float) -> TransferFunction:
             "give the controller at the logging rate (c2d/d2c, or resample the data)"
         )
     return controller
-
-
-def _output_name(exp: Experiment, output: str | None) -> str:
-    if output is not None:
-        exp.channel(output)
-        return output
-    outputs = exp.names_of("y")
-    if not outputs:
-        exp.signal("y")
-    if len(outputs) > 1:
-        raise DataError(f"several outputs ({', '.join(outputs)}): pass output=<name>")
-    return outputs[0]
-
-
-def _check_not_constant(name: str, pieces: list[NDArray[np.float64]]) -> None:
-    low = min(float(p.min()) for p in pieces)
-    high = max(float(p.max()) for p in pieces)
-    if high - low <= 1e-12 * max(abs(low), abs(high), 1e-300):
-        raise IdentifiabilityError(
-            f"{name!r} is constant ({low:.6g} throughout): it does not excite the dynamics, so "
-            "no transfer function can be identified. Excite the system with a PRBS, multisine "
-            "or chirp (servoid excite)"
-        )
 
 
 def _from_init(init: object, n: int, m: int) -> NDArray[np.float64]:

@@ -17,7 +17,7 @@ from .._checks import as_bool, as_int
 from .._errors import DataError, IdentifiabilityError, ServoidWarning, check_option
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import StateSpace
-from ._arx import _check_not_constant
+from ._channels import check_not_constant
 from ._estimate import Estimate
 from ._ss_polynomial import oe_covariance, oe_parameters, oe_statespace
 from ._subspace_choice import (
@@ -260,7 +260,7 @@ def _prepare(segments: tuple[Experiment, ...], input: str, output: str | Sequenc
     m = len(inputs)
     signals = tuple(tuple(seg[name] for name in (*inputs, *outputs)) for seg in segments)
     for k, name in enumerate(inputs):
-        _check_not_constant(name, [z[k] for z in signals])
+        check_not_constant(name, [z[k] for z in signals])
     scale = _rms(signals, (*inputs, *outputs), m)
     uy = tuple((_columns(z[:m]), _columns(z[m:])) for z in signals)
     return _Data(signals, uy, scale, tuple(inputs), outputs,

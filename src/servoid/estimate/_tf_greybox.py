@@ -32,6 +32,7 @@ from .._errors import (
 )
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import TransferFunction
+from ._channels import output_name
 from ._estimate import Estimate
 
 __all__ = ["fit_tf_greybox"]
@@ -209,7 +210,7 @@ def fit_tf_greybox(
         status="ok",
         options={
             "input": input,
-            "output": _output_name(segments[0], output),
+            "output": output_name(segments[0], output),
             "transform": list(transform),
             "bounds": None if bounds is None else [np.asarray(b, float).tolist() for b in bounds],
             "theta0": theta0.tolist(),
@@ -241,25 +242,13 @@ def _bounds(
     return lo, hi
 
 
-def _output_name(exp: Experiment, output: str | None) -> str:
-    if output is not None:
-        exp.channel(output)
-        return output
-    outputs = exp.names_of("y")
-    if not outputs:
-        exp.signal("y")
-    if len(outputs) > 1:
-        raise DataError(f"several outputs ({', '.join(outputs)}): pass output=<name>")
-    return outputs[0]
-
-
 def _record(
     seg: Experiment, role: Literal["u", "r"], output: str | None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     u = seg.signal(role)
     if u.shape[1] != 1:
         raise DataError(f"the OE fit takes one {role!r} channel, got {u.shape[1]}")
-    return np.ascontiguousarray(u[:, 0]), seg[_output_name(seg, output)]
+    return np.ascontiguousarray(u[:, 0]), seg[output_name(seg, output)]
 
 
 def _check_model(model: object, dt: float) -> None:

@@ -1,0 +1,42 @@
+"""Channel checks the estimators share: the output to fit, an input that excites."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import DataError, IdentifiabilityError
+from ..data import Experiment
+
+__all__ = ["check_not_constant", "output_name"]
+
+
+def output_name(exp: Experiment, output: str | None) -> str:
+    """The output channel to fit: ``output`` (checked) or the only ``y`` channel."""
+    if output is not None:
+        exp.channel(output)
+        return output
+    outputs = exp.names_of("y")
+    if not outputs:
+        exp.signal("y")  # a DataError naming what the experiment has
+    if len(outputs) > 1:
+        raise DataError(
+            f"the experiment has {len(outputs)} outputs ({', '.join(outputs)}); the model fits "
+            "one: pass output=<name>"
+        )
+    return outputs[0]
+
+
+def check_not_constant(name: str, pieces: Sequence[NDArray[np.float64]]) -> None:
+    """Refuse a channel that is constant over every segment: it excites nothing."""
+    low = min(float(p.min()) for p in pieces)
+    high = max(float(p.max()) for p in pieces)
+    if high - low <= 1e-12 * max(abs(low), abs(high), 1e-300):
+        count = sum(p.size for p in pieces)
+        raise IdentifiabilityError(
+            f"input {name!r} is constant ({low:.6g} for all {count} samples): it "
+            "is not persistently exciting, so no dynamics can be identified. Excite the "
+            "system with a PRBS, multisine or chirp (servoid excite)"
+        )
