@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from servoid import DataError, OptionError
+from servoid import signals as servoid_signals
 from servoid.signals import (
     chirp,
     crest_factor,
@@ -153,3 +154,24 @@ def test_errors_are_value_errors_for_bad_values() -> None:
         prbs(40)
     with pytest.raises(ValueError):
         multisine(100, 1e-3, 10.0, 20.0, phases="x")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda: servoid_signals.prbs(31), r"2,147,483,647 samples .* raise max_samples"),
+        (lambda: servoid_signals.chirp(dt=1e-3, f0=1.0, f1=10.0, duration=1e9), r"chirp would have"),
+        (lambda: servoid_signals.multisine(100_000, 1e-3, 1.0, 10.0, periods=10_000), "multisine"),
+        (lambda: servoid_signals.random_binary(10**9, rng=0), "random binary"),
+        (lambda: servoid_signals.steps([0.0, 1.0], 10**9), "step sequence"),
+    ],
+)
+def test_a_signal_over_the_sample_budget_is_refused_before_allocation(call, match):
+    with pytest.raises(DataError, match=match):
+        call()
+
+
+def test_the_budget_can_be_raised_explicitly():
+    assert servoid_signals.prbs(10, max_samples=2000).n_samples == 1023
+    with pytest.raises(DataError, match="budget of 1,000"):
+        servoid_signals.prbs(10, max_samples=1000)

@@ -53,7 +53,8 @@ def test_identify_recovers_truth_and_writes_folder(rig):
     assert data["model"]["nk"] == [1]
     assert len(data["data_sha256"]) == 64
     assert {p.name for p in result.files} == {"results.json", "validation.png", "residuals.png",
-                                              "bode.png", "poles.png", "report.html"}
+                                              "bode.png", "poles.png", "report.html",
+                                              "manifest.json"}
 
 
 def test_identify_grid_search(rig):

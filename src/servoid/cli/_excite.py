@@ -60,6 +60,8 @@ def _common(p: argparse.ArgumentParser, json_flag: Callable[[argparse.ArgumentPa
     p.add_argument("--unit", default="V", help="unit of the channel (default: V)")
     p.add_argument("--out", type=Path, required=True, help="output file, .csv or .tdms")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    p.add_argument("--max-samples", type=int, default=200_000_000,
+                   help="refuse a longer signal (default: %(default)s, 1.6 GB as float64)")
     json_flag(p)
 
 
@@ -67,7 +69,7 @@ def _run_prbs(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..signals import prbs
 
     ex = prbs(args.register, clock=args.clock, amplitude=args.amplitude, offset=args.offset,
-              periods=args.periods, dt=args.dt)
+              periods=args.periods, dt=args.dt, max_samples=args.max_samples)
     return _write(ex, args)
 
 
@@ -76,7 +78,8 @@ def _run_multisine(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
     rng = args.seed if args.phases == "random" else None
     ex = multisine(args.period, args.dt, args.f_min, args.f_max, amplitude=args.amplitude,
-                   offset=args.offset, periods=args.periods, phases=args.phases, rng=rng)
+                   offset=args.offset, periods=args.periods, phases=args.phases, rng=rng,
+                   max_samples=args.max_samples)
     return _write(ex, args)
 
 
@@ -84,7 +87,8 @@ def _run_chirp(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..signals import chirp
 
     ex = chirp(dt=args.dt, f0=args.f0, f1=args.f1, duration=args.duration,
-               amplitude=args.amplitude, offset=args.offset, method=args.method)
+               amplitude=args.amplitude, offset=args.offset, method=args.method,
+               max_samples=args.max_samples)
     return _write(ex, args)
 
 

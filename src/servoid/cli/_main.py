@@ -92,6 +92,8 @@ def _parser() -> argparse.ArgumentParser:
                           "else <experiment>-results beside the TOML)")
     identify.add_argument("--overwrite", action="store_true",
                           help="replace results of an earlier run (inputs are never overwritten)")
+    identify.add_argument("--allow-outside", action="store_true",
+                          help="let [report] folder point outside the experiment file's folder")
     _json_flag(identify)
     identify.set_defaults(run=_run_identify)
 
@@ -140,5 +142,6 @@ def _run_methods(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 def _run_identify(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..workflows import identify
 
-    result = identify(args.experiment, args.out, overwrite=args.overwrite)
+    result = identify(args.experiment, args.out, overwrite=args.overwrite,
+                      allow_outside=args.allow_outside)
     return result.to_dict() | {"files": [str(f) for f in result.files]}, str(result)

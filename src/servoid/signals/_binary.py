@@ -14,7 +14,17 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .._errors import DataError
-from ._checks import RngLike, as_dt, as_float, as_int, as_rng, nyquist, rng_label
+from ._checks import (
+    MAX_SAMPLES,
+    RngLike,
+    as_dt,
+    as_float,
+    as_int,
+    as_rng,
+    check_samples,
+    nyquist,
+    rng_label,
+)
 from ._excitation import Excitation
 from ._lfsr import PRBS_TAPS, mls_bits
 
@@ -38,6 +48,8 @@ def prbs(
     periods: int = 1,
     dt: float = 1.0,
     seed_state: int | None = None,
+    *,
+    max_samples: int = MAX_SAMPLES,
 ) -> Excitation:
     """Maximum-length PRBS from an n-bit LFSR.
 
@@ -66,6 +78,8 @@ def prbs(
     seed_state : int, optional
         Initial register contents, 1..2**n - 1 (bit i is output bit i);
         default all ones. Other seeds give circular shifts of the sequence.
+    max_samples : int
+        Budget: a longer signal is refused before any memory is taken.
 
     Returns
     -------
@@ -92,6 +106,8 @@ def prbs(
     amplitude = as_float("amplitude", amplitude, positive=True)
     offset = as_float("offset", offset)
     periods = as_int("periods", periods)
+    check_samples((2**n - 1) * clock * periods, f"PRBS n = {n}, clock {clock}, {periods} "
+                  "period(s)", max_samples)
     dt = as_dt(dt)
     n_bits = (1 << n) - 1
     if seed_state is None:
@@ -130,6 +146,7 @@ def random_binary(
     dt: float = 1.0,
     *,
     rng: RngLike,
+    max_samples: int = MAX_SAMPLES,
 ) -> Excitation:
     """Random binary signal: fair coin flips held ``clock`` samples.
 
@@ -151,6 +168,8 @@ def random_binary(
         Sample period [s], > 0.
     rng : numpy.random.Generator or int
         Source of the bits, or a seed for one. Required: no global state.
+    max_samples : int
+        Budget: a longer signal is refused before any memory is taken.
 
     Returns
     -------
@@ -166,6 +185,7 @@ def random_binary(
     [-1.0, 1.0]
     """
     n_samples = as_int("n_samples", n_samples, minimum=2)
+    check_samples(n_samples, "the random binary signal", max_samples)
     clock = as_int("clock", clock, what=" (samples per bit)")
     amplitude = as_float("amplitude", amplitude, positive=True)
     offset = as_float("offset", offset)

@@ -17,17 +17,33 @@ from numpy.typing import ArrayLike, NDArray
 from .._errors import DataError, OptionTypeError
 
 __all__ = [
+    "MAX_SAMPLES",
     "RngLike",
     "as_dt",
     "as_float",
     "as_int",
     "as_rng",
     "as_signal",
+    "check_samples",
     "nyquist",
     "rng_label",
 ]
 
 RngLike = np.random.Generator | int | np.integer
+
+#: Longest signal a designer builds unless asked for more: 2e8 samples, 1.6 GB of float64.
+MAX_SAMPLES = 200_000_000
+
+
+def check_samples(n: int, what: str, max_samples: object) -> None:
+    """Refuse a signal of ``n`` samples beyond the ``max_samples`` budget."""
+    budget = as_int("max_samples", max_samples)
+    if n > budget:
+        raise DataError(
+            f"{what} would have {n:,} samples ({8 * n / 1e9:.3g} GB as float64), over the "
+            f"budget of {budget:,}; shorten it, or raise max_samples (--max-samples) if the "
+            "machine has the memory"
+        )
 
 
 def as_int(name: str, value: object, minimum: int = 1, what: str = "") -> int:

@@ -11,7 +11,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._errors import DataError, ServoidWarning, check_option
-from ._checks import RngLike, as_dt, as_float, as_int, as_rng, as_signal, nyquist, rng_label
+from ._checks import (
+    MAX_SAMPLES,
+    RngLike,
+    as_dt,
+    as_float,
+    as_int,
+    as_rng,
+    as_signal,
+    check_samples,
+    nyquist,
+    rng_label,
+)
 from ._excitation import Excitation
 
 __all__ = [
@@ -50,6 +61,8 @@ def multisine(
     per_decade: int = 10,
     scale: MultisineScale = "peak",
     rng: RngLike | None = None,
+    *,
+    max_samples: int = MAX_SAMPLES,
 ) -> Excitation:
     """Periodic sum of equal-amplitude cosines on a harmonic grid.
 
@@ -87,6 +100,8 @@ def multisine(
         What ``amplitude`` fixes.
     rng : numpy.random.Generator or int, optional
         Required for ``phases="random"``; otherwise unused.
+    max_samples : int
+        Budget: a longer signal is refused before any memory is taken.
 
     Returns
     -------
@@ -119,6 +134,8 @@ def multisine(
     amplitude = as_float("amplitude", amplitude, positive=True)
     offset = as_float("offset", offset)
     periods = as_int("periods", periods)
+    check_samples(period * periods, f"the multisine ({periods} period(s) of {period})",
+                  max_samples)
     check_option("phases", phases, _PHASES)
     check_option("harmonics", harmonics, _HARMONICS)
     check_option("scale", scale, _SCALES)
@@ -197,6 +214,7 @@ def chirp(
     amplitude: float = 1.0,
     offset: float = 0.0,
     method: ChirpMethod = "linear",
+    max_samples: int = MAX_SAMPLES,
 ) -> Excitation:
     """Swept sine from ``f0`` at t = 0 to ``f1`` at the last sample.
 
@@ -223,6 +241,8 @@ def chirp(
         Operating point [signal unit].
     method : {"linear", "logarithmic"}
         Frequency law; logarithmic spends equal time per octave.
+    max_samples : int
+        Budget: a longer signal is refused before any memory is taken.
 
     Returns
     -------
@@ -248,6 +268,7 @@ def chirp(
         if n_samples < 2:
             raise DataError(f"duration = {duration:g} s is under 2 samples of dt = {dt:g} s")
     n_samples = as_int("n_samples", n_samples, minimum=2)
+    check_samples(n_samples, "the chirp", max_samples)
     check_option("method", method, _CHIRP_METHODS)
     positive = method == "logarithmic"
     for name, f in (("f0", f0), ("f1", f1)):
@@ -281,6 +302,8 @@ def steps(
     hold_samples: int | Sequence[int],
     dt: float = 1.0,
     mirror: bool = False,
+    *,
+    max_samples: int = MAX_SAMPLES,
 ) -> Excitation:
     """Piecewise-constant sequence of levels (staircase, up-down).
 
@@ -297,6 +320,8 @@ def steps(
         Append the levels in reverse without repeating the last one, e.g.
         ``[0, 1, 2]`` becomes ``0, 1, 2, 1, 0`` (up-down test for
         hysteresis and backlash). Holds are mirrored with them.
+    max_samples : int
+        Budget: a longer signal is refused before any memory is taken.
 
     Returns
     -------
@@ -326,6 +351,7 @@ def steps(
     if not isinstance(mirror, bool):
         raise TypeError(f"mirror must be a bool, got {type(mirror).__name__}")
     hold_arr = np.asarray(holds)
+    check_samples(int(hold_arr.sum()) * (2 if mirror else 1), "the step sequence", max_samples)
     if mirror and level_arr.size > 1:
         level_arr = np.concatenate([level_arr, level_arr[-2::-1]])
         hold_arr = np.concatenate([hold_arr, hold_arr[-2::-1]])

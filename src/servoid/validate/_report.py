@@ -198,6 +198,11 @@ def validate(
     model = _one_output(discrete_model(model, experiment.dt, intersample), experiment, outputs[0])
     y = experiment[outputs[0]]
     u = experiment.signal(input)
+    if horizon >= y.size:
+        raise DataError(
+            f"horizon = {horizon} samples is not shorter than the {y.size}-sample validation "
+            "record; a k-step prediction needs k below the record length (a few samples is usual)"
+        )
     y_sim, first, initial_used = simulate_model(model, y, u, initial=initial,
                                                 transient=transient)
     if has_noise_model(model):

@@ -124,7 +124,9 @@ def residual_analysis(
         raise DataError(f"confidence must lie in (0, 1), got {confidence}")
     if max_lag < 1 or max_lag >= n // 2:
         raise DataError(f"max_lag must lie in [1, {n // 2 - 1}] for {n} residuals, got {max_lag}")
-    e = e - e.mean()
+    # correlations do not depend on scale: work on unit-scale data so that values near 1e160
+    # cannot overflow the products into inf and turn the tests into "white, p = 1"
+    e = _unit_scale(e - e.mean())
     auto = _xcorr(e, e, max_lag)[max_lag:]
     lags = np.arange(max_lag + 1)
     q = n * (n + 2) * np.sum(auto[1:] ** 2 / (n - lags[1:]))
@@ -135,6 +137,7 @@ def residual_analysis(
         p_indep = np.nan
     else:
         uu = np.asarray(u, dtype=float).reshape(n, -1)
+        uu = np.column_stack([_unit_scale(col - col.mean()) for col in uu.T])
         cross = np.vstack([_xcorr(col - col.mean(), e, max_lag) for col in uu.T])
         # Coloured residuals (an output-error model leaves the noise colour in them) widen the
         # spread of r_εu under the null; then the residuals' own correlation enters its
@@ -155,6 +158,11 @@ def _xcorr(a: NDArray[np.float64], b: NDArray[np.float64], max_lag: int) -> NDAr
     r = np.concatenate([full[nfft - max_lag :], full[: max_lag + 1]])
     norm = np.sqrt(np.dot(a, a) * np.dot(b, b))
     return r / norm if norm > 0 else np.zeros_like(r)
+
+
+def _unit_scale(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    peak = float(np.max(np.abs(x))) if x.size else 0.0
+    return x / peak if peak > 0 else x
 
 
 def _bartlett_autocorrelation(e: NDArray[np.float64], max_lag: int) -> NDArray[np.float64]:

@@ -1,20 +1,36 @@
-"""Identify from a TOML experiment file: spec → method → result → files."""
+"""Identify from a TOML experiment file: spec → method → result → files.
+
+A results folder is complete when its ``manifest.json`` — written last —
+lists every file with its SHA-256 and every file is there unchanged.  A
+folder with results but no complete manifest holds an interrupted run: its
+files are replaced without ``--overwrite`` (with a warning), and temporary
+files an earlier run left behind are swept first.
+"""
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
+import re
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from .._errors import OptionError, check_option
+from .. import __version__
+from .._errors import OptionError, ServoidWarning, check_option
 from ..data import ExperimentSpec, load_experiment_spec
-from ._common import check_outputs, report_options
+from ._common import check_outputs, report_options, sha256
 from ._methods import METHODS
 from ._registry import Identification, Method
 
-__all__ = ["get_method", "identify", "method_names", "write_results"]
+__all__ = ["MANIFEST", "get_method", "identify", "method_names", "write_results"]
+
+#: The file a complete run writes last.
+MANIFEST = "manifest.json"
+# what servoid._atomic names its temporary files: .<target>.<12 hex>.tmp
+_TEMPORARY = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp$")
 
 # [loop] describes the rig (what is known about its feedback) and may stay whatever the method;
 # a [validation] record that a method cannot use would be silently ignored, so it is refused.
@@ -45,6 +61,7 @@ def identify(
     overwrite: bool = False,
     write: bool = True,
     truth: Mapping[str, float] | None = None,
+    allow_outside: bool = False,
 ) -> Any:
     """Run the identification an experiment file describes.
 
@@ -67,6 +84,9 @@ def identify(
     truth : mapping, optional
         Known parameters to compare with (virtual-bench rehearsals);
         default ``[report] truth`` (a JSON file).
+    allow_outside : bool
+        Let ``[report] folder`` point outside the experiment file's folder
+        (the command line decides where outputs may go, not the TOML).
 
     Returns
     -------
@@ -80,7 +100,7 @@ def identify(
     options = method.parse(spec.identify)
     _check_tables(spec, method)
     report_options(spec.report)
-    folder = _folder(spec, out) if write else None
+    folder = _folder(spec, out, allow_outside) if write else None
     result = method.run(spec, options, truth)
     if folder is None:
         return result
@@ -89,11 +109,12 @@ def identify(
 
 def write_results(result: Identification, folder: str | os.PathLike[str], *,
                   overwrite: bool = False) -> Any:
-    """Write a result's figures, ``report.html`` and ``results.json``.
+    """Write a result's figures, ``report.html``, ``results.json`` and the manifest.
 
     Nothing is written until every target is known to be free (or
-    ``overwrite``) and none is an input of the run; ``results.json`` is
-    written last, so its presence marks a complete run.
+    ``overwrite``, or left by an interrupted run) and none is an input of
+    the run; ``manifest.json`` is written last, so a complete manifest
+    marks a complete run.
 
     Returns
     -------
@@ -103,16 +124,60 @@ def write_results(result: Identification, folder: str | os.PathLike[str], *,
     folder = Path(folder)
     figures = result.figures()
     targets = {name: folder / name for name in ("results.json", "report.html", *figures)}
-    check_outputs(list(targets.values()), list(result.inputs()), overwrite)
+    manifest = folder / MANIFEST
+    check_outputs([*targets.values(), manifest], list(result.inputs()), overwrite=True)
+    _sweep_temporary(folder)
+    left = [p for p in (*targets.values(), manifest) if p.exists()]
+    interrupted = bool(left) and not _complete(manifest)
+    if interrupted and not overwrite:
+        warnings.warn(f"{folder} holds an interrupted earlier run (no complete {MANIFEST}); its "
+                      "files are replaced", ServoidWarning, stacklevel=3)
+    check_outputs([*targets.values(), manifest], list(result.inputs()),
+                  overwrite or interrupted)
+    replace = overwrite or interrupted
     folder.mkdir(parents=True, exist_ok=True)
+    if replace and manifest.exists():
+        manifest.unlink()  # from here on the folder is incomplete until the new manifest lands
     for name, writer in figures.items():
-        writer(targets[name], overwrite)
+        writer(targets[name], replace)
     from ..report import write_html, write_json
 
-    write_html(result.page(targets), targets["report.html"], overwrite=overwrite)
-    write_json(result.to_dict(), targets["results.json"], overwrite=overwrite)
+    write_html(result.page(targets), targets["report.html"], overwrite=replace)
+    write_json(result.to_dict(), targets["results.json"], overwrite=replace)
+    write_json(_manifest(result, targets), manifest, overwrite=False)
     return dataclasses.replace(result, folder=folder,  # type: ignore[type-var]
-                               files=tuple(targets.values()))
+                               files=(*targets.values(), manifest))
+
+
+def _manifest(result: Identification, targets: Mapping[str, Path]) -> dict[str, Any]:
+    return {
+        "servoid_version": __version__,
+        "complete": True,
+        "files": [{"name": name, "bytes": path.stat().st_size, "sha256": sha256(path)}
+                  for name, path in targets.items()],
+        "inputs": [{"path": str(p), "sha256": sha256(p)} for p in result.inputs() if p.is_file()],
+    }
+
+
+def _complete(manifest: Path) -> bool:
+    """True when the manifest parses and every file it lists is there, unchanged."""
+    try:
+        doc = json.loads(manifest.read_text(encoding="utf-8"))
+        files = doc["files"]
+        return bool(doc.get("complete")) and all(
+            (manifest.parent / f["name"]).is_file()
+            and sha256(manifest.parent / f["name"]) == f["sha256"] for f in files)
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+
+
+def _sweep_temporary(folder: Path) -> None:
+    """Remove temporary files an interrupted earlier run left in ``folder``."""
+    if not folder.is_dir():
+        return
+    for path in folder.iterdir():
+        if _TEMPORARY.match(path.name) and path.is_file():
+            path.unlink()
 
 
 def _check_tables(spec: ExperimentSpec, method: Method) -> None:
@@ -125,12 +190,20 @@ def _check_tables(spec: ExperimentSpec, method: Method) -> None:
             )
 
 
-def _folder(spec: ExperimentSpec, out: str | os.PathLike[str] | None) -> Path:
+def _folder(spec: ExperimentSpec, out: str | os.PathLike[str] | None,
+            allow_outside: bool = False) -> Path:
     if out is not None:
         return Path(out)
     report = report_options(spec.report)
     base = spec.source.parent if spec.source else Path.cwd()
     if "folder" in report:
-        return base / report["folder"]
+        folder = base / report["folder"]
+        if not allow_outside and not folder.resolve().is_relative_to(base.resolve()):
+            raise OptionError(
+                f"[report] folder = {report['folder']!r} points outside the experiment file's "
+                f"folder ({base}); where outputs go outside it is the command line's choice: "
+                "pass --out <folder> (or --allow-outside)"
+            )
+        return folder
     stem = spec.source.stem if spec.source else "experiment"
     return base / f"{stem}-results"
