@@ -9,6 +9,7 @@ import numpy as np
 
 from ..models import TransferFunction
 from ._figures import new_figure, save_figure
+from ._text import plain
 
 __all__ = ["plot_bode", "plot_poles"]
 
@@ -45,7 +46,7 @@ def plot_bode(
     for k, (label, model) in enumerate(models.items()):
         h = model.freqresp(2 * np.pi * f)
         style = {"color": "black", "lw": 2.0, "alpha": 0.5} if k == 0 else {"lw": 1.2, "ls": "--"}
-        ax_m.semilogx(f, 20 * np.log10(np.abs(h)), label=label, **style)
+        ax_m.semilogx(f, 20 * np.log10(np.abs(h)), label=plain(label), **style)
         ax_p.semilogx(f, np.degrees(np.unwrap(np.angle(h))), **style)
     ax_m.set_ylabel("magnitude [dB]")
     ax_p.set_ylabel("phase [°]")
@@ -54,7 +55,7 @@ def plot_bode(
         ax.grid(alpha=0.3, which="both")
     ax_m.legend(fontsize=8)
     if title:
-        ax_m.set_title(title)
+        ax_m.set_title(plain(title))
     fig.tight_layout()
     save_figure(fig, path, overwrite)
 
@@ -71,7 +72,7 @@ def plot_poles(
     markers = "xo+^sd"
     for k, (label, model) in enumerate(continuous.items()):
         p = model.poles()
-        ax_s.plot(p.real, p.imag, markers[k % 6], ms=8, mfc="none", label=label)
+        ax_s.plot(p.real, p.imag, markers[k % 6], ms=8, mfc="none", label=plain(label))
     ax_s.axvline(0, color="0.4", lw=0.8)
     ax_s.axhline(0, color="0.4", lw=0.8)
     ax_s.set_xscale("symlog", linthresh=1.0)  # integrator, ω_hp and far poles on one axis
@@ -85,9 +86,10 @@ def plot_poles(
     for k, (label, model) in enumerate(discrete.items()):
         p = model.poles()
         z = model.zeros()
-        ax_z.plot(p.real, p.imag, markers[k % 6], ms=8, mfc="none", label=f"{label} poles")
+        ax_z.plot(p.real, p.imag, markers[k % 6], ms=8, mfc="none",
+                  label=f"{plain(label)} poles")
         if z.size:
-            ax_z.plot(z.real, z.imag, ".", ms=6, label=f"{label} zeros")
+            ax_z.plot(z.real, z.imag, ".", ms=6, label=f"{plain(label)} zeros")
     ax_z.set_aspect("equal")
     ax_z.set_xlabel("Re z")
     ax_z.set_ylabel("Im z")

@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._figures import new_figure, save_figure
+from ._text import plain
 
 __all__ = ["plot_bode_bands", "plot_pole_zero", "plot_singular_values"]
 
@@ -71,14 +72,14 @@ def plot_bode_bands(
         color = f"C{k}"
         mag, phase = band.magnitude_db, band.phase_deg
         f = band.frequency
-        ax_m.semilogx(f, mag, color=color, lw=1.3, label=f"{label} (±{sigmas:g}σ)")
+        ax_m.semilogx(f, mag, color=color, lw=1.3, label=f"{plain(label)} (±{sigmas:g}σ)")
         ax_m.fill_between(f, mag - sigmas * band.magnitude_std_db,
                           mag + sigmas * band.magnitude_std_db, color=color, alpha=0.2, lw=0)
         ax_p.semilogx(f, phase, color=color, lw=1.3)
         ax_p.fill_between(f, phase - sigmas * band.phase_std_deg,
                           phase + sigmas * band.phase_std_deg, color=color, alpha=0.2, lw=0)
     _limit(ax_m, ax_p, bands, measured)
-    ax_m.set_ylabel(f"magnitude [dB{' re 1 ' + unit if unit else ''}]")
+    ax_m.set_ylabel(f"magnitude [dB{' re 1 ' + plain(unit) if unit else ''}]")
     ax_p.set_ylabel("phase [°]")
     if coherence is not None:
         ax_c = axes[2]
@@ -91,7 +92,7 @@ def plot_bode_bands(
     axes[-1].set_xlabel("frequency [Hz]")
     ax_m.legend(fontsize=8, loc="best")
     if title:
-        ax_m.set_title(title)
+        ax_m.set_title(plain(title))
     fig.tight_layout()
     save_figure(fig, path, overwrite)
 
@@ -132,14 +133,15 @@ def plot_pole_zero(
         ax.axvline(0, color="0.6", lw=0.6)
         for k, (label, model) in enumerate(group.items()):
             p, z = _roots(model)
-            ax.plot(p.real, p.imag, "x", color=f"C{k}", ms=9, mew=1.6, label=f"{label} poles")
+            ax.plot(p.real, p.imag, "x", color=f"C{k}", ms=9, mew=1.6,
+                    label=f"{plain(label)} poles")
             if z.size:
                 ax.plot(z.real, z.imag, "o", color=f"C{k}", ms=7, mfc="none",
-                        label=f"{label} zeros")
+                        label=f"{plain(label)} zeros")
         unit = "" if plane == "z" else " [rad/s]"
         ax.set_xlabel(f"Re {plane}{unit}")
         ax.set_ylabel(f"Im {plane}{unit}")
-        ax.set_title(f"{plane}-plane" + (f": {title}" if title else ""))
+        ax.set_title(f"{plane}-plane" + (f": {plain(title)}" if title else ""))
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
