@@ -109,7 +109,7 @@ def identify(
 
 def write_results(result: Identification, folder: str | os.PathLike[str], *,
                   overwrite: bool = False) -> Any:
-    """Write a result's figures, ``report.html``, ``results.json`` and the manifest.
+    """Write a result's figures, report, results and manifest.
 
     Nothing is written until every target is known to be free (or
     ``overwrite``, or left by an interrupted run) and none is an input of
