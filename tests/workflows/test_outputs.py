@@ -42,12 +42,15 @@ def _snapshot(folder):
 
 
 def test_a_toml_folder_outside_is_the_command_lines_choice(rig):
-    path = _toml(rig, {"folder": "../../escape"})
+    inner = rig / "experiment"  # the TOML one level down, so "../x" stays in this test's folder
+    inner.mkdir()
+    (inner / "run.csv").write_bytes((rig / "run.csv").read_bytes())
+    path = _toml(inner, {"folder": "../escape"})
     with pytest.raises(OptionError, match=r"points outside .* pass --out"):
         identify(path)
-    assert not (rig.parent.parent / "escape").exists()
+    assert not (rig / "escape").exists()
     result = identify(path, allow_outside=True)
-    assert result.folder.resolve() == (rig.parent.parent / "escape").resolve()
+    assert result.folder.resolve() == (rig / "escape").resolve()
 
 
 def test_a_truth_file_in_the_results_folder_is_never_replaced(rig):
@@ -101,7 +104,10 @@ def test_a_prediction_horizon_beyond_the_record_is_refused(rig):
 
 
 def test_cli_allow_outside_flag(rig, capsys):
-    path = _toml(rig, {"folder": "../outside"})
+    inner = rig / "experiment"
+    inner.mkdir()
+    (inner / "run.csv").write_bytes((rig / "run.csv").read_bytes())
+    path = _toml(inner, {"folder": "../outside"})
     assert main(["identify", str(path)]) == 1
     assert "--allow-outside" in capsys.readouterr().err
     assert main(["identify", str(path), "--allow-outside"]) == 0
