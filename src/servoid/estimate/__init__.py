@@ -2,6 +2,12 @@
 
 from ._arx import ArxOrders, fit_arx
 from ._band import FrequencyBand, frequency_band
+from ._diagnostics import (
+    Identifiability,
+    IdentifiabilityFlag,
+    MultistartSummary,
+    check_identifiability,
+)
 from ._estimate import Estimate, ParameterRow
 from ._fit_frf import FrfWeighting, fit_frf
 from ._frf import FrfMethod, estimate_frf
@@ -38,15 +44,19 @@ __all__ = [
     "FrfWeighting",
     "GreyboxModel",
     "GreyboxParameter",
+    "Identifiability",
+    "IdentifiabilityFlag",
     "InnovationModel",
     "InverseDynamicsRegression",
     "LeastSquaresResult",
+    "MultistartSummary",
     "OrderCandidate",
     "OrderSelection",
     "ParameterRow",
     "RecursiveLeastSquaresResult",
     "StructureCandidate",
     "StructureSelection",
+    "check_identifiability",
     "estimate_frf",
     "filter_product",
     "fit_armax",

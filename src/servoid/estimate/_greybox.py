@@ -11,10 +11,15 @@ noise levels are given. It follows :func:`~servoid.estimate.fit_tf_greybox`:
 bounded trust-region reflective least squares (:func:`scipy.optimize.
 least_squares`) in transformed coordinates (``"log"``: θ > 0, relative
 steps), a finite, huge residual for a trial point whose simulation diverges
-(so the step is rejected instead of crashing the solver), and the
-covariance σ̂²(JᵀJ)⁻¹ from the solver's Jacobian at the optimum (free
-parameters only), with σ̂² = V/(N·p − n_free). With w_j = 1/σ_j the
-expected σ̂² is 1, so its value checks the stated noise levels.
+(so the step is rejected instead of crashing the solver), several starts
+on request, and a covariance from the solver's Jacobian J at the optimum
+(free parameters only): σ̂²(JᵀJ)⁻¹ with σ̂² = V/(N·p − n_free)
+(``"white"``), the sandwich with one residual AR model per channel
+(``"robust"``, the default) or the spread of refits on resampled
+residuals (``"bootstrap"``) — see :mod:`servoid.estimate._covariance`.
+With w_j = 1/σ_j the expected σ̂² is 1, so its value checks the stated
+noise levels.  The identifiability checks of
+:mod:`servoid.estimate._diagnostics` run on every fit.
 
 Simulation: fixed-step RK4 on the data's time grid with ``substeps`` steps
 per sample, the input held (``"zoh"``) or interpolated linearly
@@ -33,10 +38,26 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import integrate, optimize
 
-from .._errors import ConvergenceError, DataError, ServoidWarning, check_option
+from .._checks import as_int
+from .._errors import (
+    ConvergenceError,
+    DataError,
+    IdentifiabilityError,
+    ServoidWarning,
+    check_option,
+)
 from ..data import Experiment
+from ._covariance import (
+    GREYBOX_COVARIANCES,
+    CovarianceResult,
+    GreyboxCovariance,
+    bootstrap_covariance,
+    least_squares_covariance,
+    resolve,
+)
+from ._diagnostics import assess, draw_starts, summarise_starts, weakest_parameters
 from ._estimate import Estimate
-from ._tf_greybox import _inverse_normal
+from ._tf_greybox import _bootstrap_options, _bootstrap_result, _generator
 
 __all__ = ["GreyboxModel", "GreyboxParameter", "fit_greybox"]
 
@@ -50,6 +71,8 @@ Solver = Literal["trf", "dogbox", "lm"]
 
 #: residual for a diverged trial simulation: finite, so the solver rejects the step
 _PENALTY = 1e50
+#: Costs within this multiple of Σ(w·y)² are rounding: two starts there are at one minimum.
+_COST_FLOOR = 1e-24
 
 
 @dataclass(frozen=True)
@@ -130,6 +153,10 @@ def fit_greybox(
     max_nfev: int | None = None,
     tol: float = 1e-10,
     diff_step: float | None = None,
+    covariance: GreyboxCovariance = "auto",
+    multistart: int = 0,
+    n_bootstrap: int = 200,
+    rng: np.random.Generator | int | None = None,
 ) -> Estimate:
     """Fit physical parameters of an ODE model by output error.
 
@@ -185,13 +212,33 @@ def fit_greybox(
         RK4 and a compiled simulator (smooth in θ); √rtol for solve_ivp,
         whose step-size control makes the output jitter at the rtol level
         as θ moves — a √ε step would differentiate that jitter.
+    covariance : {"auto", "white", "robust", "bootstrap"}
+        ``"white"`` σ̂²(JᵀJ)⁻¹; ``"robust"`` the sandwich with one
+        residual AR model per output channel (coloured noise, and channel
+        noise levels other than the weights say); ``"bootstrap"`` the
+        spread of `n_bootstrap` refits on sieve-resampled residuals (drawn
+        at the same instants in every channel); ``"auto"`` is ``"robust"``.
+        See :mod:`servoid.estimate._covariance`.
+    multistart : int
+        Extra random starts, >= 0 (uniform between finite bounds, log-
+        uniform for log parameters; else within a factor 3 or ±50 % of the
+        start); the lowest cost wins.
+    n_bootstrap : int
+        Refits for ``covariance="bootstrap"``, >= 2.
+    rng : numpy.random.Generator or int, optional
+        Source of the random starts and resamples.
 
     Returns
     -------
     Estimate
-        Free parameters with covariance σ̂²(JᵀJ)⁻¹; ``model`` is a
+        Free parameters with the chosen covariance; ``model`` is a
         :class:`GreyboxModel` with all values; ``options`` hold the fixed
-        values, weights, per-channel residual RMS and the solver report.
+        values, weights, per-channel residual RMS, the solver report,
+        ``covariance`` (``"white"``, ``"robust"`` or ``"bootstrap"``),
+        ``covariance_ar_order`` (largest residual AR order; per channel in
+        ``covariance_ar_orders``), ``bootstrap`` and ``multistart`` when
+        used, and ``identifiability``
+        (:meth:`~servoid.estimate.Identifiability.to_dict`).
 
     Raises
     ------
@@ -202,14 +249,22 @@ def fit_greybox(
         The simulation diverges at the start or at the optimum, or the
         solver stops without meeting its tolerances.
     IdentifiabilityError
-        The Jacobian at the optimum is rank deficient.
+        The Jacobian at the optimum is rank deficient (to 1e-6 of its
+        column-normalised singular values); the message names the
+        parameters.
 
     Warns
     -----
     ServoidWarning
-        A parameter ends on one of its bounds.
+        A parameter ends on one of its bounds; an identifiability check
+        fails (:func:`~servoid.estimate.check_identifiability`).
     """
     check_option("integrator", integrator, ("rk4", "solve_ivp"))
+    check_option("covariance", covariance, GREYBOX_COVARIANCES)
+    multistart = as_int("multistart", multistart, minimum=0)
+    n_bootstrap = as_int("n_bootstrap", n_bootstrap, minimum=2)
+    kind = resolve(covariance, noise_model=False)
+    generator = _generator(rng) if multistart or kind == "bootstrap" else None
     check_option("hold", hold, ("zoh", "foh"))
     check_option("method", method, ("trf", "dogbox", "lm"))
     params = [_as_parameter(p) for p in parameters]
@@ -262,68 +317,131 @@ def fit_greybox(
         th[fidx] = np.where(is_log, np.exp(np.where(is_log, z, 0.0)), z)
         return th
 
-    def residuals(z: NDArray[np.float64]) -> NDArray[np.float64]:
-        yh = simulate_all(to_theta(z))
-        r = ((y - yh)[start:] * w).ravel(order="F")
-        r[~np.isfinite(r)] = _PENALTY
+    def raw_residuals(theta: NDArray[np.float64],
+                      y_data: NDArray[np.float64] = y) -> NDArray[np.float64]:
+        r = ((y_data - simulate_all(theta))[start:] * w).ravel(order="F")
+        r[~np.isfinite(r)] = np.nan
         return r
+
+    def residuals_for(y_data: NDArray[np.float64]) -> Callable[[NDArray[np.float64]],
+                                                               NDArray[np.float64]]:
+        def residuals(z: NDArray[np.float64]) -> NDArray[np.float64]:
+            r = raw_residuals(to_theta(z), y_data)
+            r[np.isnan(r)] = _PENALTY
+            return r
+
+        return residuals
 
     z0 = np.where(is_log, np.log(np.where(is_log, theta_all[fidx], 1.0)), theta_all[fidx])
     zlo, zhi = lo.copy(), hi.copy()
     with np.errstate(divide="ignore"):  # log 0 = −inf: no lower bound on log θ
         zlo[is_log] = np.log(np.maximum(lo[is_log], 0.0))
         zhi[is_log] = np.log(hi[is_log])
-    r0 = residuals(z0)
+    r0 = residuals_for(y)(z0)
     if np.any(r0 == _PENALTY):
         raise ConvergenceError(
             "the simulation diverges (non-finite output) at the start values "
             f"{dict(zip(names, theta_all.tolist(), strict=True))}; start from a stable model"
         )
     n_free = int(fidx.size)
+    free_names = tuple(names[k] for k in fidx)
     n_res = r0.size
     if n_res <= n_free:
         raise DataError(f"{n_free} free parameters need more than {n_free} residuals, got {n_res}")
     if diff_step is None and integrator == "solve_ivp" and simulate is None:
         rtol = float(dict(ivp_options or {}).get("rtol", 1e-8))
         diff_step = max(float(np.sqrt(np.finfo(float).eps)), float(np.sqrt(rtol)))
-    inside = np.clip(z0, np.nextafter(zlo, np.inf), np.nextafter(zhi, -np.inf))
-    res = optimize.least_squares(
-        residuals,
-        inside,
-        method=method,
-        bounds=(zlo, zhi) if method != "lm" else (-np.inf, np.inf),
-        x_scale="jac",
-        diff_step=diff_step,
-        xtol=tol,
-        ftol=tol,
-        gtol=tol,
-        max_nfev=max_nfev if max_nfev is not None else 100 * (n_free + 1),
-    )
+
+    def solve(z_start: NDArray[np.float64],
+              y_data: NDArray[np.float64] = y) -> optimize.OptimizeResult:
+        inside = np.clip(z_start, np.nextafter(zlo, np.inf), np.nextafter(zhi, -np.inf))
+        return optimize.least_squares(
+            residuals_for(y_data),
+            inside,
+            method=method,
+            bounds=(zlo, zhi) if method != "lm" else (-np.inf, np.inf),
+            x_scale="jac",
+            diff_step=diff_step,
+            xtol=tol,
+            ftol=tol,
+            gtol=tol,
+            max_nfev=max_nfev if max_nfev is not None else 100 * (n_free + 1),
+        )
+
+    starts = [z0]
+    if multistart:
+        assert generator is not None
+        starts += draw_starts(z0, zlo, zhi, is_log, multistart, generator)
+    results: list[optimize.OptimizeResult | None] = []
+    first_failure: ConvergenceError | None = None
+    for k, z_start in enumerate(starts):
+        res = solve(z_start)
+        failure = _failure(res, to_theta, names)
+        if failure is not None and not multistart:
+            raise failure
+        results.append(None if failure is not None else res)
+        if k == 0:
+            first_failure = failure
+    if all(q is None for q in results):
+        raise ConvergenceError(f"greybox: every one of the {len(starts)} starts failed; the "
+                               f"first: {first_failure}")
+    costs = [2.0 * q.cost if q is not None else np.inf for q in results]
+    res = results[int(np.argmin(costs))]
+    assert res is not None
     theta = to_theta(res.x)
     r = np.asarray(res.fun)
     jac = np.asarray(res.jac)
-    # a penalised residual inside the finite-difference Jacobian means a perturbation of the
-    # final point diverged: the optimum sits on the edge of the region where the model runs
-    if (
-        np.any(r == _PENALTY)
-        or not np.all(np.isfinite(jac))
-        or np.any(np.abs(jac) >= _PENALTY * 1e-10)
-    ):
-        raise ConvergenceError(
-            f"greybox: the simulation diverges at or next to the solver's final point "
-            f"{dict(zip(names, theta.tolist(), strict=True))}; the model is unstable there or "
-            "the integration is too coarse. Tighten the bounds, raise substeps or start closer"
+    dof = n_res - n_free
+    sigma2 = float(r @ r) / dof
+    n_s = n_res // n_out  # channel blocks: residuals are raveled channel by channel
+    jac_groups = [[jac[j * n_s:(j + 1) * n_s]] for j in range(n_out)]
+    err_groups = [[r[j * n_s:(j + 1) * n_s]] for j in range(n_out)]
+    cov_result = least_squares_covariance("white" if kind == "bootstrap" else kind,
+                                          jac_groups, err_groups, dof)
+    if cov_result.singular:
+        weak = weakest_parameters(jac, free_names)
+        raise IdentifiabilityError(
+            f"greybox: the outputs do not depend on the parameters independently (Jacobian "
+            f"rank deficient, weakest direction mostly {', '.join(map(repr, weak))}); fix or "
+            "remove a parameter"
         )
-    if res.status <= 0:
-        raise ConvergenceError(
-            f"greybox: the fit did not converge ({res.message.strip()}; {res.nfev} simulations, "
-            f"cost {res.cost:.4g}). Start closer, check the excitation, or raise max_nfev"
-        )
-    sigma2 = float(r @ r) / (n_res - n_free)
-    cov_z = _inverse_normal(jac, tuple(names[k] for k in fidx)) * sigma2
     d = np.where(is_log, theta[fidx], 1.0)  # dθ/dz
-    cov = cov_z * np.outer(d, d)
-    _warn_on_bounds(theta[fidx], lo, hi, [names[k] for k in fidx])
+    cov = cov_result.covariance * np.outer(d, d)
+    extra: dict[str, Any] = {}
+    if kind == "bootstrap":
+        assert generator is not None
+        fitted = simulate_all(theta)
+        z_hat = res.x
+
+        def refit(resampled: list[list[NDArray[np.float64]]]) -> NDArray[np.float64] | None:
+            y_star = fitted.copy()
+            for j, (e,) in enumerate(resampled):
+                y_star[start:, j] += e / w[j]
+            out = solve(z_hat, y_star)
+            if out.status <= 0 or np.any(np.asarray(out.fun) == _PENALTY):
+                return None
+            return to_theta(out.x)[fidx]
+
+        boot = bootstrap_covariance(err_groups, dof, refit, n_bootstrap, generator)
+        cov = _bootstrap_result(boot, n_bootstrap, "greybox")
+        cov_result = CovarianceResult(cov, False, "bootstrap", max(boot.ar_orders),
+                                      boot.ar_orders)
+        extra["bootstrap"] = _bootstrap_options(boot, n_bootstrap, free_names)
+    _warn_on_bounds(theta[fidx], lo, hi, list(free_names))
+    summary = None
+    if multistart:
+        summary = summarise_starts(
+            costs, [None if q is None else to_theta(q.x)[fidx] for q in results],
+            _COST_FLOOR * float(np.sum((y[start:] * w) ** 2)))
+        extra["multistart"] = summary.to_dict()
+
+    def free_residuals(theta_free: NDArray[np.float64]) -> NDArray[np.float64]:
+        th = theta.copy()
+        th[fidx] = theta_free
+        return raw_residuals(th)
+
+    ident = assess(free_residuals, theta[fidx], r, jac / d, cov, free_names,
+                   [[n_s]] * n_out, summary)
     per_channel = r.reshape(n_out, -1)
     channel_rms = (np.sqrt(np.mean(per_channel**2, axis=1)) / w).tolist()
     model = GreyboxModel(names, theta, tuple(bool(f) for f in free), simulate_all)
@@ -352,10 +470,45 @@ def fit_greybox(
             "cost": float(res.cost),
             "message": str(res.message),
             "solver_status": int(res.status),
+            "covariance": cov_result.kind,
+            "covariance_ar_order": cov_result.ar_order,
+            "covariance_ar_orders": None if cov_result.kind == "white" else
+            dict(zip(out_names, cov_result.ar_orders, strict=True)),
+            **extra,
+            "identifiability": ident.to_dict(),
         },
         units=tuple(params[k].unit for k in fidx),
         residual_function=lambda: r.copy(),
     )
+
+
+def _failure(
+    res: optimize.OptimizeResult,
+    to_theta: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    names: tuple[str, ...],
+) -> ConvergenceError | None:
+    """The error for a search that failed, or None."""
+    theta = to_theta(res.x)
+    r = np.asarray(res.fun)
+    jac = np.asarray(res.jac)
+    # a penalised residual inside the finite-difference Jacobian means a perturbation of the
+    # final point diverged: the optimum sits on the edge of the region where the model runs
+    if (
+        np.any(r == _PENALTY)
+        or not np.all(np.isfinite(jac))
+        or np.any(np.abs(jac) >= _PENALTY * 1e-10)
+    ):
+        return ConvergenceError(
+            f"greybox: the simulation diverges at or next to the solver's final point "
+            f"{dict(zip(names, theta.tolist(), strict=True))}; the model is unstable there or "
+            "the integration is too coarse. Tighten the bounds, raise substeps or start closer"
+        )
+    if res.status <= 0:
+        return ConvergenceError(
+            f"greybox: the fit did not converge ({res.message.strip()}; {res.nfev} simulations, "
+            f"cost {res.cost:.4g}). Start closer, check the excitation, or raise max_nfev"
+        )
+    return None
 
 
 def _as_parameter(p: GreyboxParameter | tuple[Any, ...]) -> GreyboxParameter:

@@ -4,9 +4,23 @@ The criterion is ``Σ_t (y(t) − G(q, θ̂) u(t))²`` with the model simulated
 from rest by :func:`scipy.signal.lfilter`; it is minimised by
 Levenberg–Marquardt (MINPACK, through :func:`scipy.optimize.least_squares`)
 or, with bounds, by a trust-region reflective method, in transformed
-coordinates (``log`` keeps a parameter positive and makes steps relative).
-The covariance is ``σ̂²·(JᵀJ)⁻¹`` from the solver's finite-difference
-Jacobian at the optimum, mapped back to θ.
+coordinates (``log`` keeps a parameter positive and makes steps relative),
+from the given start and ``multistart`` random ones (the lowest cost wins).
+
+Covariance (``covariance=``), from the solver's finite-difference Jacobian
+J at the optimum, mapped back to θ:
+
+* ``"white"``: ``σ̂²·(JᵀJ)⁻¹``, right when the output noise is white;
+* ``"robust"`` (``"auto"``): the sandwich ``(JᵀJ)⁻¹·Σ_τ r̂_ε(τ) Σ_t
+  J(t)J(t−τ)ᵀ·(JᵀJ)⁻¹`` with an AIC-chosen AR model of the residuals,
+  right for coloured noise (:mod:`servoid.estimate._covariance`); it is
+  the white formula when the residuals look white;
+* ``"bootstrap"``: the spread of B refits on ``ŷ(θ̂) + ε*`` with ε* an
+  autoregressive-sieve resample of the residuals (same module).
+
+Every fit also runs the identifiability checks of
+:mod:`servoid.estimate._diagnostics` and stores them in
+``options["identifiability"]``.
 """
 
 from __future__ import annotations
@@ -14,25 +28,37 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable, Sequence
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import optimize
 from scipy import signal as sps
 
+from .._checks import as_int
 from .._errors import (
     ConvergenceError,
     DataError,
     IdentifiabilityError,
     ModelError,
     OptionError,
+    OptionTypeError,
     ServoidWarning,
     check_option,
 )
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import TransferFunction
 from ._channels import output_name
+from ._covariance import (
+    GREYBOX_COVARIANCES,
+    BootstrapResult,
+    CovarianceResult,
+    GreyboxCovariance,
+    bootstrap_covariance,
+    least_squares_covariance,
+    resolve,
+)
+from ._diagnostics import assess, draw_starts, summarise_starts, weakest_parameters
 from ._estimate import Estimate
 
 __all__ = ["fit_tf_greybox"]
@@ -41,6 +67,8 @@ Transform = Literal["none", "log"]
 Solver = Literal["auto", "lm", "trf"]
 
 _PENALTY = 1e100  # residual for a diverged simulation: finite, so LM rejects the step
+#: Costs within this multiple of N·(rms y)² are rounding: two starts there are at one minimum.
+_COST_FLOOR = 1e-24
 
 
 def fit_tf_greybox(
@@ -59,6 +87,10 @@ def fit_tf_greybox(
     max_nfev: int | None = None,
     tol: float = 1e-10,
     method_name: str = "tf_greybox",
+    covariance: GreyboxCovariance = "auto",
+    multistart: int = 0,
+    n_bootstrap: int = 200,
+    rng: np.random.Generator | int | None = None,
 ) -> Estimate:
     """Fit physical parameters of a discrete transfer function by OE.
 
@@ -90,28 +122,62 @@ def fit_tf_greybox(
         ``"lm"`` = Levenberg–Marquardt (no bounds); ``"auto"`` picks "lm"
         without bounds and "trf" with them.
     max_nfev : int, optional
-        Limit on residual evaluations (default: 200·(n + 1)).
+        Limit on residual evaluations per start (default: 200·(n + 1)).
     tol : float
         Relative tolerance on cost, step and gradient.
     method_name : str
         Value of ``Estimate.method`` (callers building on this estimator
         name their method).
+    covariance : {"auto", "white", "robust", "bootstrap"}
+        ``"white"`` σ̂²(JᵀJ)⁻¹; ``"robust"`` the coloured-residual sandwich;
+        ``"bootstrap"`` the spread of `n_bootstrap` refits on resampled
+        residuals; ``"auto"`` is ``"robust"`` (output error has no noise
+        model, so its residuals keep the noise's colour).  Module notes.
+    multistart : int
+        Extra random starts, >= 0 (within a factor 3 of θ₀ for log
+        parameters, θ₀ ± 50 % otherwise, uniform between finite bounds);
+        the lowest cost wins and ``options["multistart"]`` says how many
+        starts reached it.
+    n_bootstrap : int
+        Refits for ``covariance="bootstrap"``, >= 2.
+    rng : numpy.random.Generator or int, optional
+        Source of the random starts and resamples (a seed for
+        reproducibility).
 
     Returns
     -------
     Estimate
-        ``model`` is ``model_fn(θ̂)``; ``covariance`` is ``σ̂²(JᵀJ)⁻¹``
-        in θ; ``options`` hold the solver report (nfev, cost, message).
+        ``model`` is ``model_fn(θ̂)``; ``covariance`` in θ as chosen;
+        ``options`` hold the solver report (nfev, cost, message),
+        ``covariance`` (``"white"``, ``"robust"`` or ``"bootstrap"``: what
+        the intervals use), ``covariance_ar_order`` (the residual AR order
+        of the robust sandwich or the bootstrap's sieve; None for white),
+        ``bootstrap`` (resamples, failures, percentile intervals) and
+        ``multistart`` when used, and ``identifiability``
+        (:meth:`Identifiability.to_dict`).
 
     Raises
     ------
     ConvergenceError
-        The solver stopped without meeting its tolerances.
+        The solver stopped without meeting its tolerances (from every start).
     IdentifiabilityError
-        The Jacobian at the optimum is rank deficient.
+        The Jacobian at the optimum is rank deficient (to 1e-6 of its
+        column-normalised singular values: below the finite differences'
+        accuracy); the message names the parameters.
+
+    Warns
+    -----
+    ServoidWarning
+        A parameter on a bound, an unstable model, and each failed
+        identifiability check (correlation, near-null direction, std above
+        the value or below the noise floor, a non-quadratic cost, local
+        minima).
     """
     check_option("input", input, ("u", "r"))
     check_option("solver", solver, ("auto", "lm", "trf"))
+    check_option("covariance", covariance, GREYBOX_COVARIANCES)
+    multistart = as_int("multistart", multistart, minimum=0)
+    n_bootstrap = as_int("n_bootstrap", n_bootstrap, minimum=2)
     theta0 = np.asarray(theta0, dtype=float).ravel()
     n = theta0.size
     names = tuple(names)
@@ -135,16 +201,20 @@ def fit_tf_greybox(
         raise OptionError("solver='lm' does not take bounds; use solver='auto' or 'trf'")
     chosen = ("lm" if bounds is None else "trf") if solver == "auto" else solver
     lo, hi = _bounds(bounds, n, is_log)
+    kind = resolve(covariance, noise_model=False)
+    generator = _generator(rng) if multistart or kind == "bootstrap" else None
 
     segments = as_segments(data)
     dt = segments[0].dt
     records = [_record(seg, input, output) for seg in segments]
     if start < 0 or any(u.size <= start + 1 for u, _ in records):
         raise DataError(f"start must be >= 0 and leave samples in every segment, got {start}")
-    n_res = sum(u.size - start for u, _ in records)
+    sizes = [u.size - start for u, _ in records]
+    n_res = sum(sizes)
     if n_res <= n:
         raise DataError(f"{n} parameters need more than {n} samples in the criterion, got {n_res}")
     _check_model(model_fn(theta0), dt)
+    measured = [y for _, y in records]
 
     def to_theta(z: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.where(is_log, np.exp(np.where(is_log, z, 0.0)), z)
@@ -154,50 +224,106 @@ def fit_tf_greybox(
         numq = np.concatenate([np.zeros(g.den.size - g.num.size), g.num])
         return [sps.lfilter(numq, g.den, u) for u, _ in records]
 
-    def residuals(z: NDArray[np.float64]) -> NDArray[np.float64]:
+    def raw_residuals(theta: NDArray[np.float64],
+                      ys: Sequence[NDArray[np.float64]] = measured) -> NDArray[np.float64]:
         with np.errstate(all="ignore"):
-            parts = [(y - yh)[start:] for (_, y), yh in zip(records, simulate(to_theta(z)),
-                                                             strict=True)]
+            parts = [(y - yh)[start:] for y, yh in zip(ys, simulate(theta), strict=True)]
             out = parts[0] if len(parts) == 1 else np.concatenate(parts)
-        out[~np.isfinite(out)] = _PENALTY
+        out[~np.isfinite(out)] = np.nan
         return out
 
-    z0 = np.where(is_log, np.log(np.where(is_log, theta0, 1.0)), theta0)
-    if chosen == "trf":
-        z0 = np.clip(z0, lo + 1e-12 * np.abs(lo), hi - 1e-12 * np.abs(hi))
-    res = optimize.least_squares(
-        residuals, z0, method=chosen, bounds=(lo, hi) if chosen == "trf" else (-np.inf, np.inf),
-        xtol=tol, ftol=tol, gtol=tol, x_scale=1.0,
-        max_nfev=max_nfev if max_nfev is not None else 200 * (n + 1),
-    )
-    if res.status <= 0 or not np.all(np.isfinite(res.x)):
-        raise ConvergenceError(
-            f"{method_name}: the output-error fit did not converge ({res.message.strip()}; "
-            f"{res.nfev} evaluations, cost {res.cost:.4g} from theta0 = {theta0.tolist()}). "
-            "Start closer (e.g. from the two-step indirect or an ARX estimate), check that "
-            "the input excites the model, or raise max_nfev"
+    def solve(z_start: NDArray[np.float64],
+              ys: Sequence[NDArray[np.float64]] = measured) -> optimize.OptimizeResult:
+        def residuals(z: NDArray[np.float64]) -> NDArray[np.float64]:
+            out = raw_residuals(to_theta(z), ys)
+            out[np.isnan(out)] = _PENALTY
+            return out
+
+        if chosen == "trf":
+            z_start = np.clip(z_start, lo + 1e-12 * np.abs(lo), hi - 1e-12 * np.abs(hi))
+        return optimize.least_squares(
+            residuals, z_start, method=chosen,
+            bounds=(lo, hi) if chosen == "trf" else (-np.inf, np.inf),
+            xtol=tol, ftol=tol, gtol=tol, x_scale=1.0,
+            max_nfev=max_nfev if max_nfev is not None else 200 * (n + 1),
         )
+
+    z0 = np.where(is_log, np.log(np.where(is_log, theta0, 1.0)), theta0)
+    starts = [z0]
+    if multistart:
+        assert generator is not None
+        starts += draw_starts(z0, lo, hi, is_log, multistart, generator)
+    results: list[optimize.OptimizeResult | None] = []
+    first_failure: ConvergenceError | None = None
+    for k, z_start in enumerate(starts):
+        res = solve(z_start)
+        failure = _failure(res, to_theta, theta0, method_name)
+        if failure is not None and not multistart:
+            raise failure
+        results.append(None if failure is not None else res)
+        if k == 0:
+            first_failure = failure
+    if all(r is None for r in results):
+        raise ConvergenceError(f"every one of the {len(starts)} starts failed; the first: "
+                               f"{first_failure}")
+    costs = [2.0 * r.cost if r is not None else np.inf for r in results]
+    k_best = int(np.argmin(costs))
+    res = results[k_best]
+    assert res is not None
     z = res.x
     r = np.asarray(res.fun)
-    if np.any(r == _PENALTY):
-        raise ConvergenceError(
-            f"{method_name}: the simulation diverges at the optimum θ = {to_theta(z).tolist()}; "
-            "the model is unstable there. Start from a stable model"
-        )
     theta = to_theta(z)
     # the solver's forward-difference Jacobian at x̂ (relative step √ε): accurate to ~1e-8,
     # ample for a covariance, and it saves 2n simulations
     jac = np.asarray(res.jac)
-    sigma2 = float(r @ r) / max(n_res - n, 1)
-    cov_z = _inverse_normal(jac, names) * sigma2
+    dof = max(n_res - n, 1)
+    sigma2 = float(r @ r) / dof
+    cuts = np.cumsum(sizes)[:-1]
     d = np.where(is_log, theta, 1.0)  # dθ/dz
-    cov = cov_z * np.outer(d, d)
+    cov_result = least_squares_covariance("white" if kind == "bootstrap" else kind,
+                                          [np.split(jac, cuts)], [np.split(r, cuts)], dof)
+    if cov_result.singular:
+        weak = weakest_parameters(jac, names)
+        raise IdentifiabilityError(
+            f"the output does not depend on the parameters independently (Jacobian rank "
+            f"deficient, weakest direction mostly {', '.join(map(repr, weak))}); fix or "
+            "remove a parameter"
+        )
+    cov = cov_result.covariance * np.outer(d, d)
+    options_extra: dict[str, Any] = {}
+    if kind == "bootstrap":
+        assert generator is not None
+        fitted = simulate(theta)
+
+        def refit(resampled: list[list[NDArray[np.float64]]]) -> NDArray[np.float64] | None:
+            ys = []
+            for yh, e in zip(fitted, resampled[0], strict=True):
+                y_star = yh.copy()
+                y_star[start:] += e
+                ys.append(y_star)
+            out = solve(z, ys)
+            if out.status <= 0 or np.any(np.asarray(out.fun) == _PENALTY):
+                return None
+            return to_theta(out.x)
+
+        boot = bootstrap_covariance([np.split(r, cuts)], dof, refit, n_bootstrap, generator)
+        cov = _bootstrap_result(boot, n_bootstrap, method_name)
+        cov_result = CovarianceResult(cov, False, "bootstrap", boot.ar_orders[0],
+                                      boot.ar_orders)
+        options_extra["bootstrap"] = _bootstrap_options(boot, n_bootstrap, names)
     model = model_fn(theta)
     _warn_on_bound(theta, bounds, names)
     _warn_if_unstable(model, method_name)
+    summary = None
+    if multistart:
+        y_rms2 = float(np.mean(np.concatenate(measured) ** 2))
+        summary = summarise_starts(costs, [None if q is None else to_theta(q.x) for q in results],
+                                   _COST_FLOOR * n_res * y_rms2)
+        options_extra["multistart"] = summary.to_dict()
+    ident = assess(raw_residuals, theta, r, jac / d, cov, names, [sizes], summary)
 
     def residual_function() -> NDArray[np.float64]:
-        return residuals(z)
+        return raw_residuals(theta)
 
     return Estimate(
         model=model,
@@ -221,6 +347,10 @@ def fit_tf_greybox(
             "optimality": float(res.optimality),
             "message": str(res.message),
             "solver_status": int(res.status),
+            "covariance": cov_result.kind,
+            "covariance_ar_order": cov_result.ar_order,
+            **options_extra,
+            "identifiability": ident.to_dict(),
         },
         units=units,
         residual_function=residual_function,
@@ -260,16 +390,71 @@ def _check_model(model: object, dt: float) -> None:
         )
 
 
-def _inverse_normal(jac: NDArray[np.float64], names: tuple[str, ...]) -> NDArray[np.float64]:
-    # SVD of J instead of inverting JᵀJ: squares nothing, exposes rank loss
-    _, s, vt = np.linalg.svd(jac, full_matrices=False)
-    if s.size == 0 or s[-1] <= s[0] * np.finfo(float).eps * max(jac.shape):
-        weak = names[int(np.argmax(np.abs(vt[-1])))] if s.size else "?"
-        raise IdentifiabilityError(
-            f"the output does not depend on the parameters independently (Jacobian rank "
-            f"deficient, weakest direction mostly {weak!r}); fix or remove a parameter"
+def _failure(
+    res: optimize.OptimizeResult,
+    to_theta: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    theta0: NDArray[np.float64],
+    method_name: str,
+) -> ConvergenceError | None:
+    """The error for a search that failed, or None."""
+    if res.status <= 0 or not np.all(np.isfinite(res.x)):
+        return ConvergenceError(
+            f"{method_name}: the output-error fit did not converge ({res.message.strip()}; "
+            f"{res.nfev} evaluations, cost {res.cost:.4g} from theta0 = {theta0.tolist()}). "
+            "Start closer (e.g. from the two-step indirect or an ARX estimate), check that "
+            "the input excites the model, or raise max_nfev"
         )
-    return (vt.T / s**2) @ vt
+    if np.any(np.asarray(res.fun) == _PENALTY):
+        return ConvergenceError(
+            f"{method_name}: the simulation diverges at the optimum "
+            f"θ = {to_theta(res.x).tolist()}; the model is unstable there. Start from a "
+            "stable model"
+        )
+    return None
+
+
+def _generator(rng: object) -> np.random.Generator:
+    if rng is None or isinstance(rng, np.random.Generator):
+        return np.random.default_rng(rng)
+    if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
+        if rng < 0:
+            raise DataError(f"rng seed must be >= 0, got {rng}")
+        return np.random.default_rng(int(rng))
+    raise OptionTypeError(
+        f"rng must be a numpy.random.Generator, an integer seed or None, got {type(rng).__name__}")
+
+
+def _bootstrap_result(boot: BootstrapResult, n_bootstrap: int, method: str) -> NDArray[np.float64]:
+    """The bootstrap covariance; warns on many failed refits."""
+    ok = boot.samples.shape[0]
+    if ok < 2:
+        raise ConvergenceError(
+            f"{method}: only {ok} of {n_bootstrap} bootstrap refits converged; no bootstrap "
+            "covariance. Use covariance='robust' or check the model"
+        )
+    if boot.failed > 0.1 * n_bootstrap:
+        warnings.warn(
+            f"{method}: {boot.failed} of {n_bootstrap} bootstrap refits failed and were left "
+            "out; the bootstrap covariance may understate the spread (the failures are the "
+            "resamples the model fits worst)",
+            ServoidWarning,
+            stacklevel=3,
+        )
+    return boot.covariance
+
+
+def _bootstrap_options(boot: BootstrapResult, n_bootstrap: int,
+                       names: Sequence[str]) -> dict[str, Any]:
+    """JSON-friendly summary: resamples, failures, sieve order, percentile intervals."""
+    lo, hi = np.percentile(boot.samples, [2.5, 97.5], axis=0)
+    return {
+        "method": "ar-sieve",
+        "resamples": int(n_bootstrap),
+        "failed": int(boot.failed),
+        "ar_orders": list(boot.ar_orders),
+        "percentile_95": {nm: [float(a), float(b)]
+                          for nm, a, b in zip(names, lo, hi, strict=True)},
+    }
 
 
 def _warn_on_bound(

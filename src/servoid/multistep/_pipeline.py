@@ -29,9 +29,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from .._errors import DataError, IdentifiabilityError, ServoidWarning, check_option
 from ..actuators import PneumaticParameters, PositionController
 from ..data import Experiment
+from ..estimate._covariance import GREYBOX_COVARIANCES, GreyboxCovariance
 from ..estimate._svf import Hold
 from ._common import MDOT_LIMIT, Derivatives, KnownConstants, StepResult, check_derivatives
 from ._flow import identify_critical_pressure, identify_flow
@@ -189,6 +192,8 @@ def identify_multistep(
     thermo_omega_f: float = 2 * math.pi * 30.0,
     friction_omega_f: float = 2 * math.pi * 400.0,
     refine_max_nfev: int | None = None,
+    refine_covariance: GreyboxCovariance = "auto",
+    rng: np.random.Generator | int | None = None,
 ) -> MultistepResult:
     """Identify the servopneumatic model step by step (S0–S6).
 
@@ -235,6 +240,10 @@ def identify_multistep(
         it is no staircase: "zoh" biases ω_v by +1.3 % at 10 kHz).
     refine_max_nfev : int, optional
         Limit on simulations of the refinement.
+    refine_covariance : {"auto", "white", "robust", "bootstrap"}
+        Covariance of the refined parameters (:func:`refine_parameters`).
+    rng : numpy.random.Generator or int, optional
+        Source of the refinement's bootstrap resamples.
 
     Returns
     -------
@@ -249,6 +258,7 @@ def identify_multistep(
         A step cannot determine its parameters (e.g. a flow edge).
     """
     check_derivatives(derivatives)
+    check_option("refine_covariance", refine_covariance, GREYBOX_COVARIANCES)
     if not isinstance(known, KnownConstants):
         raise TypeError(f"known must be KnownConstants, got {type(known).__name__}")
     if not isinstance(records, Mapping):
@@ -312,7 +322,8 @@ def identify_multistep(
         free = None if refine is True else list(refine)
         refinement = refine_parameters(records[refine_record], params, free=free,
                                        controller=controller, max_nfev=refine_max_nfev,
-                                       name=refine_record)
+                                       name=refine_record, covariance=refine_covariance,
+                                       rng=rng)
         refined_validation = compare_record(refinement.parameters, records["validation"],
                                             controller, mdot_limit=mdot_limit,
                                             name="validation")
