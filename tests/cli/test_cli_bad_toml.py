@@ -94,7 +94,8 @@ CASES = [
     ("prefilter-negative", "rig", [("identify", "prefilter", "-5.0")], {},
      "[identify] prefilter must be > 0 Hz, got -5"),
     ("discretization-int", "rig", [("identify", "discretization", "1")], {},
-     "[identify] discretization must be one of 'tustin', 'prewarp', 'zoh'; got 1"),
+     "[identify] discretization must be one of 'auto', 'tustin', 'prewarp', 'zoh', 'foh', "
+     "'bandlimited'; got 1"),
     ("loop-c-bool", "rig", [("loop", "c", "true")], {},
      "[loop] c must be a number, got True (bool)"),
     ("loop-c-nan", "rig", [("loop", "c", "nan")], {}, "[loop] c must be finite, got nan"),

@@ -2,6 +2,7 @@
 
 from ._csv import read_csv, write_csv
 from ._experiment import ROLES, Channel, Experiment, ExperimentSet, Role, as_segments
+from ._intersample import IntersampleCheck, detect_intersample
 from ._io import FORMATS, Format, read_experiment
 from ._mat import read_mat
 from ._preprocess import calibrate, decimate, detrend, filter, lowpass, split, split_periods
@@ -9,6 +10,7 @@ from ._spec import (
     ChannelSpec,
     ExperimentSpec,
     PreprocessSpec,
+    RigSpec,
     SplitSpec,
     ValidationSpec,
     load_experiment_spec,
@@ -25,13 +27,16 @@ __all__ = [
     "ExperimentSet",
     "ExperimentSpec",
     "Format",
+    "IntersampleCheck",
     "PreprocessSpec",
+    "RigSpec",
     "Role",
     "SplitSpec",
     "ValidationSpec",
     "as_segments",
     "calibrate",
     "decimate",
+    "detect_intersample",
     "detrend",
     "filter",
     "load_experiment_spec",

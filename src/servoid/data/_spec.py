@@ -41,9 +41,20 @@ Schema::
     period = 2047             # whole excitation periods [samples after decimation]
     skip_periods = 0          # leading periods to drop before splitting (needs period)
 
+    [rig]                     # what the rig did to the signals before they were logged
+    anti_alias = {order = 4, cutoff = 1000.0}  # analog Butterworth before the ADC [Hz]
+    reference = "command"     # command | readback: r is the DAC command as written (a
+                              # staircase: decimation subsamples it, no filter) or read back
+                              # through the same anti-alias filter and ADC as y
+
     [loop]                    # free-form: what is known about the feedback loop
     [identify]                # free-form: which models to fit
     [report]                  # free-form: e.g. the output folder
+
+The ``[rig]`` table lets the estimators model the rig exactly: a one-step
+closed-loop fit of a ``"command"`` reference includes the declared
+anti-alias filter and servoid's decimation FIR on the output; a
+``"readback"`` reference shares them with the output, so they cancel.
 
 Free-form tables hold strings, numbers, booleans, arrays of these, and
 tables of these one level deep; they are returned read-only.
@@ -63,6 +74,8 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Literal
 
+import numpy as np
+
 from .._atomic import atomic_path
 from .._errors import ChannelError, FileFormatError, OptionError, check_option
 from ._columns import existing_file
@@ -75,6 +88,7 @@ __all__ = [
     "ChannelSpec",
     "ExperimentSpec",
     "PreprocessSpec",
+    "RigSpec",
     "SplitSpec",
     "ValidationSpec",
     "load_experiment_spec",
@@ -83,13 +97,17 @@ __all__ = [
 
 DetrendSpec = Literal["none", "mean", "linear"]
 _DETRENDS: tuple[DetrendSpec, ...] = ("none", "mean", "linear")
-_TOP_KEYS = ("data", "channels", "preprocess", "split", "validation", "loop", "identify",
-             "report")
+_TOP_KEYS = ("data", "channels", "preprocess", "split", "validation", "rig", "loop",
+             "identify", "report")
 _DATA_KEYS = ("file", "format", "group", "time", "dt")
 _CHANNEL_KEYS = ("source", "role", "gain", "offset", "unit", "limits")
 _VALIDATION_KEYS = ("file", "initial", "transient")
 _INITIALS = ("auto", "estimate", "zero", "measured")
 _PREPROCESS_KEYS = ("lowpass", "decimate", "detrend")
+_RIG_KEYS = ("anti_alias", "reference")
+_ANTI_ALIAS_KEYS = ("order", "cutoff")
+RigReference = Literal["command", "readback"]
+_RIG_REFERENCES: tuple[RigReference, ...] = ("command", "readback")
 _SPLIT_KEYS = ("fraction", "index", "period", "skip_periods")
 _FREE_KEYS = ("loop", "identify", "report")
 _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
@@ -169,6 +187,43 @@ class SplitSpec:
 
 
 @dataclass(frozen=True)
+class RigSpec:
+    """What the rig did to the signals before they were logged.
+
+    Parameters
+    ----------
+    anti_alias_order : int or None
+        Order of the analog Butterworth anti-alias filter before the ADC.
+    anti_alias_cutoff : float or None
+        Its -3 dB frequency [Hz].
+    reference : {"command", "readback"} or None
+        ``"command"``: the r channel is the DAC command as written (a
+        staircase; on decimation it is subsampled, not filtered);
+        ``"readback"``: r went through the same filter and ADC as y.
+        None: not declared.
+    """
+
+    anti_alias_order: int | None = None
+    anti_alias_cutoff: float | None = None
+    reference: RigReference | None = None
+
+    @property
+    def is_declared(self) -> bool:
+        """True when the experiment file has a ``[rig]`` table."""
+        return self != RigSpec()
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``[rig]`` table (empty when nothing is declared)."""
+        out: dict[str, Any] = {}
+        if self.anti_alias_order is not None:
+            out["anti_alias"] = {"order": self.anti_alias_order,
+                                 "cutoff": self.anti_alias_cutoff}
+        if self.reference is not None:
+            out["reference"] = self.reference
+        return out
+
+
+@dataclass(frozen=True)
 class ValidationSpec:
     """Separate validation records and how to simulate on them.
 
@@ -212,6 +267,8 @@ class ExperimentSpec:
         Estimation/validation split.
     validation : ValidationSpec
         Separate validation records (then no split).
+    rig : RigSpec
+        The rig's anti-alias filter and how the reference was logged.
     files : tuple of str
         Every estimation file (``file`` is the first); several make an
         estimation set.
@@ -232,6 +289,7 @@ class ExperimentSpec:
     preprocess: PreprocessSpec = PreprocessSpec()
     split: SplitSpec = SplitSpec()
     validation: ValidationSpec = ValidationSpec()
+    rig: RigSpec = RigSpec()
     files: tuple[str, ...] = ()
     loop: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     identify: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
@@ -305,16 +363,25 @@ class ExperimentSpec:
                 f"{origin}: [data] names {len(files)} estimation files but no validation "
                 "record; add [validation] file = \"<record>\""
             )
+        preprocess = _preprocess(origin, table.get("preprocess", {}))
+        rig = _rig(origin, table.get("rig", {}))
+        if rig.reference == "command" and preprocess.lowpass is not None:
+            raise FileFormatError(
+                f"{origin}: [preprocess] lowpass would filter the logged command that [rig] "
+                "reference = \"command\" declares a staircase, and no model of the rig covers "
+                "that filter; remove lowpass (decimation keeps the command exact)"
+            )
         return cls(
             file=file,
             files=files,
             validation=validation,
+            rig=rig,
             format=fmt,
             channels=channels,
             group=group,
             time=time,
             dt=dt,
-            preprocess=_preprocess(origin, table.get("preprocess", {})),
+            preprocess=preprocess,
             split=_split(origin, table.get("split", {})),
             loop=_free(origin, "loop", table.get("loop", {})),
             identify=_free(origin, "identify", table.get("identify", {})),
@@ -378,6 +445,8 @@ class ExperimentSpec:
                 out["validation"]["initial"] = val.initial
             if val.transient:
                 out["validation"]["transient"] = val.transient
+        if self.rig.is_declared:
+            out["rig"] = self.rig.to_dict()
         for key in _FREE_KEYS:
             if getattr(self, key):
                 out[key] = _thaw(getattr(self, key))
@@ -434,10 +503,39 @@ class ExperimentSpec:
         if pre.lowpass is not None:
             exp = lowpass(exp, pre.lowpass, zero_phase=True)
         if pre.decimate > 1:
-            exp = decimate(exp, pre.decimate)
+            exp = self._decimated(exp, path)
         if detrend and pre.detrend != "none":
             exp = _detrend(exp, pre.detrend)
         return exp
+
+    def _decimated(self, exp: Experiment, path: Path) -> Experiment:
+        """Decimate; a logged command (``[rig] reference = "command"``) is subsampled."""
+        q = self.preprocess.decimate
+        if self.rig.reference != "command":
+            return decimate(exp, q)
+        commands = [ch for ch in exp.channels if ch.role == "r"]
+        for ch in commands:
+            values = ch.values
+            blocks = values[: values.size - values.size % q].reshape(-1, q)
+            if np.any(blocks != blocks[:, :1]):
+                k = int(np.argmax(np.any(blocks != blocks[:, :1], axis=1)))
+                raise FileFormatError(
+                    f"{path}: [rig] reference = \"command\" declares {ch.name!r} a DAC command "
+                    f"held over each decimated period, but it changes within samples "
+                    f"{k * q}…{k * q + q - 1} (decimate = {q}): the command is not held at the "
+                    "decimated rate, or is not aligned to it; declare reference = \"readback\" "
+                    "to filter it like the output"
+                )
+        others = decimate(exp.drop(*(ch.name for ch in commands)), q) if len(commands) < len(
+            exp.channels) else None
+        channels = []
+        for ch in exp.channels:
+            if ch.role == "r":
+                channels.append(ch.with_values(ch.values[::q]))
+            else:
+                assert others is not None
+                channels.append(others.channel(ch.name))
+        return exp.replace_channels(channels, dt=exp.dt * q)
 
     def split_data(self, exp: Experiment | None = None) -> tuple[Experiment, Experiment]:
         """Estimation and validation parts as set in ``[split]``.
@@ -745,6 +843,25 @@ def _preprocess(origin: str, table: Any) -> PreprocessSpec:
     )
 
 
+def _rig(origin: str, table: Any) -> RigSpec:
+    _check_keys(origin, "[rig]", table, _RIG_KEYS)
+    where = f"{origin}: [rig]"
+    order = cutoff = None
+    if "anti_alias" in table:
+        aa = table["anti_alias"]
+        _check_keys(origin, "[rig] anti_alias", aa, _ANTI_ALIAS_KEYS,
+                    required=_ANTI_ALIAS_KEYS)
+        order = _integer(f"{where} anti_alias", "order", aa["order"], 1)
+        if order > 10:
+            raise FileFormatError(f"{where} anti_alias order must be an analog Butterworth "
+                                  f"order 1..10, got {order}")
+        cutoff = _positive(f"{where} anti_alias", "cutoff", aa["cutoff"])
+    reference = table.get("reference")
+    if reference is not None:
+        check_option(f"{where} reference", reference, _RIG_REFERENCES)
+    return RigSpec(order, cutoff, reference)
+
+
 def _split(origin: str, table: Any) -> SplitSpec:
     _check_keys(origin, "[split]", table, _SPLIT_KEYS)
     where = f"{origin}: [split]"
@@ -807,7 +924,7 @@ def _emit_document(doc: Mapping[str, Any]) -> str:
     parts = [_emit_table(["data"], doc["data"])]
     for name, entry in doc["channels"].items():
         parts.append(_emit_table(["channels", name], entry))
-    for key in ("preprocess", "split", "validation", *_FREE_KEYS):
+    for key in ("preprocess", "split", "validation", "rig", *_FREE_KEYS):
         if key in doc:
             parts.append(_emit_table([key], doc[key]))
     return "\n".join(parts)
