@@ -45,7 +45,8 @@ def library_errors(path: Path, what: str) -> Iterator[None]:
         raise
     except Exception as exc:
         raise FileFormatError(
-            f"{path}: cannot be read as {what} ({type(exc).__name__}: {exc})"
+            f"{path}: cannot be read as {what} ({type(exc).__name__}: {exc}); if it is one, it "
+            "is damaged: copy or export it again"
         ) from exc
 
 

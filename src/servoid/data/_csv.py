@@ -9,6 +9,18 @@ Layout read and written::
 A header cell ``name [unit]`` gives the channel name and its unit. Blank
 lines and lines starting with ``#`` before the header or among the data are
 skipped.
+
+A file cut short inside its last number still parses: ``0.12345`` becomes
+``0.12``, ``1.5e-05`` becomes ``1.5e-0``. So a last data line without a line
+end is compared with the lines above it: fewer fields than the header, or a
+last value written shorter than the column's format (fewer decimals or
+exponent digits than every value above it in a fixed format, fewer
+characters than every value above it otherwise; at least five lines above,
+at most the last thousand) is a
+:class:`FileFormatError`. An error rather than a warning and a dropped
+line: the check is a heuristic, and a sample silently lost to a false alarm
+is worse than a message whose fix (end the file with a newline) takes a
+second.
 """
 
 from __future__ import annotations
@@ -30,6 +42,13 @@ from ._experiment import Experiment
 __all__ = ["read_csv", "write_csv"]
 
 _HEADER_CELL = re.compile(r"^\s*(?P<name>.*?)\s*(?:\[(?P<unit>[^\]]*)\])?\s*$")
+# Sign, integer digits, decimals, exponent digits of a number as written.
+_NUMBER_SHAPE = re.compile(
+    r"^[+-]?(?P<int>\d*)(?:\.(?P<dec>\d*))?(?:[eE][+-]?(?P<exp>\d*))?$"
+)
+#: Lines above the last one that its format is compared with (at least, at most):
+#: fewer than 5 say too little about a format to call a value short.
+_FORMAT_MIN, _FORMAT_WINDOW = 5, 1000
 _TIME_UNITS = {"": 1.0, "s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
 
 
@@ -87,7 +106,8 @@ def read_csv(
     if header_at is None:
         raise FileFormatError(f"{path}: empty CSV file, expected a header row of channel names")
     names, units = _parse_header(path, lines[header_at], header_at + 1, delimiter)
-    data = _parse_rows(path, lines, header_at + 1, len(names), delimiter)
+    unterminated = not text.endswith(("\n", "\r"))
+    data = _parse_rows(path, lines, header_at + 1, names, delimiter, unterminated)
     columns = {n: data[:, k] for k, n in enumerate(names)}
     stamps = None
     if time is not None and time in columns:
@@ -180,8 +200,10 @@ def _parse_header(
 
 
 def _parse_rows(
-    path: Path, lines: list[str], start: int, width: int, delimiter: str
+    path: Path, lines: list[str], start: int, names: list[str], delimiter: str,
+    unterminated: bool,
 ) -> NDArray[np.float64]:
+    width = len(names)
     rows = [
         (k + 1, line)
         for k, line in enumerate(lines[start:], start=start)
@@ -189,6 +211,8 @@ def _parse_rows(
     ]
     if not rows:
         raise FileFormatError(f"{path}: header but no data rows")
+    # Only a data line that ends the file without a line end can be cut short.
+    cut = unterminated and rows[-1][0] == len(lines)
     try:
         data = np.loadtxt(
             io.StringIO("\n".join(line for _, line in rows)),
@@ -201,14 +225,19 @@ def _parse_rows(
     except ValueError:
         data = None
     if data is not None and data.shape == (len(rows), width):
+        if cut:
+            _check_last_line(path, rows, names, delimiter)
         return data
     # The fast parser failed: walk the rows to say where and what.
     for lineno, line in rows:
         cells = line.split(delimiter)
         if len(cells) != width:
+            last = cut and lineno == rows[-1][0]
             raise FileFormatError(
                 f"{path}, line {lineno}: {len(cells)} field(s), the header has {width}"
-                f"{' (truncated line?)' if len(cells) < width else ''}"
+                + (" (the last line, with no line end: the file looks truncated; copy it "
+                   "again or delete the partial line)" if last and len(cells) < width
+                   else " (truncated line?)" if len(cells) < width else "")
             )
         for col, cell in enumerate(cells, start=1):
             try:
@@ -218,3 +247,52 @@ def _parse_rows(
                     f"{path}, line {lineno}, column {col}: {cell.strip()!r} is not a number"
                 ) from None
     raise FileFormatError(f"{path}: unreadable numeric data")  # pragma: no cover
+
+
+def _check_last_line(
+    path: Path, rows: list[tuple[int, str]], names: list[str], delimiter: str
+) -> None:
+    """Raise if the unterminated last line's last value looks cut short."""
+    if len(rows) <= _FORMAT_MIN:
+        return  # too few lines above to know their format
+    lineno, line = rows[-1]
+    last = _cell(line, delimiter)
+    above = [_cell(text, delimiter) for _, text in rows[-1 - _FORMAT_WINDOW : -1]]
+    short = _shorter_than_format(last, above)
+    if short is None:
+        return
+    raise FileFormatError(
+        f"{path}, line {lineno}: the last line has no line end and its last value "
+        f"{last!r} ({names[-1]!r}) is written shorter than the values above it ({short}): "
+        "the file looks truncated inside that number. If the line is complete, end the file "
+        "with a newline; otherwise delete the line or copy the file again"
+    )
+
+
+def _cell(line: str, delimiter: str) -> str:
+    return line.rsplit(delimiter, 1)[-1].strip().strip('"').strip()
+
+
+def _shorter_than_format(last: str, above: list[str]) -> str | None:
+    """Why ``last`` is shorter than the format of ``above``, or None."""
+    shape = _NUMBER_SHAPE.match(last)
+    shapes = [_NUMBER_SHAPE.match(a) for a in above]
+    if shape is None or not all(shapes):
+        return None  # nan, inf or another spelling: no format to compare
+    decimals = {len(m.group("dec") or "") for m in shapes if m}
+    exponents = {m.group("exp") is not None and len(m.group("exp")) for m in shapes if m}
+    (want_dec,), (want_exp,) = (
+        (decimals, exponents) if len(decimals) == len(exponents) == 1 else ({0}, {False})
+    )
+    if want_dec or want_exp:  # a fixed format, e.g. %.6f or %.4e
+        dec = len(shape.group("dec") or "")
+        exp = shape.group("exp")
+        if dec < want_dec:
+            return f"{dec} decimals, every value above has {want_dec}"
+        if want_exp and (exp is None or len(exp) < want_exp):
+            return f"every value above has {want_exp} exponent digits"
+        return None
+    shortest = min(above, key=len)
+    if len(last) < len(shortest):
+        return f"{len(last)} characters, the shortest above is {shortest!r}"
+    return None

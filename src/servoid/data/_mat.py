@@ -5,6 +5,14 @@ length), every real scalar and every string becomes an entry of
 ``Experiment.notes``; matrices, structs and cells are not loaded. For
 example the EMPS benchmark file holds the vectors ``t``, ``qm``, ``qg``,
 ``vir`` and the scalars ``kp``, ``kv``, ``gtau``.
+
+A file is untrusted input. v4 and v5 files are walked by
+:func:`~servoid.data._mat_check.check_mat` first, and scipy then reads only
+the variables that passed it: the ones asked for, and scalars and one-row
+strings for the notes. scipy's compiled v5 reader trusts type codes and
+sizes, so a damaged variable it parsed could end the process with SIGSEGV.
+v7.3 datasets are read only after their declared shape × item size is
+checked against the memory budget.
 """
 
 from __future__ import annotations
@@ -17,11 +25,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._errors import ChannelError, DataError, FileFormatError
+from .._errors import ChannelError, DataError, FileFormatError, OptionError
 from ._columns import RolesArg, build_experiment, existing_file, library_errors
 from ._experiment import Experiment
+from ._mat_check import MatEntry, check_mat, format_bytes
 
-__all__ = ["read_mat"]
+__all__ = ["DEFAULT_MAX_BYTES", "read_mat"]
+
+#: Default memory budget of one variable [bytes]: 2 GiB, 2.7e8 doubles.
+DEFAULT_MAX_BYTES = 2**31
 
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 # HDF5 looks for its signature at 0, 512, 1024, 2048, ...; MATLAB uses a 512-byte userblock.
@@ -35,6 +47,7 @@ def read_mat(
     time: str | None = None,
     dt: float | None = None,
     roles: RolesArg = None,
+    max_bytes: int = DEFAULT_MAX_BYTES,
 ) -> Experiment:
     """Read the vectors of a MAT file into an Experiment.
 
@@ -43,7 +56,9 @@ def read_mat(
     path : path-like
         The file (v4, v5/v7 or v7.3).
     variables : sequence of str, optional
-        Vectors to load as channels; default all vectors in the file.
+        Vectors to load as channels; default all vectors in the file. Only
+        these and ``time`` are read, besides scalars and one-row strings
+        for ``notes``: damage elsewhere in the file does not matter.
     time : str, optional
         A vector of time stamps [s]; it gives ``dt`` and ``t0``.
     dt : float, optional
@@ -51,6 +66,10 @@ def read_mat(
     roles : mapping of str to list of str, optional
         Role to variable names, e.g. ``{"u": ["vir"], "y": ["qm"]}``; the
         others become side channels.
+    max_bytes : int
+        Memory budget of one variable [bytes]; default 2 GiB. It bounds
+        what compressed (v7) and HDF5 (v7.3) variables may declare, which
+        the file's own size does not.
 
     Returns
     -------
@@ -60,21 +79,22 @@ def read_mat(
     Raises
     ------
     FileFormatError
-        Not a MAT file, truncated, or vectors of different lengths.
+        Not a MAT file, truncated, damaged (a declared size or type code
+        that does not fit), over the memory budget, or vectors of different
+        lengths.
     ChannelError
         A variable named in ``variables``, ``time`` or ``roles`` is missing.
     ImportError
         A v7.3 file and h5py is not installed.
     """
     path = existing_file(path)
+    if isinstance(max_bytes, bool) or not isinstance(max_bytes, int) or max_bytes <= 0:
+        raise OptionError(f"max_bytes must be a positive whole number of bytes, got {max_bytes!r}")
+    wanted = None if variables is None else {*variables, *([time] if time is not None else [])}
     if _is_hdf5(path):
-        raw = _load_v73(path)
+        raw, listed = _load_v73(path, wanted, max_bytes)
     else:
-        with library_errors(path, "a MAT file"):
-            from scipy.io import loadmat
-
-            loaded = loadmat(path, squeeze_me=False, chars_as_strings=True)
-            raw = {k: v for k, v in loaded.items() if not k.startswith("__")}
+        raw, listed = _load_v4_v5(path, wanted, max_bytes)
     vectors: dict[str, NDArray[np.float64]] = {}
     notes: dict[str, Any] = {}
     skipped: dict[str, tuple[int, ...]] = {}
@@ -89,8 +109,8 @@ def read_mat(
             notes[name] = value if isinstance(value, str) else (str(flat[0]) if flat.size else "")
         else:
             skipped[name] = np.shape(value)
-    wanted = list(variables) if variables is not None else [n for n in vectors if n != time]
-    for name in [*wanted, *([time] if time is not None else [])]:
+    chosen = list(variables) if variables is not None else [n for n in vectors if n != time]
+    for name in [*chosen, *([time] if time is not None else [])]:
         if name in vectors:
             continue
         if name in skipped or name in notes:
@@ -98,29 +118,81 @@ def read_mat(
             raise FileFormatError(
                 f"{path}: variable {name!r} has shape {shape}, not a vector"
             )
+        if name in listed:
+            entry = listed[name]
+            raise FileFormatError(
+                f"{path}: variable {name!r} is {_KIND_WORDS[entry.kind]} of shape "
+                f"{entry.shape}, not a real vector; name a numeric vector instead"
+            )
         raise ChannelError(
-            f"variable {name!r} is not in {path}; its vectors are: {', '.join(vectors) or 'none'}"
+            f"variable {name!r} is not in {path}; its vectors are: "
+            f"{', '.join(_vector_names(vectors, listed)) or 'none'}"
         )
-    used = {n: vectors[n] for n in wanted}
+    used = {n: vectors[n] for n in chosen}
     stamps = vectors[time] if time is not None else None
     lengths = {n: v.size for n, v in used.items()}
     if stamps is not None:
         lengths[str(time)] = stamps.size
     if len(set(lengths.values())) > 1:
-        listed = ", ".join(f"{n}: {k}" for n, k in lengths.items())
+        sizes = ", ".join(f"{n}: {k}" for n, k in lengths.items())
         raise FileFormatError(
-            f"{path}: vectors have different lengths ({listed}); pass variables= to choose"
+            f"{path}: vectors have different lengths ({sizes}); pass variables= to choose"
         )
     if not used:
-        raise FileFormatError(f"{path}: no vectors to load (variables: {', '.join(raw)})")
+        raise FileFormatError(
+            f"{path}: no vectors to load (variables: {', '.join([*raw, *listed])})"
+        )
     if time is None and dt is None:
         raise DataError(
             f"{path}: no sample period: pass dt [s] or time=<vector name> "
-            f"(vectors: {', '.join(vectors)})"
+            f"(vectors: {', '.join(_vector_names(vectors, listed))})"
         )
     return build_experiment(
         path, used, {}, roles=roles, dt=dt, time=stamps, notes=notes,
     )
+
+
+def _load_v4_v5(
+    path: Path, wanted: set[str] | None, max_bytes: int
+) -> tuple[dict[str, Any], dict[str, MatEntry]]:
+    """The checked variables of a v4/v5 file, and the entries left unread."""
+    with library_errors(path, "a MAT file"):
+        from scipy.io import loadmat
+        from scipy.io.matlab import matfile_version
+
+        with path.open("rb") as f:
+            head = f.read(128)
+        if len(head) < 128 and 0 not in head[:4]:  # scipy indexes byte 126 unchecked
+            raise FileFormatError(
+                f"{path}: truncated MAT file: {len(head)} bytes, a v5 header alone is 128"
+            )
+        version, _ = matfile_version(path, appendmat=False)
+        if version not in (0, 1):
+            raise FileFormatError(
+                f"{path}: MAT version field says {version}.x but the file is not HDF5 (v7.3): "
+                "a damaged header"
+            )
+        entries = check_mat(path, version, wanted, max_bytes)
+        load = [e.name for e in entries.values() if e.loadable]
+        loaded = loadmat(path, appendmat=False, variable_names=load, squeeze_me=False,
+                         chars_as_strings=True) if load else {}
+    raw = {k: v for k, v in loaded.items() if not k.startswith("__")}
+    return raw, {n: e for n, e in entries.items() if n not in raw}
+
+
+def _vector_names(vectors: dict[str, Any], listed: dict[str, MatEntry]) -> list[str]:
+    """Vectors loaded, then real vectors of the file that were not loaded."""
+    more = [n for n, e in listed.items()
+            if e.kind == "numeric" and sum(d > 1 for d in e.shape) == 1]
+    return [*vectors, *more]
+
+
+_KIND_WORDS = {
+    "numeric": "a numeric variable", "char": "text", "complex": "a complex array",
+    "sparse": "a sparse matrix", "cell": "a cell array", "struct": "a struct",
+    "object": "an object", "function": "a function handle", "opaque": "an opaque object",
+    "unknown": "of an unknown class",
+}
 
 
 def _is_hdf5(path: Path) -> bool:
@@ -146,7 +218,10 @@ def _classify(value: Any) -> str:
     return "other"
 
 
-def _load_v73(path: Path) -> dict[str, Any]:
+def _load_v73(
+    path: Path, wanted: set[str] | None, max_bytes: int
+) -> tuple[dict[str, Any], dict[str, MatEntry]]:
+    """The datasets of a v7.3 file within the budget, and those left unread."""
     try:
         import h5py
     except ImportError as exc:
@@ -155,12 +230,33 @@ def _load_v73(path: Path) -> dict[str, Any]:
             "pip install servoid[mat73]"
         ) from exc
     out: dict[str, Any] = {}
+    listed: dict[str, MatEntry] = {}
     with library_errors(path, "a MAT v7.3 (HDF5) file"), h5py.File(path, "r") as f:
         for name, obj in f.items():
             if name.startswith("#") or not isinstance(obj, h5py.Dataset):
                 continue  # references, structs and cells
+            shape = tuple(int(d) for d in reversed(obj.shape))  # MATLAB's order
+            kind: Any = "numeric" if obj.dtype.kind in "biuf" else "unknown"
             cls = obj.attrs.get("MATLAB_class", b"")
-            cls = cls.decode() if isinstance(cls, bytes) else str(cls)
+            cls = cls.decode(errors="replace") if isinstance(cls, bytes) else str(cls)
+            if cls == "char":
+                kind = "char"
+            entry = MatEntry(name, kind, shape)
+            note = entry.is_note and kind in ("numeric", "char")
+            if wanted is not None and name not in wanted and not note:
+                listed[name] = entry
+                continue
+            nbytes = int(np.prod(shape, dtype=object)) * obj.dtype.itemsize
+            if nbytes > max_bytes:
+                if wanted is None or name in wanted:
+                    raise FileFormatError(
+                        f"{path}: variable {name!r} declares shape {shape} of "
+                        f"{obj.dtype.itemsize}-byte values ({format_bytes(nbytes)}), over the "
+                        f"{format_bytes(max_bytes)} budget: a damaged file, or pass max_bytes= "
+                        "to read a variable this large"
+                    )
+                listed[name] = entry
+                continue
             if obj.attrs.get("MATLAB_empty", 0):
                 continue
             # MATLAB writes column-major arrays, so HDF5 holds them transposed.
@@ -171,4 +267,4 @@ def _load_v73(path: Path) -> dict[str, Any]:
                 out[name] = data.astype(bool)
             else:
                 out[name] = data
-    return out
+    return out, listed

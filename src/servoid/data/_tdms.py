@@ -5,11 +5,21 @@ properties ``wf_increment`` (sample period [s]), ``wf_start_offset`` (time of
 the first sample [s]) and ``unit_string``. servoid also writes
 ``servoid_role`` per channel and the experiment's simple notes as group
 properties; group properties read back become ``Experiment.notes``.
+
+A file is untrusted input, and npTDMS believes its declared sizes: a string
+length is passed to ``file.read`` (which allocates it before reading) and a
+value count to ``np.zeros``. So npTDMS reads through a file object whose
+``read`` never asks for more than the bytes left, the metadata is read
+first, and every channel's declared length is checked against the file size
+before its data is read. A ``.tdms_index`` file beside the data is ignored:
+it only repeats the metadata, and a stale one would describe other data.
 """
 
 from __future__ import annotations
 
+import io
 import logging
+import math
 import os
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -69,24 +79,29 @@ def read_tdms(
         ``group`` missing or not given when the file has several groups.
     """
     path = existing_file(path)
-    with _truncation_watch() as warnings, library_errors(path, "TDMS"):
+    with _truncation_watch() as warnings, library_errors(path, "TDMS"), \
+            _BoundedReader(io.FileIO(path, "rb")) as file:
         from nptdms import TdmsFile
 
-        tdms = TdmsFile.read(path)
+        tdms = TdmsFile.open(file)  # metadata only; data below, channel by channel
         groups = {g.name: g for g in tdms.groups()}
         if warnings:
-            raise FileFormatError(f"{path}: truncated or damaged TDMS file ({warnings[0]})")
+            raise _damaged(path, warnings[0])
         tdms_group = groups[_pick_group(path, list(groups), group)]
         columns: dict[str, np.ndarray] = {}
         props: dict[str, Mapping[str, Any]] = {}
         for ch in tdms_group.channels():
-            data = ch[:]
-            if data.dtype.kind not in "biuf":
+            if ch.data_type is None or ch.dtype is None or ch.dtype.kind not in "biuf":
                 continue  # timestamps and strings are not signals
-            columns[ch.name] = np.asarray(data, dtype=float)
+            if len(ch) > file.size:  # every stored value takes at least one byte
+                raise FileFormatError(
+                    f"{path}: channel {ch.name!r} declares {len(ch)} values but the file has "
+                    f"{file.size} bytes: a damaged TDMS file (its segment metadata is wrong)"
+                )
+            columns[ch.name] = np.asarray(ch[:], dtype=float)
             props[ch.name] = dict(ch.properties)
         if warnings:
-            raise FileFormatError(f"{path}: truncated or damaged TDMS file ({warnings[0]})")
+            raise _damaged(path, warnings[0])
         notes = {k: _plain(v) for k, v in tdms_group.properties.items()}
     if not columns:
         raise FileFormatError(f"{path}: group {tdms_group.name!r} has no numeric channels")
@@ -171,6 +186,14 @@ def write_tdms(
     return Path(path)
 
 
+def _damaged(path: Path, warning: str) -> FileFormatError:
+    # npTDMS would go on and return what it could read: part of the record.
+    return FileFormatError(
+        f"{path}: truncated or damaged TDMS file ({warning}); copy or export it from the logger "
+        "again"
+    )
+
+
 def _pick_group(path: Path, names: list[str], group: str | None) -> str:
     if group is None:
         if len(names) == 1:
@@ -192,7 +215,8 @@ def _waveform_timing(
     path: Path, props: Mapping[str, Mapping[str, Any]], dt: float | None
 ) -> tuple[float | None, float]:
     incs = {n: p.get("wf_increment") for n, p in props.items()}
-    have = {n: float(v) for n, v in incs.items() if v is not None}
+    have = {n: _timing_number(path, n, "wf_increment", v) for n, v in incs.items()
+            if v is not None}
     if not have:
         return dt, 0.0
     if len(have) != len(incs) or len(set(have.values())) > 1:
@@ -201,14 +225,36 @@ def _waveform_timing(
             f"{path}: channels must share one wf_increment (sample period [s]); got {listed}"
         )
     dt_file = next(iter(have.values()))
+    if dt_file <= 0:
+        raise FileFormatError(
+            f"{path}: wf_increment (the sample period) is {dt_file} s, not > 0: fix the "
+            "property in the file, or pass time= a channel of time stamps"
+        )
     if dt is not None and not np.isclose(dt, dt_file, rtol=1e-9):
         raise DataError(f"{path}: dt = {dt} s disagrees with wf_increment = {dt_file} s")
-    offsets = {float(p.get("wf_start_offset", 0.0)) for p in props.values()}
+    offsets = {_timing_number(path, n, "wf_start_offset", p.get("wf_start_offset", 0.0))
+               for n, p in props.items()}
     if len(offsets) > 1:
         raise FileFormatError(
             f"{path}: channels have different wf_start_offset values: {sorted(offsets)}"
         )
     return dt_file, offsets.pop()
+
+
+def _timing_number(path: Path, channel: str, key: str, value: Any) -> float:
+    """A waveform property as a finite float, or an error naming the fix."""
+    number = None
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+            value, (bool, np.bool_)):
+        number = float(value)
+    if number is None or not math.isfinite(number):
+        what = "sample period" if key == "wf_increment" else "time of the first sample"
+        raise FileFormatError(
+            f"{path}: channel {channel!r} has {key} = {value!r} ({type(value).__name__}), "
+            f"expected a finite number, the {what} [s]: fix the property in the file, or "
+            "pass time= a channel of time stamps"
+        )
+    return number
 
 
 def _is_simple(value: object) -> bool:
@@ -221,6 +267,25 @@ def _plain(value: Any) -> Any:
             return str(value)
         return value.item()
     return value
+
+
+class _BoundedReader(io.BufferedReader):
+    """A binary file whose ``read(n)`` never asks for more than is left.
+
+    ``BufferedReader.read(n)`` allocates ``n`` bytes before reading, so a
+    damaged 4-byte length in a TDMS file would cost up to 4 GiB.
+    """
+
+    def __init__(self, raw: io.FileIO) -> None:
+        super().__init__(raw)
+        self.size = os.fstat(raw.fileno()).st_size
+
+    def read(self, n: int | None = -1) -> bytes:
+        if n is not None and n > 0:
+            n = max(0, min(n, self.size - self.tell()))
+            if n == 0:
+                return b""
+        return super().read(n)
 
 
 @contextmanager

@@ -1,0 +1,477 @@
+"""Structural check of MAT v4 and v5 files before scipy reads them.
+
+scipy's v5 reader is Cython that trusts the file. A data-type code outside
+its table indexes past a C array of dtype pointers (SIGSEGV/SIGBUS); a flipped
+complex flag makes it read the next element's tag as data; a declared name
+or data size is allocated before it is read. Its v4 reader is Python but
+reads ``rows × cols × itemsize`` bytes as declared, and negative dimensions
+move its file pointer backwards. So a hostile or damaged file must be walked
+by a parser that checks every declared size against the bytes present
+before scipy sees it. This module is that parser.
+
+What it checks, mirroring exactly what ``scipy.io.loadmat(...,
+variable_names=...)`` will parse:
+
+* **v4** (every header, as scipy reads them all): ``MOPT`` digits (IEEE
+  byte order, O = 0, a known precision and a full/char/sparse class), the
+  name length, the imaginary flag, non-negative dimensions, and that the
+  declared data ``rows × cols × itemsize (× 2 if complex)`` lies inside the
+  file.
+* **v5 headers** (every top-level element, as scipy reads each header):
+  tag type miMATRIX or miCOMPRESSED, byte count inside the file, and the
+  matrix header scipy parses (array flags present, a dimensions element of
+  type miINT32/miUINT32 of at most 32 dimensions, a name element of type
+  miINT8/miUTF8 no longer than :data:`MAX_NAME_BYTES`), each inside its
+  element. A compressed element is inflated only as far as its header.
+* **v5 data** (only variables that will be loaded): numeric or char class,
+  real, at least two non-negative dimensions (scipy's ``chars_to_strings``
+  indexes the last dimension unchecked), a data element whose type code is one scipy
+  knows for that class, whose byte count is exactly ``prod(dims) × itemsize``
+  and lies inside the element. A compressed element is inflated in full, to
+  at most the memory budget: zlib gives no size up front, so the budget is
+  the only bound on what a few kilobytes can expand to.
+
+Anything else (cells, structs, objects, sparse, complex, function handles,
+unknown classes) is listed with its class and shape but never loaded, so
+scipy never parses its body.
+
+Walking checks structure, not values: a flipped bit inside the numbers of a
+vector is still read (MAT files carry no checksum outside zlib's).
+"""
+
+from __future__ import annotations
+
+import mmap
+import struct
+import zlib
+from collections.abc import Collection
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from .._errors import FileFormatError
+
+__all__ = ["MAX_NAME_BYTES", "MatEntry", "check_mat", "format_bytes"]
+
+#: Longest variable name accepted [bytes]; MATLAB's limit is 63 characters.
+MAX_NAME_BYTES = 4096
+#: Largest char variable read as a note [characters].
+MAX_NOTE_CHARS = 65536
+
+Kind = Literal[
+    "numeric", "char", "complex", "sparse", "cell", "struct", "object", "function",
+    "opaque", "unknown",
+]
+
+# v5 data-type codes (miINT8 ...) with their item sizes, as in scipy's table.
+_MI_NUMERIC = {1: 1, 2: 1, 3: 2, 4: 2, 5: 4, 6: 4, 7: 4, 9: 8, 12: 8, 13: 8}
+_MI_CHAR = {1: 1, 2: 1, 4: 2, 16: 1, 17: 2, 18: 4}  # int8, uint8, uint16, utf8/16/32
+_MI_INT8, _MI_INT32, _MI_UINT32 = 1, 5, 6
+_MI_MATRIX, _MI_COMPRESSED, _MI_UTF8 = 14, 15, 16
+# v5 array classes (mxCELL_CLASS ...).
+_MX_KIND: dict[int, Kind] = {
+    1: "cell", 2: "struct", 3: "object", 4: "char", 5: "sparse", 16: "function", 17: "opaque",
+    **{k: "numeric" for k in range(6, 16)},
+}
+_MX_ITEMSIZE = {6: 8, 7: 4, 8: 1, 9: 1, 10: 2, 11: 2, 12: 4, 13: 4, 14: 8, 15: 8}
+_MX_CHAR, _MX_OPAQUE = 4, 17
+_MAX_DIMS = 32  # scipy's _MAT_MAXDIMS
+# A compressed variable's header fits in: matrix tag, flags, 32 dims, a name.
+_HEADER_BYTES = 8 + 16 + 8 + 4 * _MAX_DIMS + 8 + MAX_NAME_BYTES + 8
+# v4: precision digit P -> item size (double, single, int32, int16, uint16, uint8).
+_V4_ITEMSIZE = (8, 4, 4, 2, 2, 1)
+_V4_HEADER = 20
+
+
+@dataclass(frozen=True)
+class MatEntry:
+    """One variable of a MAT file as its header declares it.
+
+    Attributes
+    ----------
+    name : str
+        Variable name.
+    kind : str
+        ``"numeric"`` (real), ``"char"``, or a kind servoid does not load.
+    shape : tuple of int
+        MATLAB dimensions.
+    loadable : bool
+        Its data passed the full check: scipy may read it.
+    """
+
+    name: str
+    kind: Kind
+    shape: tuple[int, ...]
+    loadable: bool = False
+
+    @property
+    def is_note(self) -> bool:
+        """Whether it is a scalar or a one-row string (an entry of notes)."""
+        if self.kind == "numeric":
+            return _prod(self.shape) == 1
+        if self.kind == "char":
+            return len(self.shape) == 2 and self.shape[0] <= 1 and self.shape[1] <= MAX_NOTE_CHARS
+        return False
+
+
+def check_mat(
+    path: Path, version: int, wanted: Collection[str] | None, max_bytes: int
+) -> dict[str, MatEntry]:
+    """Walk a v4 (``version`` 0) or v5 (1) MAT file and list its variables.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    version : int
+        Major version as :func:`scipy.io.matlab.matfile_version` gives it.
+    wanted : collection of str or None
+        Variables to check in full (None: all); scalars and one-row strings
+        are always checked in full, as candidate notes.
+    max_bytes : int
+        Memory budget [bytes] of one variable.
+
+    Returns
+    -------
+    dict of str to MatEntry
+        First occurrence of each name, in file order; ``loadable`` marks the
+        ones scipy may read.
+
+    Raises
+    ------
+    FileFormatError
+        A header or a wanted variable that scipy must not parse.
+    """
+    with path.open("rb") as f:
+        size = f.seek(0, 2)
+        if size == 0:
+            raise FileFormatError(f"{path}: empty file, not a MAT file")
+        # Mapped, not read: the walk touches only tags and headers of unwanted variables.
+        # The map is not closed explicitly: views of it may live on in a traceback, and
+        # it is unmapped when the last one goes.
+        data = memoryview(mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ))
+    walker = _V4(path, data) if version == 0 else _V5(path, data, max_bytes)
+    return walker.walk(wanted)
+
+
+def format_bytes(n: int) -> str:
+    """A byte count for a message: ``"74.5 GiB"``, ``"8 bytes"``."""
+    for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= scale:
+            return f"{n / scale:.3g} {unit}"
+    return f"{n} bytes"
+
+
+class _DamagedError(Exception):
+    """Internal: a structural fault, reported with the variable it hit."""
+
+
+def _prod(shape: tuple[int, ...]) -> int:
+    n = 1
+    for d in shape:
+        n *= d
+    return n
+
+
+class _V4:
+    """The v4 walker: a sequence of fixed 20-byte headers, name, data."""
+
+    def __init__(self, path: Path, data: memoryview) -> None:
+        self.path = path
+        self.data = data
+        # As scipy guesses it: a first MOPT outside 0..5000 must be byte-swapped.
+        (mopt,) = struct.unpack_from("<i", data, 0) if len(data) >= 4 else (0,)
+        self.order = "<" if 0 <= mopt <= 5000 else ">"
+
+    def walk(self, wanted: Collection[str] | None) -> dict[str, MatEntry]:
+        data, size, pos = self.data, len(self.data), 0
+        entries: dict[str, MatEntry] = {}
+        while pos < size:
+            where = f"{self.path}: variable {len(entries) + 1} (header at byte {pos})"
+            if size - pos < _V4_HEADER:
+                raise FileFormatError(
+                    f"{where}: truncated: {size - pos} bytes left, a MAT v4 header needs "
+                    f"{_V4_HEADER}; the file is cut short, copy it again"
+                )
+            mopt, rows, cols, imagf, namlen = struct.unpack_from(self.order + "5i", data, pos)
+            pos += _V4_HEADER
+            problem = self._header_problem(mopt, rows, cols, imagf, namlen, size - pos)
+            name = bytes(data[pos : pos + max(0, min(namlen, size - pos))])
+            name_text = name.strip(b"\x00").decode("latin1")
+            if problem:
+                what = f" {name_text!r}" if name_text.isprintable() and name_text else ""
+                raise FileFormatError(
+                    f"{self.path}: variable{what} (header at byte {pos - _V4_HEADER}): "
+                    f"{problem}: not a valid MAT v4 file, or damaged"
+                )
+            pos += namlen
+            precision, cls = (mopt % 100) // 10, mopt % 10
+            is_complex = imagf == 1
+            nbytes = rows * cols * _V4_ITEMSIZE[precision] * (2 if is_complex and cls != 2 else 1)
+            if nbytes > size - pos:
+                raise FileFormatError(
+                    f"{self.path}: variable {name_text!r} declares {rows}×{cols} values "
+                    f"({format_bytes(nbytes)}) but only {format_bytes(size - pos)} follow: a "
+                    "truncated or damaged MAT v4 file"
+                )
+            pos += nbytes
+            kind: Kind = ("complex" if is_complex else "numeric", "char", "sparse")[cls]
+            if name_text not in entries:
+                entries[name_text] = MatEntry(
+                    name_text, kind, (rows, cols), loadable=kind in ("numeric", "char")
+                )
+        return entries
+
+    @staticmethod
+    def _header_problem(mopt: int, rows: int, cols: int, imagf: int, namlen: int,
+                        left: int) -> str | None:
+        if not 0 <= mopt <= 5000:
+            return f"type code MOPT = {mopt} is outside 0..5000"
+        order, rest = divmod(mopt, 1000)
+        unused, rest = divmod(rest, 100)
+        precision, cls = divmod(rest, 10)
+        if order not in (0, 1):
+            return f"MOPT {mopt}: byte order {order} is not IEEE (VAX/Cray files are not read)"
+        if unused != 0 or precision >= len(_V4_ITEMSIZE) or cls > 2:
+            return f"MOPT {mopt} is not a known precision and matrix class"
+        if rows < 0 or cols < 0:
+            return f"negative dimensions {rows}×{cols}"
+        if imagf not in (0, 1):
+            return f"imaginary flag {imagf} is neither 0 nor 1"
+        if not 1 <= namlen <= min(MAX_NAME_BYTES, left):
+            return f"name length {namlen} is outside 1..{min(MAX_NAME_BYTES, left)}"
+        return None
+
+
+class _Cursor:
+    """Reads v5 tags and elements from a buffer, never past ``end``."""
+
+    def __init__(self, buf: memoryview, order: str, pos: int, end: int) -> None:
+        self.buf, self.order, self.pos, self.end = buf, order, pos, end
+
+    def need(self, n: int, what: str) -> None:
+        if n > self.end - self.pos:
+            raise _DamagedError(
+                f"{what} needs {n} bytes, only {max(0, self.end - self.pos)} are left in the "
+                "element"
+            )
+
+    def u32s(self, what: str) -> tuple[int, int]:
+        self.need(8, what)
+        a, b = struct.unpack_from(self.order + "2I", self.buf, self.pos)
+        self.pos += 8
+        return a, b
+
+    def element(self, what: str) -> tuple[int, memoryview]:
+        """One data element as scipy's ``read_element``: (type, payload)."""
+        start = self.pos
+        self.need(8, what)
+        (first,) = struct.unpack_from(self.order + "I", self.buf, self.pos)
+        if first >> 16:  # small data element: type and count packed in 4 bytes
+            mdtype, count = first & 0xFFFF, first >> 16
+            if count > 4:
+                raise _DamagedError(
+                    f"{what}: a small data element declares {count} bytes (at most 4)"
+                )
+            self.pos += 8
+            return mdtype, self.buf[start + 4 : start + 4 + count]
+        mdtype, count = self.u32s(what)
+        self.need(count, what)
+        payload = self.buf[self.pos : self.pos + count]
+        self.pos += count + (-count % 8)  # scipy skips the padding without reading it
+        return mdtype, payload
+
+
+class _V5:
+    """The v5 walker: a 128-byte header, then one element per variable."""
+
+    def __init__(self, path: Path, data: memoryview, max_bytes: int) -> None:
+        self.path = path
+        self.data = data
+        self.max_bytes = max_bytes
+        if len(data) < 128:
+            raise FileFormatError(
+                f"{path}: truncated MAT v5 file: {len(data)} bytes, the header alone is 128"
+            )
+        # As scipy decides it: 'IM' at byte 126 is little-endian, anything else big.
+        self.order = "<" if bytes(data[126:128]) == b"IM" else ">"
+
+    def walk(self, wanted: Collection[str] | None) -> dict[str, MatEntry]:
+        data, size, pos = self.data, len(self.data), 128
+        entries: dict[str, MatEntry] = {}
+        while pos < size:
+            index = len(entries) + 1
+            if size - pos < 8:
+                raise FileFormatError(
+                    f"{self.path}: truncated after variable {index - 1}: {size - pos} stray "
+                    "byte(s) at the end where an element tag (8 bytes) belongs; copy the file "
+                    "again"
+                )
+            mdtype, count = struct.unpack_from(self.order + "2I", data, pos)
+            start, pos = pos, pos + 8
+            where = f"element {index} at byte {start}"
+            if mdtype not in (_MI_MATRIX, _MI_COMPRESSED):
+                raise FileFormatError(
+                    f"{self.path}: {where} has type code {mdtype}, not a variable "
+                    f"({_MI_MATRIX}: matrix, {_MI_COMPRESSED}: compressed): a damaged MAT file"
+                )
+            if count == 0 or count > size - pos:
+                raise FileFormatError(
+                    f"{self.path}: {where} declares {format_bytes(count)} but "
+                    f"{format_bytes(size - pos)} follow: a truncated or damaged MAT file"
+                )
+            body = data[pos : pos + count]
+            pos += count
+            if mdtype == _MI_COMPRESSED:
+                entry = self._compressed(body, where, wanted, entries)
+            else:
+                entry = self._matrix(body, where, wanted, entries)
+            if entry.name not in entries:
+                entries[entry.name] = entry
+        return entries
+
+    def _check_level(self, entry: MatEntry, wanted: Collection[str] | None,
+                     entries: dict[str, MatEntry]) -> str:
+        """How far to check a variable's data: "strict", "note" or "none".
+
+        A wanted numeric or char variable is checked strictly (damage is an
+        error); a scalar or one-row string is checked as a candidate note
+        (damage leaves it out); the rest, and repeats of a name (scipy reads
+        the first), are never loaded.
+        """
+        if entry.name in entries or entry.kind not in ("numeric", "char"):
+            return "none"
+        if wanted is None or entry.name in wanted:
+            return "strict"
+        return "note" if entry.is_note else "none"
+
+    def _compressed(self, body: memoryview, where: str, wanted: Collection[str] | None,
+                    entries: dict[str, MatEntry]) -> MatEntry:
+        try:
+            head = self._inflate(body, _HEADER_BYTES)
+            cursor = _Cursor(memoryview(head), self.order, 0, len(head))
+            mdtype, count = cursor.u32s("the compressed matrix tag")
+            if mdtype != _MI_MATRIX:
+                raise _DamagedError(
+                    f"inflates to type code {mdtype}, not a matrix ({_MI_MATRIX})"
+                )
+            entry, _ = self._header(cursor)
+        except _DamagedError as exc:
+            raise FileFormatError(
+                f"{self.path}: {where} (compressed): {exc}: a damaged MAT file"
+            ) from None
+        level = self._check_level(entry, wanted, entries)
+        if level == "none":
+            return entry
+        try:
+            if count > self.max_bytes + _HEADER_BYTES:
+                raise _DamagedError(
+                    f"declares {format_bytes(count)} when inflated, over the "
+                    f"{format_bytes(self.max_bytes)} budget (pass max_bytes= if it is real)"
+                )
+            full = self._inflate(body, 8 + count, whole=True)
+            cursor = _Cursor(memoryview(full), self.order, 8, len(full))
+            _, flags = self._header(cursor)
+            self._data(cursor, entry, flags)
+        except _DamagedError as exc:
+            if level == "note":  # a damaged note nobody asked for is left out
+                return entry
+            raise FileFormatError(
+                f"{self.path}: variable {entry.name!r} ({where}, compressed): {exc}: the "
+                "variable is damaged"
+            ) from None
+        return MatEntry(entry.name, entry.kind, entry.shape, loadable=True)
+
+    @staticmethod
+    def _inflate(body: memoryview, limit: int, *, whole: bool = False) -> bytes:
+        """Inflate at most ``limit`` bytes; ``whole``: they must be all there is."""
+        inflater = zlib.decompressobj()
+        try:
+            out = inflater.decompress(body, limit + 1 if whole else limit)
+        except zlib.error as exc:
+            raise _DamagedError(f"damaged compressed data ({exc})") from None
+        if whole and (len(out) > limit or inflater.unconsumed_tail):
+            raise _DamagedError(f"inflates to more than its declared {format_bytes(limit - 8)}")
+        return out
+
+    def _header(self, cursor: _Cursor) -> tuple[MatEntry, int]:
+        """Parse what scipy's ``read_header`` parses; return the entry and flags."""
+        cursor.u32s("the array-flags tag")  # scipy reads and ignores it
+        flags, _nzmax = cursor.u32s("the array flags")
+        mclass = flags & 0xFF
+        dims: tuple[int, ...] = ()
+        if mclass != _MX_OPAQUE:
+            mdtype, payload = cursor.element("the dimensions")
+            if len(payload) > 4 * _MAX_DIMS:
+                raise _DamagedError(f"{len(payload) // 4} dimensions, at most {_MAX_DIMS}")
+            if mdtype not in (_MI_INT32, _MI_UINT32):
+                raise _DamagedError(
+                    f"dimensions of type code {mdtype}, expected int32 ({_MI_INT32})"
+                )
+            n = len(payload) // 4
+            dims = struct.unpack_from(f"{self.order}{n}i", payload, 0)
+        mdtype, payload = cursor.element("the name")
+        if mdtype not in (_MI_INT8, _MI_UTF8):
+            raise _DamagedError(f"name of type code {mdtype}, expected int8 ({_MI_INT8})")
+        if len(payload) > MAX_NAME_BYTES:
+            raise _DamagedError(f"a name of {len(payload)} bytes, at most {MAX_NAME_BYTES}")
+        raw = bytes(payload)
+        if mdtype == _MI_UTF8 and any(b > 127 for b in raw):
+            raise _DamagedError("a name that is not ASCII")
+        kind = _MX_KIND.get(mclass, "unknown")
+        if kind == "numeric" and flags >> 11 & 1:
+            kind = "complex"
+        return MatEntry(raw.decode("latin1"), kind, dims), flags
+
+    def _matrix(self, body: memoryview, where: str, wanted: Collection[str] | None,
+                entries: dict[str, MatEntry]) -> MatEntry:
+        cursor = _Cursor(body, self.order, 0, len(body))
+        try:
+            entry, flags = self._header(cursor)
+        except _DamagedError as exc:
+            raise FileFormatError(f"{self.path}: {where}: {exc}: a damaged MAT file") from None
+        level = self._check_level(entry, wanted, entries)
+        if level == "none":
+            return entry
+        try:
+            self._data(cursor, entry, flags)
+        except _DamagedError as exc:
+            if level == "note":
+                return entry
+            raise FileFormatError(
+                f"{self.path}: variable {entry.name!r} ({where}): {exc}: the variable is damaged"
+            ) from None
+        return MatEntry(entry.name, entry.kind, entry.shape, loadable=True)
+
+    def _data(self, cursor: _Cursor, entry: MatEntry, flags: int) -> None:
+        """Check the data element scipy will read for a numeric or char variable."""
+        if len(entry.shape) < 2:
+            # MATLAB writes at least two; scipy's chars_to_strings reads dims[ndim - 1]
+            # unchecked, so a char array of no dimensions reads before the array (SIGSEGV).
+            raise _DamagedError(
+                f"{len(entry.shape)} dimension(s), a MATLAB array has at least 2"
+            )
+        if any(d < 0 for d in entry.shape):
+            raise _DamagedError(f"negative dimensions {entry.shape}")
+        n = _prod(entry.shape)
+        mclass = flags & 0xFF
+        itemsize = 4 if mclass == _MX_CHAR else _MX_ITEMSIZE[mclass]
+        if n * itemsize > self.max_bytes:
+            raise _DamagedError(
+                f"shape {entry.shape} needs {format_bytes(n * itemsize)}, over the "
+                f"{format_bytes(self.max_bytes)} budget (pass max_bytes= if it is real)"
+            )
+        mdtype, payload = cursor.element("the data")
+        if mclass == _MX_CHAR:
+            if mdtype not in _MI_CHAR:
+                raise _DamagedError(f"char data of type code {mdtype}, not a text encoding")
+            if mdtype in (_MI_INT8, 2, 4) and len(payload) not in (0, n * _MI_CHAR[mdtype]):
+                raise _DamagedError(f"{len(payload)} bytes of text for {n} characters")
+            return
+        if mdtype not in _MI_NUMERIC:
+            raise _DamagedError(f"numeric data of type code {mdtype}, not a number type")
+        if len(payload) != n * _MI_NUMERIC[mdtype]:
+            raise _DamagedError(
+                f"{len(payload)} data bytes for shape {entry.shape} of "
+                f"{_MI_NUMERIC[mdtype]}-byte values ({n * _MI_NUMERIC[mdtype]} expected)"
+            )
