@@ -31,6 +31,7 @@ SUITES: dict[str, str] = {
     "arx": "bench_arx",
     "ehsa": "bench_ehsa",
     "closedloop": "bench_closedloop",
+    "closedloop-coverage": "bench_closedloop_coverage",  # 240 rig runs (~2 min; 8 under --quick)
     "pneumatic": "bench_pneumatic",
     "multistep": "bench_multistep",
     "signals": "bench_signals",
@@ -39,6 +40,7 @@ SUITES: dict[str, str] = {
     "pem": "bench_pem",
     "subspace": "bench_subspace",
     "studies": "bench_studies",  # slow pytest studies; skipped under --quick
+    "fuzz": "bench_fuzz",  # long reader fuzz run (55 000 inputs); skipped under --quick
 }
 
 

@@ -19,7 +19,7 @@ from servoid.bench import (
     run,
     write_bench_files,
 )
-from servoid.data import decimate, detrend, load_experiment_spec
+from servoid.data import RigSpec, decimate, detrend, load_experiment_spec
 from servoid.signals import prbs
 
 SPEC_PERIOD = 20_470  # one PRBS n = 11 period at clock 10 (models-spec §4)
@@ -69,7 +69,9 @@ def test_toml_loads_back_in_si_at_fs(spec_run, spec_files):
     assert spec.split.fraction == 0.5 and spec.split.period is None  # one period: halves
     assert dict(spec.loop) == {"c": pytest.approx(0.01), "F": pytest.approx(0.01)}
     assert dict(spec.identify) == {"method": "closedloop", "approach": ("indirect", "one-step"),
-                                   "na": 3, "nb": 4, "nk": 0, "discretization": "prewarp"}
+                                   "na": 3, "nb": 4, "nk": 0, "discretization": "auto"}
+    # the rig declared: the filter the position went through and how r was logged
+    assert spec.rig == RigSpec(4, 1000.0, "readback")
     assert dict(spec.report) == {"truth": "truth.json"}
     est, val = spec.split_data(exp)
     assert est.n_samples == val.n_samples == SPEC_PERIOD // 2
@@ -200,9 +202,12 @@ def test_full_reproduces_eighth_order_loop():
 
 def test_nonlinear_runs_within_stroke():
     ex = prbs(7, clock=10, amplitude=1e-3, dt=1e-3)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", ServoidWarning)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ServoidWarning)
         rec = run(EhsaBench(fidelity="nonlinear", params=SET_C), ex, rng=3)
+    # the one warning: 1 kHz cannot resolve Set C's 1.42 kHz resonance (said before the run)
+    assert [str(w.message)[:35] for w in caught] == ["f_s = 1000 Hz cannot resolve this a"]
+    assert rec.warnings == (str(caught[0].message),)
     assert np.max(np.abs(rec.position)) <= SET_C.stroke
     # It follows the reduced loop's response to the same command up to its 1 ms dead
     # time, friction and valve dynamics (correlation 0.97 seen; 0.9 is a loose floor).

@@ -36,7 +36,8 @@ def test_e4_output_noise(r, y_clean, snr_db):
         assert fit_percent(y[-n:], y_sim[-n:]) >= 90.0  # spec E4 (noise limit ≈ 96 %)
 
 
-def test_default_start_is_the_two_step_result(r, y_clean):
+def test_default_start_needs_no_theta0(r, y_clean):
+    # the grid start and its three descents (the two-step result is no longer used)
     est = halves(record(output_noise(y_clean, 40.0, seed=7), r))[0]
     res = fit_one_step(est, LOOP)
     np.testing.assert_allclose(res.estimate.parameters, TRUTH, rtol=0.01)  # spec E4 bound on K

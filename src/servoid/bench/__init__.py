@@ -19,7 +19,7 @@ Example::
     write_bench_files(rec, "rehearsal")
 """
 
-from ._config import FIDELITIES, EhsaBench, Fidelity
+from ._config import FIDELITIES, REFERENCES, EhsaBench, Fidelity, Reference
 from ._files import RigFormat, experiment_document, truth_document, write_bench_files
 from ._lti import Intersample, simulate_lti, simulate_lti_loop
 from ._pneumatic import (
@@ -43,6 +43,7 @@ __all__ = [
     "FIDELITIES",
     "PNEUMATIC_CHANNELS",
     "PNEUMATIC_TESTS",
+    "REFERENCES",
     "BenchRun",
     "EhsaBench",
     "EhsaTruth",
@@ -52,6 +53,7 @@ __all__ = [
     "PneumaticRun",
     "PneumaticTest",
     "PneumaticTestName",
+    "Reference",
     "RigFormat",
     "digitize",
     "experiment_document",

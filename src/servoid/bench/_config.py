@@ -22,11 +22,14 @@ from ..actuators import SET_B, EhsaParameters
 from ..models import TransferFunction
 from ._analog import butterworth
 
-__all__ = ["FIDELITIES", "EhsaBench", "Fidelity"]
+__all__ = ["FIDELITIES", "REFERENCES", "EhsaBench", "Fidelity", "Reference"]
 
 Fidelity = Literal["reduced", "full", "nonlinear"]
 #: The actuator models the bench can run.
 FIDELITIES: tuple[Fidelity, ...] = ("reduced", "full", "nonlinear")
+Reference = Literal["readback", "command"]
+#: How the rig logs the reference.
+REFERENCES: tuple[Reference, ...] = ("readback", "command")
 
 _BITS = (8, 24)
 _AA_ORDERS = (1, 10)
@@ -42,9 +45,12 @@ class EhsaBench:
     Signal chain of one channel: analog signal at ``oversample·f_acq`` →
     Butterworth anti-alias filter → sample at `f_acq` → ADC (`bits`,
     ±`adc_range`, clipped).  The command is played by the DAQ's DAC at
-    `f_acq` (zero-order hold, same bits and range) and read back through
-    the same filter, so the reference and the position share the filter's
-    phase lag and the ratio y/y_r keeps the actuator's dynamics.
+    `f_acq` (zero-order hold, same bits and range) and either read back
+    through the same filter (``reference="readback"``: the reference and
+    the position share the filter's phase lag, a band-limited reference) or
+    logged as the codes written to the DAC (``reference="command"``: a
+    staircase; the position alone carries the filter, which the experiment
+    file then declares).
 
     Parameters
     ----------
@@ -101,6 +107,10 @@ class EhsaBench:
         Oil temperature sensor [V/°C]; default 0.1 (10 V at 100 °C).
     oil_temperature : float
         Oil temperature at the start of the run [°C].
+    reference : {"readback", "command"}
+        How the rig file logs the reference: read back through the
+        anti-alias filter and ADC like the position, or as the DAC command
+        itself (no filter, no noise).
 
     Examples
     --------
@@ -126,11 +136,13 @@ class EhsaBench:
     p_return_sensitivity: float | None = None
     temperature_sensitivity: float = _T_SENSITIVITY
     oil_temperature: float = 40.0
+    reference: Reference = "readback"
 
     def __post_init__(self) -> None:
         if not isinstance(self.params, EhsaParameters):
             raise TypeError(f"params must be EhsaParameters, got {type(self.params).__name__}")
         check_option("fidelity", self.fidelity, FIDELITIES)
+        check_option("reference", self.reference, REFERENCES)
         f_acq = _positive("f_acq", self.f_acq, "Hz")
         f_s = _positive("f_s", self.f_s, "Hz")
         ratio = f_acq / f_s
@@ -211,6 +223,31 @@ class EhsaBench:
         """Feedback gain ``K_fb`` of the loop [m/m]."""
         return self.params.K_fb
 
+    def resolution_note(self) -> str:
+        """Return why `f_s` cannot resolve the resonance, or "" when it can.
+
+        The hydraulic resonance ω_hp counts as resolved when the Nyquist
+        frequency ``π·f_s`` is at least twice it (``f_s >= 4·f_hp``), the
+        rule :func:`servoid.closedloop.fit_one_step` flags results by.
+
+        Returns
+        -------
+        str
+            A warning naming the rate that would resolve it, or "".
+        """
+        w = self.params.omega_hp
+        if 2.0 * w <= math.pi * self.f_s:
+            return ""
+        f_hp = w / (2.0 * math.pi)
+        needed = _round_up(4.0 * f_hp)
+        return (
+            f"f_s = {self.f_s:g} Hz cannot resolve this actuator's hydraulic resonance "
+            f"omega_hp = {w:.5g} rad/s ({f_hp:.4g} Hz): the Nyquist frequency "
+            f"{math.pi * self.f_s:.4g} rad/s is less than twice it, so the identification "
+            f"will flag omega_hp and delta_hp as unresolved; use f_s >= {needed:g} Hz "
+            f"(4·f_hp), e.g. --fs {needed:g} --facq {5 * needed:g}"
+        )
+
     def anti_alias(self) -> TransferFunction:
         """Return the analog anti-alias filter.
 
@@ -224,6 +261,12 @@ class EhsaBench:
 
 
 # -- private helpers ---------------------------------------------------------
+
+
+def _round_up(value: float) -> float:
+    """Round up to two significant digits (a rate to ask for)."""
+    scale = 10.0 ** (math.floor(math.log10(value)) - 1)
+    return math.ceil(value / scale) * scale
 
 
 def _set(obj: EhsaBench, name: str, value: object) -> None:

@@ -8,8 +8,13 @@ unless asked (all targets are checked before the first is written):
   properties; CSV with a time column);
 * ``<name>.toml``: the experiment file that maps the channels with their
   calibration volts → SI, decimates to ``f_s`` (anti-aliased, zero
-  phase), removes the mean, splits in halves of whole periods, states the
-  loop gains and asks for the one-step closed-loop identification;
+  phase), removes the mean, splits in halves of whole periods, declares
+  the rig (``[rig]``: the anti-alias filter and whether the reference is
+  the DAC command or read back), states the loop gains and asks for the
+  one-step closed-loop identification with the discretisation chosen
+  from that declaration (``"auto"``: exact for either reference, and
+  defined for any resonance, unlike a prewarped Tustin map, which fails
+  for ω_hp beyond π·f_s);
 * ``truth.json``: the true parameters and how the data were made.
 """
 
@@ -33,8 +38,9 @@ _FORMATS: tuple[RigFormat, ...] = ("tdms", "csv")
 #: What the experiment file asks the identification for ([S1] ARX(3, 4, 0) start).
 IDENTIFY: dict[str, Any] = {
     "method": "closedloop", "approach": ["indirect", "one-step"], "na": 3, "nb": 4, "nk": 0,
-    # The bench's plant is continuous: Tustin prewarped at ω_hp removes the (ωT)²/12 warp.
-    "discretization": "prewarp",
+    # The bench's loop is continuous: the exact sampled model for the declared reference
+    # (a staircase command with the rig's filter and decimation, or a band-limited read-back).
+    "discretization": "auto",
 }
 
 
@@ -134,6 +140,8 @@ def experiment_document(run: BenchRun, file: str) -> dict[str, Any]:
         "channels": channels,
         "preprocess": {"decimate": run.bench.decimation, "detrend": "mean"},
         "split": split,
+        "rig": {"anti_alias": {"order": run.bench.aa_order, "cutoff": run.bench.aa_cutoff},
+                "reference": run.bench.reference},
         "loop": {"c": run.truth.c, "F": run.truth.F},
         "identify": dict(IDENTIFY),
         "report": {"truth": "truth.json"},  # a rehearsal: compare with what the bench knows
@@ -156,6 +164,7 @@ def truth_document(run: BenchRun) -> dict[str, Any]:
     b, ex = run.bench, run.excitation
     rig = {
         "f_acq": b.f_acq, "f_s": b.f_s, "decimation": b.decimation, "oversample": b.oversample,
+        "reference": b.reference,
         "aa_order": b.aa_order, "aa_cutoff": b.aa_cutoff, "bits": b.bits,
         "adc_range": b.adc_range, "lsb": b.lsb,
         "position_sensitivity": b.position_sensitivity,

@@ -17,7 +17,9 @@ The chain, per sample period ``1/f_acq`` of the DAQ:
    below).
 4. The analog Butterworth anti-alias filter on every channel (exact for
    the command staircase, first-order hold for the smooth signals),
-   sampling at ``f_acq`` and quantisation with clipping.
+   sampling at ``f_acq`` and quantisation with clipping.  With
+   ``reference="command"`` the reference channel is instead the DAC's
+   codes as written: the staircase itself, without filter or noise.
 
 Noise budget.  With ``g_s`` the gain of the chain filter → sample →
 decimate (the decimation of :func:`servoid.data.decimate`) for white
@@ -248,7 +250,9 @@ def run(
     Warns
     -----
     ServoidWarning
-        A channel clipped at the ADC range; the amplitude saturates the
+        Before the simulation: `f_s` cannot resolve the actuator's
+        hydraulic resonance (:meth:`EhsaBench.resolution_note`).  After
+        it: a channel clipped at the ADC range; the amplitude saturates the
         spool (``a > v_max/(F·K)``); the converter's quantisation alone
         exceeds the noise the SNR allows.
 
@@ -264,7 +268,11 @@ def run(
         raise TypeError(f"bench must be an EhsaBench, got {type(bench).__name__}")
     _check_excitation(bench, excitation)
     gen, seed = resolve_rng(rng, "run")
-    return _run(bench, excitation, gen, seed)
+    notes: list[str] = []
+    unresolved = bench.resolution_note()
+    if unresolved:  # before the simulation, which is long at the rates that resolve it
+        note_warning(notes, unresolved, stacklevel=3)
+    return _run(bench, excitation, gen, seed, notes)
 
 
 def digitize(
@@ -316,13 +324,12 @@ def digitize(
 
 
 def _run(bench: EhsaBench, ex: Excitation, gen: np.random.Generator,
-         seed: int | None) -> BenchRun:
+         seed: int | None, notes: list[str]) -> BenchRun:
     q, m = bench.decimation, bench.oversample
     p = bench.params
     s_cmd, s_pos = bench.command_sensitivity, bench.position_sensitivity
     assert s_cmd is not None and s_pos is not None  # resolved by EhsaBench
     dt_an = bench.dt_acq / m
-    notes: list[str] = []
     if ex.amplitude > p.v_max / p.loop_gain:
         note_warning(notes,
             f"amplitude {ex.amplitude * 1e3:.3g} mm exceeds v_max/(F·K) = "
@@ -347,7 +354,10 @@ def _run(bench: EhsaBench, ex: Excitation, gen: np.random.Generator,
     pos_clean, *side = _sample(filt["foh"], analog, m).T
     side_clean = dict(zip(("p_supply", "p_return", "t_oil"), side, strict=True))
     del analog
-    cmd_clean = _sample(filt["zoh"], np.repeat(v_cmd, m), m)
+    if bench.reference == "command":  # the codes written to the DAC: a staircase
+        cmd_clean = v_cmd.copy()
+    else:  # read back through the anti-alias filter and the ADC
+        cmd_clean = _sample(filt["zoh"], np.repeat(v_cmd, m), m)
     signal_rms = _rms_at_fs(bench, pos_clean / s_pos)
     g_s = _noise_gain(bench, filt["foh"], m)
     g_q = _noise_gain(bench, None, 1)
@@ -384,6 +394,7 @@ def _run(bench: EhsaBench, ex: Excitation, gen: np.random.Generator,
     truth = EhsaTruth(params=p, fidelity=bench.fidelity, c=bench.c, F=bench.F, K=p.K,
                       omega_hp=p.omega_hp, delta_hp=p.delta_hp)
     meta = {"source": "servoid.bench", "fidelity": bench.fidelity, "f_s": bench.f_s,
+             "reference": bench.reference,
              "bits": bench.bits, "snr_db": "none" if bench.snr_db is None else bench.snr_db,
              "seed": "none" if seed is None else seed, "excitation": ex.kind}
     return BenchRun(

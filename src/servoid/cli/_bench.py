@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -30,7 +31,10 @@ def add_bench(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
         description="PRBS test of the EHSA with mechanical position feedback. The PRBS is "
         "designed at --fs, played by the DAQ at --facq and recorded through a 4th-order "
         "Butterworth anti-alias filter (0.2·facq) and a ±10 V ADC; the TOML decimates back "
-        "to --fs. Prints the files, the record length, the excited band and the truth.",
+        "to --fs and declares the rig ([rig]: the filter, and whether the reference is read "
+        "back or the DAC command). Warns before the run when --fs cannot resolve the "
+        "actuator's hydraulic resonance (set C needs --fs >= 5700). Prints the files, the "
+        "record length, the excited band and the truth.",
     )
     ehsa.add_argument("--set", choices=_SETS, default="B",
                       help="parameter set: B loaded (1500 kg), C unloaded bench (0.5 kg) "
@@ -49,9 +53,13 @@ def add_bench(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
                       help="whole PRBS periods (default: %(default)s)")
     ehsa.add_argument("--fs", type=float, default=1000.0,
                       help="identification sample rate [Hz] (default: %(default)g)")
-    ehsa.add_argument("--facq", type=float, default=5000.0,
+    ehsa.add_argument("--facq", type=float, default=None,
                       help="DAQ acquisition rate [Hz], an integer multiple of --fs "
-                      "(default: %(default)g)")
+                      "(default: 5·fs)")
+    ehsa.add_argument("--reference", choices=("readback", "command"), default="readback",
+                      help="how the rig file logs the reference: read back through the "
+                      "anti-alias filter like the position (band-limited), or the DAC command "
+                      "as written (a staircase) (default: %(default)s)")
     ehsa.add_argument("--snr", type=float, default=30.0,
                       help="signal-to-noise ratio of the position at --fs [dB] "
                       "(default: %(default)g)")
@@ -85,10 +93,14 @@ def _run_ehsa(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     if not math.isfinite(args.snr):
         raise DataError(f"--snr must be a finite number of dB, got {args.snr}")
     params = SET_B if args.set == "B" else SET_C
-    bench = EhsaBench(params=params, fidelity=args.fidelity, f_acq=args.facq, f_s=args.fs,
-                      bits=args.bits, snr_db=args.snr)
+    f_acq = 5.0 * args.fs if args.facq is None else args.facq
+    bench = EhsaBench(params=params, fidelity=args.fidelity, f_acq=f_acq, f_s=args.fs,
+                      bits=args.bits, snr_db=args.snr, reference=args.reference)
     ex = prbs(args.register, clock=args.clock, amplitude=args.amplitude, periods=args.periods,
               dt=bench.dt)
+    unresolved = bench.resolution_note()
+    if unresolved:  # now, not after a simulation that is long at the rates that resolve it
+        print(f"servoid: warning: {unresolved}", file=sys.stderr)
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # kept in rec.warnings and printed below
@@ -104,6 +116,7 @@ def _run_ehsa(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
         "n_samples_acq": rec.raw.n_samples,
         "f_s": bench.f_s,
         "f_acq": bench.f_acq,
+        "reference": bench.reference,
         "duration_s": ex.duration,
         "period_samples": ex.period,
         "band_hz": list(ex.band),

@@ -83,8 +83,9 @@ def simulate_closed_loop(
     Parameters
     ----------
     model : ClosedLoopResult or sequence of float
-        A result (its discrete closed loop, or its plant closed by `loop`
-        when one is given) or θ = (K [1/s], ω_hp [rad/s], δ_hp [-]) of the
+        A result (its discrete closed loop as fitted, the reference held
+        beyond the record for a model that looks ahead, or its plant
+        closed by `loop` when one is given) or θ = (K [1/s], ω_hp [rad/s], δ_hp [-]) of the
         reduced plant, closed by `loop` after Tustin discretisation.
     r : array_like, shape (N,)
         Reference samples.
@@ -109,12 +110,16 @@ def simulate_closed_loop(
         if dt is not None and not math.isclose(dt, model.dt, rel_tol=1e-9):
             raise DataError(f"dt = {dt} s differs from the result's dt = {model.dt} s")
         if loop is not None:
-            h = loop.close(model.plant)
-        elif model.closed_loop is not None:
-            h = model.closed_loop
-        else:
+            return loop.close(model.plant).simulate(r)
+        if model.closed_loop is None:
             raise ModelError("this result has no loop: pass loop=FeedbackLoop(c, F)")
-        return h.simulate(r)
+        rr = np.asarray(r, dtype=float).ravel()
+        lead = model.advance
+        if not lead:
+            return model.closed_loop.simulate(rr)
+        # y(k) = H(q)·r(k + L): beyond the record the reference is taken as held
+        extended = np.concatenate([rr, np.full(lead, rr[-1] if rr.size else 0.0)])
+        return model.closed_loop.simulate(extended)[lead:]
     if loop is None or dt is None:
         raise ModelError("simulating from θ = (K, omega_hp, delta_hp) needs dt and loop")
     theta = np.asarray(model, dtype=float).ravel()

@@ -1,35 +1,69 @@
-"""One-step parameterised closed loop: OE on Gcl(q, θ), θ = (K, ω_hp, δ_hp) (spec §1.5)."""
+"""One-step parameterised closed loop: OE on Gcl(q, θ), θ = (K, ω_hp, δ_hp) (spec §1.5).
+
+The continuous closed loop ``c·G0(s, θ)/(1 + F·G0(s, θ))`` becomes a
+discrete model in one of two ways:
+
+- a *map* of the source study, Tustin (plain or prewarped at ω_hp): an
+  approximation with no statement about the reference between samples;
+- an *exact sampled model* for a stated course of the reference between
+  samples (:mod:`._sampling`): a staircase (``"zoh"``, with the rig's
+  anti-alias filter and servoid's FIR decimation of the output when they
+  are declared), straight lines (``"foh"``) or a band-limited signal read
+  back like the output (``"bandlimited"``).  ``"auto"`` detects the
+  staircase or band-limited reference (:func:`servoid.data.detect_intersample`).
+
+The fit does not depend on any other estimator: it starts from a grid
+(:mod:`._start`) at several points and keeps the best optimum.  After
+the fit the resonance is checked against the sample rate and the
+parameter intervals; what the data cannot resolve is flagged with the
+rate that would resolve it.
+"""
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy import optimize
 from scipy import signal as sps
 
-from .._errors import DataError, IdentifiabilityError, ModelError, check_option
-from ..data import Experiment, ExperimentSet, as_segments
+from .._checks import as_int
+from .._errors import (
+    ConvergenceError,
+    DataError,
+    IdentifiabilityError,
+    OptionError,
+    ServoidWarning,
+    check_option,
+)
+from ..data import Experiment, ExperimentSet, as_segments, detect_intersample
 from ..estimate import Estimate, fit_tf_greybox
 from ..models import TransferFunction, c2d
-from ._loop import (
-    PARAMETER_NAMES,
-    PARAMETER_UNITS,
-    FeedbackLoop,
-    reduced_plant,
-    tustin,
-    tustin_arrays,
-)
-from ._physical import anchors_of, pole_report, warn_flagged
+from ._loop import FeedbackLoop, tustin, tustin_arrays
+from ._physical import anchors_of, delta_method, pole_report, warn_flagged
 from ._result import ClosedLoopResult
+from ._sampling import BANDLIMITED_DEGREE, Hold, sampled_arrays, sampled_loop
+from ._start import grid_starts
+from ._structures import STRUCTURES, PlantStructure
 
-__all__ = ["fit_one_step"]
+__all__ = ["DISCRETIZATIONS", "fit_one_step"]
 
-#: log K and log ω stay positive and take relative steps; δ is optimised as is.
-_TRANSFORM = ("log", "log", "none")
+Discretization = Literal["auto", "tustin", "prewarp", "zoh", "foh", "bandlimited"]
+Initial = Literal["level", "rest"]
+#: How :func:`fit_one_step` can turn the continuous closed loop into a discrete model.
+DISCRETIZATIONS: tuple[Discretization, ...] = (
+    "auto", "tustin", "prewarp", "zoh", "foh", "bandlimited")
+
+#: 95 % interval half-width (1.96σ) beyond which the resonance counts as not determined.
+_UNDETERMINED = 0.5
+#: Nyquist frequency over ω_hp below which the resonance counts as not resolved.
+_NYQUIST_MARGIN = 2.0
 
 
 def fit_one_step(
@@ -37,19 +71,25 @@ def fit_one_step(
     loop: FeedbackLoop,
     theta0: Sequence[float] | NDArray[np.float64] | None = None,
     *,
+    structure: PlantStructure | str = "reduced",
     output: str | None = None,
     start: int = 0,
     max_nfev: int | None = None,
     integrator_tol: float = 0.1,
-    discretization: Literal["tustin", "prewarp", "zoh"] = "tustin",
+    discretization: Discretization = "tustin",
+    anti_alias: TransferFunction | None = None,
+    decimation: int = 1,
+    n_starts: int = 3,
+    initial: Initial = "level",
 ) -> ClosedLoopResult:
     """Fit K, ω_hp, δ_hp by output error on the closed loop from r.
 
-    The model is ``Gcl(q, θ) = c·Gd/(1 + F·Gd)`` with ``Gd`` the Tustin
-    image of ``G_simple = K/(s(s²/ω² + 2δs/ω + 1))``; the criterion
-    ``Σ (y − Gcl(q, θ) r)²`` is minimised by Levenberg–Marquardt in
-    (log K, log ω, δ). It keeps the integrator exact and, unlike ARX, is
-    consistent under white measurement noise.
+    The model is ``Gcl(q, θ) = c·G/(1 + F·G)`` with ``G`` the plant of
+    `structure` (the reduced ``K/(s(s²/ω² + 2δs/ω + 1))`` by default),
+    discretised as `discretization` says; the criterion
+    ``Σ (y − Gcl(q, θ) r)²`` is minimised by Levenberg–Marquardt in the
+    structure's coordinates (log K, log ω, δ). It keeps the integrator
+    exact and, unlike ARX, is consistent under white measurement noise.
 
     Parameters
     ----------
@@ -58,88 +98,130 @@ def fit_one_step(
     loop : FeedbackLoop
         Known forward gain c and feedback F.
     theta0 : sequence of float, optional
-        Start (K [1/s], ω_hp [rad/s], δ_hp [-]); default: the two-step
-        indirect estimate (ARX(3, 4, 0)) on raw and on low-passed data
-        (fs/20, fs/10), whichever simulates the record best.
+        Start in the structure's parameters (reduced: K [1/s], ω_hp
+        [rad/s], δ_hp [-]); one fit from there. Default: `n_starts` fits
+        from a grid scored on the data (first-order bandwidth for K, then
+        ω_hp and δ_hp), the best optimum kept.
+    structure : PlantStructure or str
+        The plant structure, or its name in
+        ``servoid.closedloop._structures.STRUCTURES``.
     output : str, optional
         Output channel name when there are several.
     start : int
         First sample in the criterion (the model starts from rest).
     max_nfev : int, optional
-        Limit on model simulations.
+        Limit on model simulations per start.
     integrator_tol : float
         Not used for the fit (the integrator is exact); kept for a uniform
         pole report [rad/s].
-    discretization : {"tustin", "prewarp", "zoh"}
-        How the continuous closed loop becomes ``Gcl(q, θ)``: Tustin as in
-        the source study; Tustin prewarped at the current ω_hp, which
-        removes Tustin's frequency warping at the resonance (plain Tustin
-        places it at (2/T)·atan(ωT/2), so on data from a continuous plant it
-        overestimates ω_hp by about (ω_hp·T)²/12: 0.22 % for Set B at 1 kHz);
-        or zero-order hold, exact only when the output is sampled from a
-        staircase input without any filtering.
+    discretization : {"auto", "tustin", "prewarp", "zoh", "foh", "bandlimited"}
+        ``"tustin"``: the source study's map (on data from a continuous
+        loop it overestimates ω_hp by about (ω_hp·dt)²/12, 0.22 % for Set
+        B at 1 kHz); ``"prewarp"``: Tustin prewarped at the current ω_hp
+        (ω_hp is then bounded below π/dt, where the map exists);
+        ``"zoh"``: exact for a staircase reference (a DAC command), with
+        `anti_alias` and `decimation` of the output when given;
+        ``"foh"``: exact for straight lines between samples;
+        ``"bandlimited"``: a smooth reference read back through the same
+        filter and decimation as y (7th-degree interpolation between
+        samples); ``"auto"``: ``"zoh"`` when a rig chain is given, else
+        the reference's course as :func:`servoid.data.detect_intersample`
+        finds it. The result states the assumption used.
+    anti_alias : TransferFunction, optional
+        Continuous filter the output passed through before the ADC while
+        the reference did not (it is the logged command); staircase
+        references only.
+    decimation : int
+        Factor of servoid's FIR decimation (:func:`servoid.data.decimate`)
+        applied to y after the ADC, the reference being subsampled;
+        staircase references only. 1: none.
+    n_starts : int
+        Number of grid starts when `theta0` is not given, >= 1.
+    initial : {"level", "rest"}
+        State of the loop before each record: ``"level"``: at rest at a
+        level, with an offset on the output, both estimated with θ (two
+        numbers per record: removing the means, as spec §3.2 does, moves a
+        record that starts at rest off zero by exactly these, and the
+        start-up transient would bias K otherwise); ``"rest"``: at rest at
+        zero, no offset. They enter the final fit as known (their own
+        uncertainty is not in the covariance).
 
     Returns
     -------
     ClosedLoopResult
-        ``approach = "one-step"``; covariance σ̂²(JᵀJ)⁻¹ mapped to (K, ω, δ).
+        ``approach = "one-step"``; the covariance of
+        :func:`~servoid.estimate.fit_tf_greybox` (``source.options["covariance"]``
+        says which) mapped to (K, ω, δ); ``intersample`` and
+        ``intersample_note`` state the assumption, ``flags`` what the data
+        cannot resolve.
 
     Raises
     ------
     ConvergenceError
-        Levenberg–Marquardt did not converge.
+        Levenberg–Marquardt did not converge from any start.
     DataError
         No reference channel, or a start value that is not positive.
+    IdentifiabilityError
+        The parameters cannot be separated from the data (the message
+        names the sample rate or excitation that would separate them).
+    OptionError
+        An unknown discretization or structure, or a rig chain with a
+        hold other than ``"zoh"``.
+
+    Warns
+    -----
+    ServoidWarning
+        A flagged pole, a resonance not resolved at this rate or not
+        determined by the data, or a stated hold the reference contradicts.
+
+    Examples
+    --------
+    >>> from servoid.signals import prbs
+    >>> from servoid.closedloop import simulate_closed_loop
+    >>> loop = FeedbackLoop(0.01, 0.01)
+    >>> r = prbs(9, clock=10, amplitude=1e-3, dt=1e-3).values
+    >>> y = simulate_closed_loop((3451.7, 163.3, 0.249), r, 1e-3, loop)
+    >>> fit = fit_one_step(Experiment.from_arrays(1e-3, r=r, y=y), loop)
+    >>> [round(float(v), 3) for v in fit.estimate.parameters]
+    [3451.7, 163.3, 0.249]
     """
-    check_option("discretization", discretization, ("tustin", "prewarp", "zoh"))
+    check_option("discretization", discretization, DISCRETIZATIONS)
+    check_option("initial", initial, ("level", "rest"))
     _check_loop(loop)
     _require_reference(data, "one-step")
-    dt = as_segments(data)[0].dt
+    plant_structure = _structure(structure)
+    n_starts = as_int("n_starts", n_starts, minimum=1)
+    decimation = as_int("decimation", decimation, minimum=1)
+    if anti_alias is not None and (not isinstance(anti_alias, TransferFunction)
+                                   or anti_alias.dt is not None):
+        raise TypeError(f"anti_alias must be a continuous TransferFunction, got {anti_alias!r}")
+    segments = as_segments(data)
+    dt = segments[0].dt
+    start = as_int("start", start, minimum=0)
+    if any(seg.n_samples <= start + 4 for seg in segments):
+        raise DataError(f"start = {start} leaves too few samples in a record of "
+                        f"{min(seg.n_samples for seg in segments)}")
+    chain = anti_alias is not None or decimation > 1
+    hold, note = _intersample(segments[0], discretization, chain, anti_alias, decimation)
+    model_fn, advance = _model_function(plant_structure, loop, dt, discretization, hold,
+                                        anti_alias, decimation)
+    records = [(seg.signal("r")[:, 0], seg[_output(seg, output)]) for seg in segments]
+    problem = _Problem(_aligned(segments, output, advance),
+                       (segments[0].names_of("r")[0], _output(segments[0], output)), dt,
+                       start + advance, initial, isinstance(data, ExperimentSet))
+    omega_n = math.pi / dt
+    bounds = _bounds(plant_structure, discretization, omega_n)
     if theta0 is None:
-        theta0 = _start_from_indirect(data, loop, output)
-    theta0 = _check_theta0(theta0)
-
-    def model_fn(theta: NDArray[np.float64]) -> TransferFunction:
-        return loop.close(tustin(reduced_plant(theta), dt))
-
-    if loop.is_static:
-        f, c = float(loop.F), loop.c  # type: ignore[arg-type]
-
-        def model_fn(theta: NDArray[np.float64]) -> TransferFunction:
-            # static F: close in s, then one Tustin map (it commutes with the loop algebra)
-            k, w, d = theta
-            kw2 = k * w * w
-            return tustin_arrays([c * kw2], [1.0, 2.0 * d * w, w * w, f * kw2], dt)
-
-    if discretization == "prewarp":
-
-        def model_fn(theta: NDArray[np.float64]) -> TransferFunction:
-            # Tustin with s = k(z − 1)/(z + 1), k = ω/tan(ωT/2): the map of step 2/k.
-            k, w, d = theta
-            kw2 = k * w * w
-            h = 2.0 * math.tan(0.5 * w * dt) / w
-            plant = tustin_arrays([kw2], [1.0, 2.0 * d * w, w * w, 0.0], h)
-            closed = loop.close(TransferFunction(plant.num, plant.den, dt, "tustin", w))
-            return closed
-
-    if discretization == "zoh":
-
-        def model_fn(theta: NDArray[np.float64]) -> TransferFunction:
-            closed = loop.close(reduced_plant(theta)) if not loop.is_static else None
-            if closed is None:
-                k, w, d = theta
-                kw2 = k * w * w
-                num, den = [loop.c * kw2], [1.0, 2.0 * d * w, w * w, float(loop.F) * kw2]  # type: ignore[arg-type]
-            else:
-                num, den = closed.num, closed.den
-            numd, dend, _ = sps.cont2discrete((num, den), dt, method="zoh")
-            return TransferFunction(np.ravel(numd), dend, dt, "zoh")
-
-    est = fit_tf_greybox(
-        data, model_fn, theta0, PARAMETER_NAMES, PARAMETER_UNITS, input="r", output=output,
-        transform=_TRANSFORM, start=start, max_nfev=max_nfev, method_name="one-step",
+        top = 0.999 * omega_n if discretization == "prewarp" else 1.5 * omega_n
+        starts = [plant_structure.start(t) for t in grid_starts(records, loop, dt, top,
+                                                                  n_starts)]
+    else:
+        starts = [_check_theta0(theta0, plant_structure)]
+    est = _best_fit(problem, model_fn, starts, plant_structure, max_nfev, bounds)
+    return greybox_result(
+        "one-step", est, loop, dt, est.model, integrator_tol, discretization=discretization,
+        structure=plant_structure, hold=hold, note=note, advance=advance, reference=records,
     )
-    return greybox_result("one-step", est, loop, dt, est.model, integrator_tol, discretization)
 
 
 def greybox_result(
@@ -149,56 +231,484 @@ def greybox_result(
     dt: float,
     closed_loop: TransferFunction | None,
     integrator_tol: float,
-    discretization: Literal["tustin", "prewarp", "zoh"] = "tustin",
+    discretization: str = "tustin",
+    *,
+    structure: PlantStructure | None = None,
+    hold: Hold | None = None,
+    note: str = "",
+    advance: int = 0,
+    reference: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]] | None = None,
 ) -> ClosedLoopResult:
-    """Wrap an OE fit of (K, ω, δ) as a closed-loop result."""
-    plant_c = reduced_plant(est.parameters)
+    """Wrap an OE fit as a closed-loop result in (K, ω, δ), with its checks."""
+    plant_structure = structure if structure is not None else STRUCTURES["reduced"]
+    theta = np.asarray(est.parameters, dtype=float)
+    plant_c = plant_structure.plant(theta)
+    physical = _reduced_estimate(est, plant_structure, plant_c)
+    w = float(physical.parameters[1])
     if discretization == "prewarp":
-        plant = c2d(plant_c, dt, "tustin", prewarp=float(est.parameters[1]))
+        plant = c2d(plant_c, dt, "tustin", prewarp=min(w, 0.999 * math.pi / dt))
+    elif discretization == "tustin":
+        plant = c2d(plant_c, dt, "tustin")
     else:
-        plant = c2d(plant_c, dt, discretization)
+        plant = c2d(plant_c, dt, "zoh" if hold == "zoh" else "foh")
+    physical = dataclasses.replace(physical, options={
+        **dict(physical.options), "discretization": discretization,
+        "intersample": hold or "none", "advance": advance, "structure": plant_structure.name})
     anchors = anchors_of(plant_c, None)
-    physical = dataclasses.replace(est, model=plant_c)
-    poles = pole_report(closed_loop, plant, plant_c, anchors, 0.0, 0.0, integrator_tol)
+    report_loop = closed_loop
+    if hold is not None and loop is not None:
+        # the loop's own poles, not those of the rig's anti-alias filter or FIR
+        report_loop = c2d(loop.close(plant_c), dt, "zoh" if hold == "zoh" else "foh")
+    poles = pole_report(report_loop, plant, plant_c, anchors, 0.0, 0.0, integrator_tol)
     warn_flagged(poles)
+    flags = _resolution_flags(physical, dt, reference)
+    for flag in flags:
+        warnings.warn(flag, ServoidWarning, stacklevel=3)
     return ClosedLoopResult(
-        approach, physical, closed_loop, plant, plant_c, poles, loop, 0.0, 0.0, est
+        approach, physical, closed_loop, plant, plant_c, poles, loop, 0.0, 0.0, est,
+        discretization=discretization, intersample=hold or "none", intersample_note=note,
+        advance=advance, flags=flags, structure=plant_structure.name,
     )
 
 
-def _start_from_indirect(
-    data: Experiment | ExperimentSet, loop: FeedbackLoop, output: str | None
-) -> NDArray[np.float64]:
-    from ._api import simulate_closed_loop
-    from ._twostep import indirect_theta
+# -- discretisation and intersample --------------------------------------------------------
 
-    segments = as_segments(data)
-    fs = 1.0 / segments[0].dt
-    best, best_cost = None, math.inf
-    # ARX is biased by output noise far above the loop's band (spec §3.4), so also try
-    # low-passed data (fs/20, fs/10) and keep the start the OE criterion likes best.
-    for cutoff in (None, fs / 20.0, fs / 10.0):
-        try:
-            theta = indirect_theta(data, loop, output, cutoff)
-        except (DataError, IdentifiabilityError, ModelError):
-            continue
-        if not (np.all(np.isfinite(theta)) and theta[0] > 0 and theta[1] > 0):
-            continue
-        with np.errstate(all="ignore"):
-            cost = sum(
-                float(np.sum((seg[_output(seg, output)] - simulate_closed_loop(
-                    theta, seg.signal("r")[:, 0], seg.dt, loop)) ** 2))
-                for seg in segments
-            )
-        if np.isfinite(cost) and cost < best_cost:
-            best, best_cost = theta, cost
-    if best is None:
-        raise IdentifiabilityError(
-            "the two-step indirect start is not physical (no positive K, omega_hp with or "
-            "without prefiltering); give theta0 = (K, omega_hp, delta_hp) from a step test or "
-            "the design values"
+
+def _intersample(
+    segment: Experiment, discretization: str, chain: bool,
+    anti_alias: TransferFunction | None, decimation: int,
+) -> tuple[Hold | None, str]:
+    """The hold used (None for a Tustin map) and the sentence that states it."""
+    if chain and discretization not in ("auto", "zoh"):
+        raise OptionError(
+            f"anti_alias and decimation describe the output's chain for a staircase reference "
+            f"(a logged DAC command); discretization={discretization!r} does not take them: use "
+            "'zoh' or 'auto'. A reference read back through the same chain as the output needs "
+            "neither (the chain cancels): use 'bandlimited'"
         )
-    return best
+    check = detect_intersample(segment.signal("r")[:, 0])
+    seen = f"detected {check.reason}"
+    if discretization in ("tustin", "prewarp"):
+        what = ("Tustin's map prewarped at ω_hp" if discretization == "prewarp" else
+                "Tustin's map (it overestimates ω_hp by ≈ (ω_hp·dt)²/12)")
+        hint = repr(check.kind)
+        return None, (f"no intersample model: {what} approximates the continuous loop; "
+                      f"reference {seen}; discretization={hint} (or 'auto') models it exactly")
+    if discretization == "auto":
+        hold: Hold = "zoh" if chain else check.kind
+        if chain and check.kind != "zoh":
+            warnings.warn(
+                "the rig chain (anti-alias filter / decimation of y) is declared for a logged "
+                f"command, but the reference looks band-limited ({check.reason}); the staircase "
+                "model is used as declared. If r was read back through the same chain, declare "
+                "it so (it cancels) and use discretization='bandlimited'",
+                ServoidWarning, stacklevel=4)
+    else:
+        hold = discretization  # type: ignore[assignment]
+        if hold in ("zoh", "bandlimited") and check.kind != hold:
+            warnings.warn(
+                f"discretization={hold!r} assumes a {_KIND[hold]} reference, but it looks "
+                f"{_KIND[check.kind]} ({check.reason}); the estimate is biased if the "
+                "assumption is wrong: use 'auto' or declare how r was logged",
+                ServoidWarning, stacklevel=4)
+    if hold == "zoh":
+        text = "reference taken as a staircase held over each sample (zero-order hold, exact)"
+        if chain:
+            parts = []
+            if anti_alias is not None:
+                parts.append(f"the order-{anti_alias.order} analog anti-alias filter")
+            if decimation > 1:
+                parts.append(f"servoid's FIR decimation by {decimation}")
+            text += (f"; {' and '.join(parts)} of the output are in the model (declared; the "
+                     "reference is the logged command, subsampled)")
+    elif hold == "foh":
+        text = "reference taken as straight lines between samples (first-order hold, exact)"
+    else:
+        text = (f"reference taken as band-limited, read back through the same filter and "
+                f"decimation as the output, which then cancel (continuous-time criterion; "
+                f"degree-{BANDLIMITED_DEGREE} interpolation between samples)")
+    source = "declared" if discretization != "auto" or chain else "auto"
+    return hold, f"{text}; {source}; reference {seen}"
+
+
+_KIND = {"zoh": "staircase (DAC command)", "bandlimited": "band-limited (read back)"}
+
+
+def _model_function(
+    plant_structure: PlantStructure, loop: FeedbackLoop, dt: float, discretization: str,
+    hold: Hold | None, anti_alias: TransferFunction | None, decimation: int,
+) -> tuple[Callable[[NDArray[np.float64]], TransferFunction], int]:
+    """θ ↦ the discrete closed loop at dt, and its advance [samples]."""
+    plant_of = plant_structure.plant
+    reduced_of = plant_structure.reduced
+    if hold is not None:
+        if isinstance(loop.F, TransferFunction) and loop.F.dt is not None:
+            raise OptionError(
+                f"discretization={discretization!r} samples the continuous closed loop, but F is "
+                f"discrete (dt = {loop.F.dt} s); give F as a continuous TransferFunction or a "
+                "gain, or use discretization='tustin'"
+            )
+
+        f = loop.feedback_at(None)
+        f_num, f_den, c = np.asarray(f.num, float), np.asarray(f.den, float), loop.c
+
+        def exact(theta: NDArray[np.float64]) -> TransferFunction:
+            # c·G/(1 + F·G) as polynomials: no intermediate TransferFunction to build
+            plant = plant_of(theta)
+            num = c * np.polymul(plant.num, f_den)
+            den = np.polyadd(np.polymul(plant.den, f_den), np.polymul(f_num, plant.num))
+            model, _ = sampled_arrays(num, den, dt, hold, anti_alias=anti_alias,
+                                      decimation=decimation)
+            return model
+
+        _, advance = sampled_loop(loop.close(plant_of(_probe(plant_structure))), dt, hold,
+                                  anti_alias=anti_alias, decimation=decimation)
+        return exact, advance
+    if discretization == "prewarp":
+
+        def prewarped(theta: NDArray[np.float64]) -> TransferFunction:
+            # Tustin with s = k(z − 1)/(z + 1), k = ω/tan(ωT/2): the map of step 2/k.
+            w = reduced_of(theta)[1]
+            h = 2.0 * math.tan(0.5 * w * dt) / w
+            plant = plant_of(theta)
+            mapped = tustin_arrays(plant.num, plant.den, h)
+            return loop.close(TransferFunction(mapped.num, mapped.den, dt, "tustin", w))
+
+        return prewarped, 0
+    if loop.is_static and plant_structure.name == "reduced":
+        f, c = float(loop.F), loop.c  # type: ignore[arg-type]
+
+        def fast(theta: NDArray[np.float64]) -> TransferFunction:
+            # static F: close in s, then one Tustin map (it commutes with the loop algebra)
+            k, w, d = theta
+            kw2 = k * w * w
+            return tustin_arrays([c * kw2], [1.0, 2.0 * d * w, w * w, f * kw2], dt)
+
+        return fast, 0
+
+    def mapped(theta: NDArray[np.float64]) -> TransferFunction:
+        return loop.close(tustin(plant_of(theta), dt))
+
+    return mapped, 0
+
+
+def _probe(plant_structure: PlantStructure) -> NDArray[np.float64]:
+    # any valid θ fixes the advance, which depends only on the hold and the rig chain
+    return plant_structure.start((1.0, 1.0, 0.5))
+
+
+def _aligned(segments: Sequence[Experiment], output: str | None,
+             advance: int) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """(r, y) with y delayed by `advance` samples: ``y(k − L) = G'(q)·r(k)`` is causal.
+
+    The first `advance` outputs are unknown (zero here) and left out of the criterion.
+    """
+    out = []
+    for seg in segments:
+        r = np.ascontiguousarray(seg.signal("r")[:, 0], dtype=float)
+        y = np.asarray(seg[_output(seg, output)], dtype=float)
+        if advance:
+            y = np.concatenate([np.zeros(advance), y[: y.size - advance]])
+        out.append((r, y))
+    return out
+
+
+def _bounds(plant_structure: PlantStructure, discretization: str,
+            omega_n: float) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """The structure's bounds, and ω_hp < π/dt for the prewarped map (None: unbounded).
+
+    Beyond π/dt, tan(ω·dt/2) changes sign and the prewarped map does not exist.
+    Infinite bounds become finite ones far enough never to bind (fit_tf_greybox moves a start
+    inside the bounds by a relative margin, which an infinite bound turns into NaN) and
+    moderate enough for the trust-region scaling, which works with distances to the bounds.
+    """
+    given = plant_structure.bounds
+    prewarp = discretization == "prewarp" and "omega_hp" in plant_structure.names
+    if given is None and not prewarp:
+        return None
+    n = plant_structure.n_parameters
+    is_log = np.array([t == "log" for t in plant_structure.transforms])
+    lo = np.full(n, -np.inf) if given is None else np.asarray(given[0], dtype=float).copy()
+    hi = np.full(n, np.inf) if given is None else np.asarray(given[1], dtype=float).copy()
+    lo = np.where(is_log, np.maximum(lo, 1e-30), np.where(np.isfinite(lo), lo, -1e3))
+    hi = np.where(np.isfinite(hi), hi, np.where(is_log, 1e30, 1e3))
+    if prewarp:
+        k = plant_structure.names.index("omega_hp")
+        hi[k] = min(hi[k], 0.999 * omega_n)
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class _Problem:
+    """The aligned records and what the criterion uses of them."""
+
+    records: list[tuple[NDArray[np.float64], NDArray[np.float64]]]
+    names: tuple[str, str]  # reference and output channel names
+    dt: float
+    start: int  # first sample of the criterion in each record (user's start + advance)
+    initial: str  # "level" or "rest"
+    as_set: bool
+
+
+def _best_fit(
+    problem: _Problem,
+    model_fn: Callable[[NDArray[np.float64]], TransferFunction],
+    starts: Sequence[NDArray[np.float64]],
+    plant_structure: PlantStructure,
+    max_nfev: int | None,
+    bounds: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
+) -> Estimate:
+    """Descend from every start, then fit (with covariance) from the best optimum.
+
+    The descents use a loose tolerance (1e-6 on cost and step), estimate
+    the rest level before each record with θ (variable projection) and rank
+    the basins; :func:`~servoid.estimate.fit_tf_greybox` then converges from
+    the best one, on records preceded by that level held long enough for
+    the loop to settle, and supplies the covariance and its diagnostics
+    once.  Should it fail there, the next basin is tried.
+    """
+    if bounds is not None:
+        starts = [np.clip(t, bounds[0], 0.99 * bounds[1]) for t in starts]
+    ranked = _rank_starts(problem, model_fn, starts, plant_structure, bounds, max_nfev)
+    failures: list[Exception] = []
+    dt = problem.dt
+    for theta0, nuisance in ranked:
+        data, prefix = _with_levels(problem, model_fn, theta0, nuisance)
+        try:
+            est = fit_tf_greybox(
+                data, model_fn, theta0, plant_structure.names, plant_structure.units,
+                input="r", output=problem.names[1], transform=plant_structure.transforms,
+                bounds=bounds, start=problem.start + prefix, max_nfev=max_nfev,
+                method_name="one-step")
+        except (ConvergenceError, IdentifiabilityError) as exc:
+            failures.append(exc)
+            continue
+        # the criterion's samples in the caller's records: the held level is not data
+        return dataclasses.replace(est, options={
+            **dict(est.options), "start": problem.start, "prefix": prefix,
+            "initial": problem.initial,
+            "initial_level": [lv for lv, _ in nuisance],
+            "output_offset": [off for _, off in nuisance],
+            "structure": plant_structure.name, "n_starts": len(starts),
+            "starts": [np.asarray(t, float).tolist() for t in starts]})
+    first = failures[0]
+    if all(isinstance(f, IdentifiabilityError) for f in failures):
+        raise IdentifiabilityError(
+            f"{first} — at dt = {dt:g} s (f_s = {1 / dt:g} Hz, Nyquist "
+            f"{math.pi / dt:.4g} rad/s) the closed loop does not show omega_hp and "
+            "delta_hp separately: the resonance lies beyond what this rate resolves or "
+            "the reference does not excite it. Record at f_s >= 4·f_hp (f_hp from the "
+            "design or a step test) with a reference that reaches the resonance"
+        ) from None
+    raise first
+
+
+def _simulate(model: TransferFunction, x: NDArray[np.float64]) -> NDArray[np.float64]:
+    numq = np.concatenate([np.zeros(model.den.size - model.num.size), model.num])
+    with np.errstate(all="ignore"):
+        return np.asarray(sps.lfilter(numq, model.den, x), dtype=float)
+
+
+def _level_fit(
+    problem: _Problem, model: TransferFunction,
+) -> tuple[list[NDArray[np.float64]], list[tuple[float, float]]]:
+    """Residuals with the rest level and output offset of each record projected out.
+
+    A loop held at level ℓ before the record adds ``ℓ·(G(1) − s(k))`` to
+    the response from rest (s the step response, G(1) the static gain);
+    an offset o of the output adds o.  Removing the means (spec §3.2)
+    leaves exactly these two for a record that starts at rest:
+    ``ℓ = −mean(r)`` and ``o = G(1)·mean(r) − mean(y)``, which differ from
+    zero by the loop's lag over a short record.  Both are linear: least
+    squares per record.
+    """
+    out, nuisance = [], []
+    s0 = problem.start
+    for r, y in problem.records:
+        e = y - _simulate(model, r)
+        level = offset = 0.0
+        if problem.initial == "level":
+            step = _simulate(model, np.ones(r.size))
+            if np.all(np.isfinite(step)):
+                # the static gain: the settled step response (it equals G(1) once the loop has
+                # settled within the record, which a record that resolves it always allows)
+                decay = step[-1] - step
+                columns = [decay, np.ones(r.size)]
+                # a start after the transient has died out (energy below 1e-6 of the whole
+                # decay) leaves the level without effect and undetermined: fit the offset alone
+                if float(decay[s0:] @ decay[s0:]) < 1e-6 * float(decay @ decay):
+                    columns = columns[1:]
+                coef, *_ = np.linalg.lstsq(np.column_stack(columns)[s0:], e[s0:], rcond=None)
+                offset = float(coef[-1])
+                level = float(coef[0]) if len(columns) == 2 else 0.0
+                e = e - level * decay - offset
+        out.append(e[s0:])
+        nuisance.append((level, offset))
+    return out, nuisance
+
+
+def _with_levels(
+    problem: _Problem, model_fn: Callable[[NDArray[np.float64]], TransferFunction],
+    theta: NDArray[np.float64], nuisance: Sequence[tuple[float, float]],
+) -> tuple[Experiment | ExperimentSet, int]:
+    """The records preceded by their rest levels (held until the loop settles), offset off y."""
+    prefix = 0
+    if problem.initial == "level" and any(lv for lv, _ in nuisance):
+        model = model_fn(theta)
+        radius = float(np.max(np.abs(model.poles()))) if model.order else 0.0
+        n = max(r.size for r, _ in problem.records)
+        # settle to 1e-9 of the level; a loop too slow for that over the record gets 4 records
+        prefix = n * 4 if radius >= 1.0 else int(min(
+            max(math.ceil(math.log(1e-9) / math.log(max(radius, 1e-300))), 1), 4 * n))
+    out = []
+    r_name, y_name = problem.names
+    for (r, y), (level, offset) in zip(problem.records, nuisance, strict=True):
+        y = y - offset
+        if prefix:
+            r = np.concatenate([np.full(prefix, level), r])
+            y = np.concatenate([np.zeros(prefix), y])  # outside the criterion
+        out.append(Experiment.from_arrays(problem.dt, r=r, y=y, names={"r": r_name, "y": y_name}))
+    return (ExperimentSet(tuple(out)) if problem.as_set else out[0]), prefix
+
+
+def _rank_starts(
+    problem: _Problem,
+    model_fn: Callable[[NDArray[np.float64]], TransferFunction],
+    starts: Sequence[NDArray[np.float64]],
+    plant_structure: PlantStructure,
+    bounds: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
+    max_nfev: int | None,
+) -> list[tuple[NDArray[np.float64], list[tuple[float, float]]]]:
+    """The optima of loose descents from each start with their levels, best first."""
+    is_log = np.array([t == "log" for t in plant_structure.transforms])
+
+    def to_theta(z: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.where(is_log, np.exp(np.where(is_log, z, 0.0)), z)
+
+    def residuals(z: NDArray[np.float64]) -> NDArray[np.float64]:
+        parts, _ = _level_fit(problem, model_fn(to_theta(z)))
+        out = np.concatenate(parts)
+        out[~np.isfinite(out)] = 1e30  # a diverging simulation: finite, so the step is refused
+        return out
+
+    lo = hi = None
+    if bounds is not None:
+        lo = np.where(is_log, np.log(np.where(is_log, bounds[0], 1.0)), bounds[0])
+        hi = np.where(is_log, np.log(np.where(is_log, bounds[1], 1.0)), bounds[1])
+    ranked: list[tuple[float, NDArray[np.float64]]] = []
+    for theta0 in starts:
+        z0 = np.where(is_log, np.log(np.where(is_log, theta0, 1.0)), theta0)
+        try:
+            with np.errstate(all="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                res = optimize.least_squares(
+                    residuals, z0, method="lm" if bounds is None else "trf",
+                    bounds=(-np.inf, np.inf) if lo is None else (lo, hi),
+                    xtol=1e-6, ftol=1e-6, gtol=1e-8,
+                    max_nfev=max_nfev if max_nfev is not None else 100 * (z0.size + 1))
+        except (ValueError, np.linalg.LinAlgError):
+            ranked.append((math.inf, np.asarray(theta0, dtype=float)))
+            continue
+        ok = np.all(np.isfinite(res.x)) and np.isfinite(res.cost) and res.cost < 1e50
+        ranked.append((float(res.cost) if ok else math.inf, to_theta(res.x) if ok else theta0))
+    ranked.sort(key=lambda item: item[0])
+    out = []
+    for _, theta in ranked:
+        _, nuisance = _level_fit(problem, model_fn(theta))
+        out.append((theta, nuisance))
+    return out
+
+
+# -- the physical estimate and its checks ------------------------------------------------------
+
+
+def _reduced_estimate(est: Estimate, plant_structure: PlantStructure,
+                      plant_c: TransferFunction) -> Estimate:
+    """(K, ω, δ) of the structure's θ with the covariance by the delta method."""
+    from ._loop import PARAMETER_NAMES, PARAMETER_UNITS
+
+    theta = np.asarray(est.parameters, dtype=float)
+    if plant_structure.name == "reduced":
+        return dataclasses.replace(est, model=plant_c)
+    values = np.asarray(plant_structure.reduced(theta), dtype=float)
+
+    def fun(t: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(plant_structure.reduced(t), dtype=float)
+
+    cov = delta_method(fun, theta, np.asarray(est.covariance), 0.01)
+    return dataclasses.replace(
+        est, model=plant_c, parameters=values, names=PARAMETER_NAMES, covariance=cov,
+        units=PARAMETER_UNITS)
+
+
+def _resolution_flags(
+    physical: Estimate, dt: float,
+    records: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]] | None,
+) -> tuple[str, ...]:
+    """Say when the resonance is beyond the rate or not determined by the data."""
+    w, d = (float(v) for v in physical.parameters[1:3])
+    std = np.asarray(physical.std, dtype=float)
+    omega_n = math.pi / dt
+    fs = 1.0 / dt
+    f_hp = w / (2.0 * math.pi)
+    needed = _round_up(4.0 * f_hp)
+    flags = []
+    if w * _NYQUIST_MARGIN > omega_n:
+        flags.append(
+            f"omega_hp = {w:.4g} rad/s ({f_hp:.4g} Hz) is not resolved at f_s = {fs:g} Hz: "
+            f"the Nyquist frequency {omega_n:.4g} rad/s is less than twice the resonance, so the "
+            "sampled record hardly shows it and the estimate rests on a small phase lag; "
+            f"record at f_s >= {needed:g} Hz (4·f_hp) to resolve it"
+            + ("" if w < omega_n else
+               " (the estimate lies beyond the Nyquist frequency itself: take f_hp from the "
+               "design values if this one looks implausible)")
+        )
+    rel = np.abs(std[1:3] / np.array([w, d]))
+    if not np.all(np.isfinite(rel)) or np.any(1.96 * rel > _UNDETERMINED):
+        band = ""
+        if records:
+            band = (f" (the reference carries {100 * _power_above(records, dt, w / 2):.2g} % of "
+                    "its power above omega_hp/2)")
+        rate = (f", and sample at f_s >= {needed:g} Hz (4·f_hp)" if needed > fs else "")
+        flags.append(
+            f"the data do not determine the resonance: the 95 % intervals of omega_hp "
+            f"(± {196 * rel[0]:.3g} %) and delta_hp (± {196 * rel[1]:.3g} %) are not both "
+            f"within ± {100 * _UNDETERMINED:.0f} %{band}; excite up to the resonance (e.g. a "
+            f"PRBS whose band 0.44/T_bit reaches f_hp){rate}. Intervals this wide are "
+            "linearised and not reliable"
+        )
+    return tuple(flags)
+
+
+def _power_above(records: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
+                 dt: float, omega: float) -> float:
+    total = above = 0.0
+    for r, _ in records:
+        spec = np.abs(np.fft.rfft(r - r.mean())) ** 2
+        freq = 2.0 * math.pi * np.fft.rfftfreq(r.size, dt)
+        total += float(spec.sum())
+        above += float(spec[freq >= omega].sum())
+    return above / total if total > 0 else 0.0
+
+
+def _round_up(value: float) -> float:
+    """Round up to two significant digits (a rate to ask for)."""
+    if value <= 0 or not math.isfinite(value):
+        return value
+    scale = 10.0 ** (math.floor(math.log10(value)) - 1)
+    return math.ceil(value / scale) * scale
+
+
+# -- checks ------------------------------------------------------------------------------------
+
+
+def _structure(structure: PlantStructure | str) -> PlantStructure:
+    if isinstance(structure, PlantStructure):
+        return structure
+    if not isinstance(structure, str):
+        raise TypeError(f"structure must be a PlantStructure or its name, got {structure!r}")
+    check_option("structure", structure, tuple(STRUCTURES))
+    return STRUCTURES[structure]
 
 
 def _output(seg: Experiment, output: str | None) -> str:
@@ -208,12 +718,19 @@ def _output(seg: Experiment, output: str | None) -> str:
     return output or outputs[0]
 
 
-def _check_theta0(theta0: ArrayLike) -> NDArray[np.float64]:
+def _check_theta0(theta0: ArrayLike,
+                  plant_structure: PlantStructure | None = None) -> NDArray[np.float64]:
+    ps = plant_structure if plant_structure is not None else STRUCTURES["reduced"]
     theta = np.asarray(theta0, dtype=float).ravel()
-    if theta.size != 3 or not np.all(np.isfinite(theta)):
-        raise DataError(f"theta0 must be 3 finite numbers (K, omega_hp, delta_hp), got {theta0!r}")
-    if theta[0] <= 0 or theta[1] <= 0:
-        raise DataError(f"theta0 needs K > 0 and omega_hp > 0 (log parameters), got {theta0!r}")
+    names = ", ".join(ps.names)
+    if theta.size != ps.n_parameters or not np.all(np.isfinite(theta)):
+        raise DataError(f"theta0 must be {ps.n_parameters} finite numbers ({names}), "
+                        f"got {theta0!r}")
+    logs = [n for n, t, v in zip(ps.names, ps.transforms, theta, strict=True)
+            if t == "log" and v <= 0]
+    if logs:
+        raise DataError(f"theta0 needs {' > 0 and '.join(logs)} > 0 (log parameters), "
+                        f"got {theta0!r}")
     return theta
 
 
@@ -231,4 +748,3 @@ def _require_reference(data: Experiment | ExperimentSet, approach: str) -> None:
             f"experiment has no reference ('r') channel; it has: {names}. Map the command "
             "channel to role 'r', or use approach='direct' with the measured plant input u"
         )
-

@@ -7,6 +7,7 @@ import os
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from numpy.typing import ArrayLike, NDArray
 
 from .._atomic import atomic_path
 from ..validate import ValidationReport
@@ -55,32 +56,114 @@ def plot_validation(
 
 
 def plot_residuals(
-    report: ValidationReport, path: str | os.PathLike[str], overwrite: bool = False
+    report: ValidationReport,
+    path: str | os.PathLike[str],
+    overwrite: bool = False,
+    *,
+    u: ArrayLike | None = None,
 ) -> None:
-    """Save residual correlation plots with confidence bands."""
+    """Save residual correlation plots with the bands the tests use.
+
+    The autocorrelation band is ±z/√N, the spread of each lag of white
+    residuals (the whiteness verdict is the Ljung–Box test over all lags).
+    The cross-correlation band is what the independence test assumes under
+    its null: with the input `u` given, ±z·√(P_ττ/N), where P is built
+    from the input's correlations and, when the residuals are not white,
+    weighted by their (Bartlett-tapered) autocorrelation (Ljung, *System
+    Identification*, 2nd ed., eq. 16.69; :func:`servoid.validate.residual_analysis`),
+    which for a slow input and coloured residuals is much wider than
+    ±z/√N. A causal (closed-loop) test leaves the negative lags untested;
+    they are drawn without a band.
+
+    Parameters
+    ----------
+    report : ValidationReport
+        The validation.
+    path : path-like
+        Image file to write.
+    overwrite : bool
+        Replace an existing file.
+    u : array_like, shape (N,) or (N, n_inputs), optional
+        The validation input over the report's samples; without it the
+        cross-correlation band is the white-residual ±z/√N.
+    """
     res = report.residuals
     n_cross = res.cross_correlation.shape[0]
     fig = new_figure((9, 2.6 * (1 + n_cross)))
     axes = fig.subplots(1 + n_cross, 1)
     axes = np.atleast_1d(axes)
     verdict = "white" if res.is_white else "not white"
-    _stem(axes[0], res.lags, res.autocorrelation, res.bound)
+    _stem(axes[0], res.lags, res.autocorrelation, np.full(res.lags.size, res.bound))
     axes[0].set_title(
         f"residual autocorrelation ({verdict}, Ljung–Box p = {res.whiteness_pvalue:.3g}); "
         f"band ±{res.bound:.3g} at {100 * res.confidence:.0f} %"
     )
+    bands, how = _cross_bands(report, u, n_cross)
     for k in range(n_cross):
-        _stem(axes[k + 1], res.cross_lags, res.cross_correlation[k], res.bound)
-        axes[k + 1].set_title(f"input {k} – residual cross-correlation")
+        band = bands[k]
+        if res.causal:
+            band = np.where(res.cross_lags >= 0, band, np.nan)
+        _stem(axes[k + 1], res.cross_lags, res.cross_correlation[k], band)
+        axes[k + 1].set_title(
+            f"input {k} – residual cross-correlation (independence p = "
+            f"{res.independence_pvalue:.3g}); band {how}"
+            + ("; negative lags not tested (closed loop)" if res.causal else ""))
     axes[-1].set_xlabel("lag [samples]")
     fig.tight_layout()
     save_figure(fig, path, overwrite)
 
 
-def _stem(ax: Axes, lags: np.ndarray, r: np.ndarray, bound: float) -> None:
+def _cross_bands(report: ValidationReport, u: ArrayLike | None,
+                 n_cross: int) -> tuple[list[NDArray[np.float64]], str]:
+    """Per input and lag, z times the null standard deviation of r_εu(τ)."""
+    from scipy import stats
+
+    from ..validate._residuals import _bartlett_autocorrelation, _lagged_sums, _unit_scale
+
+    res = report.residuals
+    lags = res.cross_lags
+    flat = [np.full(lags.size, res.bound)] * n_cross
+    if u is None or n_cross == 0:
+        return flat, f"±z/√N = ±{res.bound:.3g} (white-residual approximation)"
+    first = report.first
+    uu = np.asarray(u, dtype=float).reshape(report.measured.size, -1)[first:]
+    if uu.shape[1] != n_cross:
+        raise ValueError(f"u has {uu.shape[1]} inputs but the report {n_cross}")
+    n = uu.shape[0]
+    z = float(stats.norm.ppf(0.5 + res.confidence / 2))
+    colour = None
+    if not res.is_white:
+        if report.noise_model:  # its one-step errors are not in the report
+            return flat, (f"±z/√N = ±{res.bound:.3g} (the test widens it for the residuals' "
+                          "colour, which this report does not hold)")
+        e = report.measured[first:] - report.simulated[first:]
+        e = _unit_scale(e - e.mean())
+        colour = _bartlett_autocorrelation(e, int(res.lags[-1]))
+    bands = []
+    for col in uu.T:
+        x = _unit_scale(col - col.mean())
+        x = x - x.mean()
+        norm2 = float(x @ x)
+        if colour is None:
+            # Σ_s x(s − τ)² over the record: the full energy less the samples shifted out
+            head = np.concatenate([[0.0], np.cumsum(x**2)])
+            tail = np.concatenate([[0.0], np.cumsum(x[::-1] ** 2)])
+            shifted = np.where(lags >= 0, tail[np.minimum(lags, n)], head[np.minimum(-lags, n)])
+            var = (norm2 - shifted) / norm2
+        else:
+            k_max = (colour.size - 1) // 2
+            s_uu = _lagged_sums(x, x, k_max)
+            var = np.full(lags.size, float(colour @ s_uu) / norm2)
+        bands.append(z * np.sqrt(np.maximum(var, 0.0) / n))
+    how = ("±z·√(P_ττ/N) of the independence test" + (", widened for the residuals' colour"
+                                                       if colour is not None else ""))
+    return bands, how
+
+
+def _stem(ax: Axes, lags: np.ndarray, r: np.ndarray, band: np.ndarray) -> None:
     ax.vlines(lags, 0, r, color="C0", lw=1.2)
     ax.plot(lags, r, "o", color="C0", ms=3)
-    ax.axhspan(-bound, bound, color="C2", alpha=0.15, lw=0)
+    ax.fill_between(lags, -band, band, color="C2", alpha=0.15, lw=0, step="mid")
     ax.axhline(0, color="0.3", lw=0.6)
     ax.grid(alpha=0.3)
 

@@ -10,18 +10,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy import signal as sps
 
 from .. import __version__
 from .._checks import as_float, as_float_list, type_error
 from .._errors import DataError, OptionError, ServoidWarning
 from ..closedloop import (
     APPROACHES,
+    DISCRETIZATIONS,
     ClosedLoopResult,
     FeedbackLoop,
     identify_closed_loop,
     reduced_plant,
 )
-from ..data import ExperimentSpec
+from ..data import Experiment, ExperimentSpec
 from ..models import TransferFunction
 from ..report import (
     Figure,
@@ -49,7 +51,6 @@ from ._registry import FigureWriter, Method, Option
 __all__ = ["METHOD", "ClosedLoopIdentification", "loop_from_table"]
 
 _NAMES = ("K", "omega_hp", "delta_hp")
-_DISCRETIZATIONS = ("tustin", "prewarp", "zoh")
 _F_KEYS = ("num", "den", "dt")
 _LABEL = {"indirect": "two-step", "one-step": "one-step", "direct": "direct"}
 
@@ -67,6 +68,7 @@ class ClosedLoopIdentification:
     folder: Path | None = None
     files: tuple[Path, ...] = ()
     notes: tuple[str, ...] = field(default=())
+    validation_data: Experiment | None = None
 
     @property
     def estimate(self) -> Any:
@@ -139,6 +141,12 @@ class ClosedLoopIdentification:
             lines.append(f"  {row['name']:<9} {truth:>10}{cells}   [{lo:.5g}, {hi:.5g}]")
         fits = ", ".join(f"{_LABEL[a]} {v.fit_percent:.2f} %" for a, v in self.validations.items())
         lines.append(f"  validation fit (closed loop, held-back data): {fits}")
+        for approach, result in self.results.items():
+            if result.intersample_note:
+                lines.append(f"  intersample ({_LABEL[approach]}): {result.intersample_note}")
+            cov = result.source.options.get("covariance")
+            if cov:
+                lines.append(f"  intervals ({_LABEL[approach]}): {cov} covariance")
         for note in self.notes:
             lines.append(f"  note: {note}")
         if self.folder:
@@ -194,7 +202,9 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     ``"direct"`` or a list; default both indirect and one-step, the last
     being the primary result), ``na``, ``nb``, ``nk`` (the ARX stage),
     ``prefilter`` [Hz] (zero-phase low-pass for the two-step ARX),
-    ``discretization`` of the one-step model and ``horizon``.
+    ``discretization`` of the one-step model (default ``"auto"``: the
+    exact sampled model for the reference ``[rig]`` declares, or detects)
+    and ``horizon``.
     """
     loop = loop_from_table(spec.loop)
     estimation, (validation_data, *_) = spec.records()
@@ -209,23 +219,51 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         if approach == "indirect" and options["prefilter"] is not None:
             kwargs["prefilter"] = options["prefilter"]
         if approach == "one-step":
-            kwargs["discretization"] = options["discretization"]
+            kwargs.update(_rig_options(spec, options["discretization"]))
         with warnings.catch_warnings():
             # Pole flags become notes of the result and of the report, printed once there.
             warnings.simplefilter("ignore", ServoidWarning)
             result = identify_closed_loop(estimation, loop, approach=approach, **kwargs)
         results[approach] = result
         notes += [f"{_LABEL[approach]}: {n}" for n in result.notes()]
-    validations = {a: _validate(r, validation_data, options["horizon"]) for a, r in results.items()}
+    validations = {a: _validate(r, validation_data, options["horizon"], spec)
+                   for a, r in results.items()}
     primary = options["approach"][-1]
     return ClosedLoopIdentification(spec, loop, results, validations, primary, truth,
-                                    notes=tuple(notes))
+                                    notes=tuple(notes), validation_data=validation_data)
 
 
-def _validate(result: ClosedLoopResult, data: Any, horizon: int) -> ValidationReport:
+def _rig_options(spec: ExperimentSpec, discretization: str) -> dict[str, Any]:
+    """One-step options from ``[rig]``: a logged command brings the output's chain."""
+    rig = spec.rig
+    out: dict[str, Any] = {"discretization": discretization}
+    if rig.reference == "readback" and discretization == "auto":
+        out["discretization"] = "bandlimited"  # declared: the shared chain cancels
+    if rig.reference == "command" and discretization in ("auto", "zoh"):
+        if rig.anti_alias_order is not None:
+            assert rig.anti_alias_cutoff is not None
+            num, den = sps.butter(rig.anti_alias_order, 2.0 * np.pi * rig.anti_alias_cutoff,
+                                  analog=True)
+            out["anti_alias"] = TransferFunction(num, den)
+        out["decimation"] = spec.preprocess.decimate
+    return out
+
+
+def _validate(result: ClosedLoopResult, data: Any, horizon: int,
+              spec: ExperimentSpec) -> ValidationReport:
+    # every model is simulated from an initial state fitted to the record (the held-back half
+    # starts with the actuator moving), so the fit judges the dynamics, not a start-up
+    # transient; [validation] initial/transient, when given, decide instead
+    chosen = spec.validation.initial
+    initial = "estimate" if chosen == "auto" else chosen
+    transient = spec.validation.transient
     if result.closed_loop is not None:
-        return validate(result.closed_loop.to_polynomial("oe"), data, input="r", horizon=horizon)
-    return validate(result.plant.to_polynomial("oe"), data, input="u", horizon=horizon)
+        return validate(result.closed_loop.to_polynomial("oe"), result.align(data), input="r",
+                        horizon=horizon, initial=initial, transient=transient)
+    # the plant from (u, y): u depends on past residuals through the loop, so only the
+    # lags where u leads are tested (closed_loop=True)
+    return validate(result.plant.to_polynomial("oe"), data, input="u", horizon=horizon,
+                    initial=initial, transient=transient, closed_loop=True)
 
 
 def _truth_from_spec(spec: ExperimentSpec) -> dict[str, float] | None:
@@ -245,7 +283,12 @@ def _plot_validation(ident: ClosedLoopIdentification, path: Path, overwrite: boo
 
 
 def _plot_residuals(ident: ClosedLoopIdentification, path: Path, overwrite: bool) -> None:
-    plot_residuals(ident.validation, path, overwrite=overwrite)
+    u = None
+    if ident.validation_data is not None:  # the input the independence test used
+        result = ident.results[ident.primary]
+        role = "r" if result.closed_loop is not None else "u"
+        u = result.align(ident.validation_data).signal(role)
+    plot_residuals(ident.validation, path, overwrite=overwrite, u=u)
 
 
 def _plot_bode(ident: ClosedLoopIdentification, path: Path, overwrite: bool) -> None:
@@ -291,8 +334,9 @@ def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
             f"its known loop H = c·G0/(1 + F·G0), c = {ident.loop.c:g}, F = {_f_text(ident.loop)}. "
             "Two-step: ARX of the closed loop from (r, y), G0 = B/(c·A − F·B), Tustin d2c; "
             "standard deviations by the delta method from the ARX covariance. One-step: output-"
-            "error fit of the parameterised closed loop (Levenberg–Marquardt), covariance "
-            "σ̂²(JᵀJ)⁻¹."),
+            "error fit of the parameterised closed loop (Levenberg–Marquardt from several "
+            "starts)."),
+            *_assumptions(ident),
         ),
         tables=(
             Table(columns, tuple(rows), "Estimates on the estimation half"),
@@ -303,7 +347,8 @@ def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
     for approach, result in ident.results.items():
         summary = Section(summary.title, summary.paragraphs,
                           (*summary.tables, parameter_table(result.estimate, _LABEL[approach])))
-    notes = Section("Pole checks", paragraphs=ident.notes or ("No pole was flagged non-physical.",))
+    notes = Section("Checks", paragraphs=ident.notes or (
+        "No pole was flagged non-physical, and the data resolve the resonance.",))
     model_figs = Section(
         "Models",
         figures=(
@@ -330,6 +375,19 @@ def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
 
 
 
+def _assumptions(ident: ClosedLoopIdentification) -> tuple[str, ...]:
+    out = []
+    for approach, result in ident.results.items():
+        text = f"{_LABEL[approach]}: discretisation {result.discretization!r}"
+        if result.intersample_note:
+            text += f"; intersample: {result.intersample_note}"
+        cov = result.source.options.get("covariance")
+        if cov:
+            text += f"; intervals from the {cov} covariance"
+        out.append(text + ".")
+    return tuple(out)
+
+
 METHOD = Method(
     name="closedloop",
     summary="physical parameters K, ω_hp, δ_hp of the reduced electro-hydraulic plant inside "
@@ -342,8 +400,9 @@ METHOD = Method(
         Option("nk", 0, integer(minimum=0), "delay of the two-step ARX [samples]"),
         Option("prefilter", None, optional(number(positive=True, unit="Hz")),
                "zero-phase low-pass before the two-step ARX [Hz]"),
-        Option("discretization", "tustin", choice(_DISCRETIZATIONS),
-               "discretisation of the one-step model"),
+        Option("discretization", "auto", choice(DISCRETIZATIONS),
+               "discretisation of the one-step model: auto = exact for the reference [rig] "
+               "declares (or that is detected)"),
         HORIZON,
     ),
     run=run,
