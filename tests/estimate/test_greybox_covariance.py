@@ -365,3 +365,22 @@ def test_bootstrap_covers_200_seeds():
     assert 0.92 <= inside.mean() <= 0.98, inside.mean()  # as above
     # mean of 200 ratios: MC error 7 %/√200 = 0.5 %; the rest is refit nonlinearity (≤ 3 %)
     assert np.all(np.abs(ratios.mean(axis=0) - 1) < 0.05), ratios.mean(axis=0)
+
+
+def test_infinite_and_zero_bounds_are_accepted():
+    # the start is moved strictly inside finite bounds only: an infinite bound needs no margin,
+    # and a log-parameter bounded at 0 (log bound −inf) must not become NaN
+    from servoid.models import TransferFunction, c2d
+
+    plant = TransferFunction([1.0], [0.1, 1.0])
+    u = np.sign(np.random.default_rng(0).standard_normal(500))
+    exp = simulate_lti(plant, u, 0.01, noise_std=0.01, rng=1)
+
+    def model(th):
+        return c2d(TransferFunction([th[0]], [th[1], 1.0]), 0.01)
+
+    for bounds, transform in ((([0.0, 0.0], [np.inf, np.inf]), ["log", "log"]),
+                              (([-np.inf, 0.0], [np.inf, 1.0]), None)):
+        est = fit_tf_greybox(exp, model, [0.5, 0.2], ["k", "T"], bounds=bounds,
+                             transform=transform)
+        assert np.all(np.abs(est.parameters - [1.0, 0.1]) < 4 * est.std)  # 4σ

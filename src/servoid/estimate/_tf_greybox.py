@@ -239,8 +239,10 @@ def fit_tf_greybox(
             out[np.isnan(out)] = _PENALTY
             return out
 
-        if chosen == "trf":
-            z_start = np.clip(z_start, lo + 1e-12 * np.abs(lo), hi - 1e-12 * np.abs(hi))
+        if chosen == "trf":  # strictly inside finite bounds; infinite ones need no margin
+            inner_lo = np.where(np.isfinite(lo), np.nextafter(lo + 1e-12 * np.abs(lo), np.inf), lo)
+            inner_hi = np.where(np.isfinite(hi), np.nextafter(hi - 1e-12 * np.abs(hi), -np.inf), hi)
+            z_start = np.clip(z_start, inner_lo, inner_hi)
         return optimize.least_squares(
             residuals, z_start, method=chosen,
             bounds=(lo, hi) if chosen == "trf" else (-np.inf, np.inf),
