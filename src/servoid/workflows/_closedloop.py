@@ -15,13 +15,20 @@ from scipy import signal as sps
 from .. import __version__
 from .._checks import as_float, as_float_list, type_error
 from .._errors import DataError, OptionError, ServoidWarning
+from ..actuators import SET_B, SET_C
 from ..closedloop import (
     APPROACHES,
     DISCRETIZATIONS,
+    NONLINEAR_DEFAULTS,
+    NONLINEAR_PARAMETERS,
+    STRUCTURES,
     ClosedLoopResult,
     FeedbackLoop,
+    compare_structures,
+    fit_one_step,
     identify_closed_loop,
     reduced_plant,
+    refine_after_linear,
 )
 from ..data import Experiment, ExperimentSpec
 from ..models import TransferFunction
@@ -45,7 +52,7 @@ from ._common import (
     spec_inputs,
     validation_section,
 )
-from ._options import choice, choices, integer, number, optional
+from ._options import boolean, choice, choices, integer, number, optional
 from ._registry import FigureWriter, Method, Option
 
 __all__ = ["METHOD", "ClosedLoopIdentification", "loop_from_table"]
@@ -69,6 +76,8 @@ class ClosedLoopIdentification:
     files: tuple[Path, ...] = ()
     notes: tuple[str, ...] = field(default=())
     validation_data: Experiment | None = None
+    structure_test: Any = None
+    refinement: Any = None
 
     @property
     def estimate(self) -> Any:
@@ -109,6 +118,8 @@ class ClosedLoopIdentification:
                 a: {**r.to_dict(), "validation": self.validations[a].summary()}
                 for a, r in self.results.items()
             },
+            "structure_test": self.structure_test.to_dict() if self.structure_test else None,
+            "nonlinear_refinement": self.refinement.to_dict() if self.refinement else None,
             "notes": list(self.notes),
         }
 
@@ -147,6 +158,14 @@ class ClosedLoopIdentification:
             cov = result.source.options.get("covariance")
             if cov:
                 lines.append(f"  intervals ({_LABEL[approach]}): {cov} covariance")
+        if self.structure_test is not None:
+            mark = "!" if self.structure_test.rejected else " "
+            lines.append(f" {mark}structure test: {self.structure_test.verdict}")
+        if self.refinement is not None:
+            est, val = self.refinement.estimate, self.refinement.validation
+            lines.append(f"  nonlinear refinement: validation fit {val.fit_percent:.2f} % "
+                         f"({_LABEL[self.primary]} linear {self.validation.fit_percent:.2f} %)")
+            lines += [f"    {line}" for line in str(est).splitlines()[1:]]
         for note in self.notes:
             lines.append(f"  note: {note}")
         if self.folder:
@@ -229,8 +248,59 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     validations = {a: _validate(r, validation_data, options["horizon"], spec)
                    for a, r in results.items()}
     primary = options["approach"][-1]
+    structure_test = None
+    if options["structure_test"] and "one-step" in results:
+        structure_test = _structure_test(spec, estimation, loop, results["one-step"],
+                                         options["discretization"])
+        if structure_test.rejected:
+            notes.append("the reduced model is rejected by the data (structure test): its "
+                         f"intervals understate the error; {structure_test.preferred} is "
+                         "preferred (see the structure test)")
+    refinement = None
+    if options["refine"] is not False:
+        names = NONLINEAR_DEFAULTS if options["refine"] is True else tuple(options["refine"])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ServoidWarning)  # its flags are in its notes
+            refinement = refine_after_linear(
+                estimation, validation_data, loop, results[primary], parameters=names,
+                nominal={"B": SET_B, "C": SET_C}[options["nominal"]],
+                **_refine_rig_options(spec))
+        notes += [f"nonlinear refinement: {n}" for n in refinement.notes()]
     return ClosedLoopIdentification(spec, loop, results, validations, primary, truth,
-                                    notes=tuple(notes), validation_data=validation_data)
+                                    notes=tuple(notes), validation_data=validation_data,
+                                    structure_test=structure_test, refinement=refinement)
+
+
+def _structure_test(spec: ExperimentSpec, estimation: Any, loop: FeedbackLoop,
+                    reduced: ClosedLoopResult, discretization: str) -> Any:
+    """Fit the richer structures from the reduced estimate and test the reduced one."""
+    theta = reduced.estimate.parameters
+    fits: dict[str, Any] = {"reduced": reduced}
+    for name in ("reduced+lag", "full-order"):
+        structure = STRUCTURES[name]
+        start = (*theta[:3], *structure.null)  # the nested point: the reduced fit itself
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ServoidWarning)
+            fits[name] = fit_one_step(estimation, loop, start, structure=name,
+                                      **_rig_options(spec, discretization))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ServoidWarning)  # the verdict is the note
+        return compare_structures(fits, estimation)
+
+
+def _refine_rig_options(spec: ExperimentSpec) -> dict[str, Any]:
+    """The nonlinear refinement's view of the rig: the command and its filter, if declared."""
+    rig = spec.rig
+    out: dict[str, Any] = {}
+    if rig.reference == "command":
+        out["intersample"] = "zoh"
+        if rig.anti_alias_order is not None:
+            num, den = sps.butter(rig.anti_alias_order, 2.0 * np.pi * rig.anti_alias_cutoff,
+                                  analog=True)
+            out["output_filter"] = TransferFunction(num, den)
+    elif rig.reference == "readback":
+        out["intersample"] = "foh"
+    return out
 
 
 def _rig_options(spec: ExperimentSpec, discretization: str) -> dict[str, Any]:
@@ -349,6 +419,7 @@ def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
                           (*summary.tables, parameter_table(result.estimate, _LABEL[approach])))
     notes = Section("Checks", paragraphs=ident.notes or (
         "No pole was flagged non-physical, and the data resolve the resonance.",))
+    extra = [*_structure_section(ident), *_refinement_section(ident)]
     model_figs = Section(
         "Models",
         figures=(
@@ -365,7 +436,7 @@ def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
     return Page(
         title=f"Closed-loop identification: {spec.source.name if spec.source else 'experiment'}",
         subtitle="Physical plant parameters with confidence intervals, validated on held-back data",
-        sections=(data, summary, model_figs,
+        sections=(data, summary, *extra, model_figs,
                   validation_section(ident.validation, files["validation.png"],
                                      files["residuals.png"]), notes),
         meta=(("servoid", __version__), ("experiment file", str(spec.source or "")),
@@ -373,6 +444,47 @@ def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
     )
 
 
+
+
+def _structure_section(ident: ClosedLoopIdentification) -> list[Section]:
+    test = ident.structure_test
+    if test is None:
+        return []
+    fits = tuple((f.name, str(f.n_parameters), f"{f.cost:.5g}", f"{f.aic:.5g}", f"{f.bic:.5g}",
+                  f"{f.whiteness_pvalue:.3g}", f"{f.independence_pvalue:.3g}")
+                 for f in test.fits)
+    lrs = tuple((f"{t.smaller} vs {t.larger}", str(t.df), f"{t.lr:.4g}", f"{t.scale:.3g}",
+                 f"{t.lr_robust:.4g}", f"{t.p_value:.3g}" if t.p_value > 0 else "< 1e-300")
+                for t in test.tests)
+    banner = ("REJECTED: the reduced model's intervals understate the error; read the "
+              f"preferred structure ({test.preferred}) instead." if test.rejected else
+              "The data do not reject the reduced model.")
+    return [Section(
+        "Structure test",
+        paragraphs=(banner, test.verdict),
+        tables=(
+            Table(("structure", "parameters", "cost V", "AIC", "BIC", "whiteness p",
+                   "reference–residual p"), fits, "One-step fits on the estimation data"),
+            Table(("test", "df", "LR", "colour scale c", "LR/c", "p"), lrs,
+                  "Likelihood-ratio tests (boundary null where the larger model's extra "
+                  "parameter is one-sided)"),
+        ),
+    )]
+
+
+def _refinement_section(ident: ClosedLoopIdentification) -> list[Section]:
+    ref = ident.refinement
+    if ref is None:
+        return []
+    return [Section(
+        "Nonlinear refinement",
+        paragraphs=(f"The nonlinear EHSA simulated in its loop, refined from the linear result: "
+                    f"validation fit {ref.validation.fit_percent:.2f} % against "
+                    f"{ident.validation.fit_percent:.2f} % for the linear "
+                    f"{_LABEL[ident.primary]} model.",
+                    *ref.notes()),
+        tables=(parameter_table(ref.estimate, "Refined physical parameters"),),
+    )]
 
 
 def _assumptions(ident: ClosedLoopIdentification) -> tuple[str, ...]:
@@ -386,6 +498,12 @@ def _assumptions(ident: ClosedLoopIdentification) -> tuple[str, ...]:
             text += f"; intervals from the {cov} covariance"
         out.append(text + ".")
     return tuple(out)
+
+
+def _refine(value: Any, where: str, name: str) -> bool | list[str]:
+    if isinstance(value, bool):
+        return value
+    return choices(NONLINEAR_PARAMETERS)(value, where, name)
 
 
 METHOD = Method(
@@ -403,8 +521,17 @@ METHOD = Method(
         Option("discretization", "auto", choice(DISCRETIZATIONS),
                "discretisation of the one-step model: auto = exact for the reference [rig] "
                "declares (or that is detected)"),
+        Option("structure_test", True, boolean(),
+               "fit the reduced+lag and full-order plants too and test whether the data reject "
+               "the reduced one (needs approach one-step)"),
+        Option("refine", False, _refine,
+               "nonlinear EHSA refinement after the linear fit: true (the default parameters) "
+               f"or a list of names from {', '.join(NONLINEAR_PARAMETERS)}"),
+        Option("nominal", "B", choice(("B", "C")),
+               "nominal parameter set for what the nonlinear refinement does not fit"),
         HORIZON,
     ),
     run=run,
     tables=("loop", "validation"),
 )
+
