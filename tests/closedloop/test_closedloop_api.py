@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import DT, LOOP, TRUTH, halves, output_noise, record
+from loop_records import DT, LOOP, TRUTH, halves, output_noise, record
 
 from servoid import ModelError, OptionError
 from servoid.closedloop import (
@@ -57,7 +57,7 @@ def test_simulate_from_theta_and_result(r, y_clean):
     y = simulate_closed_loop(TRUTH, r, DT, LOOP)
     np.testing.assert_array_equal(y, y_clean)
     res = identify_closed_loop(halves(record(y_clean, r))[0], LOOP, approach="one-step",
-                               theta0=TRUTH)
+                               theta0=TRUTH, discretization="tustin")
     # same model to the LM tolerance: outputs agree far below the 1 mm amplitude
     np.testing.assert_allclose(simulate_closed_loop(res, r), y_clean, atol=1e-12)
     # step response settles at c/F = 1 (spec §1.1)

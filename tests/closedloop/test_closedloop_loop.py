@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import DT, LOOP, TRUTH
+from loop_records import DT, LOOP, TRUTH
 
 import servoid.closedloop as cl
 from servoid import ModelError

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import DT, LOOP, TRUTH, halves, record, reference
+from loop_records import DT, LOOP, TRUTH, halves, record, reference
 from scipy.signal import lfilter
 
 from servoid import DataError, ServoidWarning

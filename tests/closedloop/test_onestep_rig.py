@@ -209,7 +209,7 @@ def test_result_states_the_intersample_assumption(tmp_path):
 
 def test_tustin_says_what_it_is(tmp_path):
     est, _ = _loaded(_rig(snr_db=35.0, bits=16), tmp_path)
-    res = fit_one_step(est, LOOP)
+    res = fit_one_step(est, LOOP, discretization="tustin")
     assert res.intersample == "none" and res.discretization == "tustin"
     assert "no intersample model" in res.intersample_note
     assert "discretization='bandlimited'" in res.intersample_note  # the detected course

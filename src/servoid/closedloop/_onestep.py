@@ -76,7 +76,7 @@ def fit_one_step(
     start: int = 0,
     max_nfev: int | None = None,
     integrator_tol: float = 0.1,
-    discretization: Discretization = "tustin",
+    discretization: Discretization = "auto",
     anti_alias: TransferFunction | None = None,
     decimation: int = 1,
     n_starts: int = 3,

@@ -109,9 +109,13 @@ def _realise(num: NDArray[np.float64], den: NDArray[np.float64],
              unit: float) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                    NDArray[np.float64], float]:
     """Companion form of num/den in time measured in `unit` seconds: (A, b, c, d)."""
+    den, num = np.trim_zeros(_finite(den), "f"), np.trim_zeros(_finite(num), "f")
     n = den.size - 1
     if n < 1:
         raise ModelError("the closed loop has no dynamics (a static gain): nothing to sample")
+    if num.size > den.size:
+        raise ModelError("the closed loop is improper (more zeros than poles): it cannot be "
+                         "sampled; check the plant structure's lag parameters")
     scale = unit ** np.arange(n + 1)  # s = s'/unit: the s^(n−i) coefficient gains unit^i
     dd = den * scale
     nn = np.concatenate([np.zeros(n + 1 - num.size), num]) * scale
@@ -124,6 +128,15 @@ def _realise(num: NDArray[np.float64], den: NDArray[np.float64],
     b[-1] = 1.0
     c = (nn - d * dd)[::-1][:n]  # strictly proper part, ascending powers
     return a, b, c, d
+
+
+def _finite(poly: NDArray[np.float64]) -> NDArray[np.float64]:
+    """`poly` as floats, or a ModelError when a coefficient is not finite or all vanish."""
+    poly = np.asarray(poly, dtype=float)
+    if not np.all(np.isfinite(poly)) or not np.any(poly):
+        raise ModelError("the closed-loop model has non-finite or vanishing coefficients: the "
+                         "parameters left the range where the plant structure is defined")
+    return poly
 
 
 def _polynomial_hold(num: NDArray[np.float64], den: NDArray[np.float64], dt: float,
