@@ -1,0 +1,248 @@
+"""The fleet file: which records, which identification, which limits.
+
+::
+
+    [records]
+    manifest = "units.csv"      # a "path" column (relative to the manifest) + metadata
+    # glob = "runs/*.toml"      # or every experiment file a glob finds (serial = file stem)
+
+    [identify]                  # optional: one method for every record; absent = each
+    method = "closedloop"       # record's own [identify]
+    approach = "one-step"
+
+    [limits.omega_hp]
+    nominal = 163.3
+    tolerance = 6.0             # or tolerance_percent, or min / max
+
+    [trend]
+    by = "date"                 # "date" | "serial" | "order" | a metadata column
+
+    [report]
+    folder = "fleet-results"
+
+Everything that can be checked before the batch starts is checked here:
+the manifest's files exist, serial numbers are unique, the method and its
+options are valid.
+"""
+
+from __future__ import annotations
+
+import csv
+import glob as globbing
+import os
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from .._errors import DataError, FileFormatError, OptionError, OptionTypeError
+from ._limits import Limit, parse_limits
+
+__all__ = ["FleetRecord", "FleetSpec", "load_fleet_spec"]
+
+_TABLES = ("records", "identify", "limits", "trend", "report")
+_TREND_AXES = ("date", "serial", "order")
+
+
+@dataclass(frozen=True)
+class FleetRecord:
+    """One record of the fleet: its experiment file and its metadata."""
+
+    path: Path
+    meta: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
+
+    @property
+    def serial(self) -> str:
+        """The unit's serial number (metadata ``serial``, else the file's stem)."""
+        return str(self.meta.get("serial") or self.path.stem)
+
+
+@dataclass(frozen=True)
+class FleetSpec:
+    """A validated fleet file.
+
+    Attributes
+    ----------
+    records : tuple of FleetRecord
+        The experiment files, in manifest (or sorted glob) order.
+    identify : mapping or None
+        The ``[identify]`` table applied to every record; None: each
+        record's own.
+    limits : tuple of Limit
+        Acceptance limits.
+    trend : str
+        The trend axis: ``"date"``, ``"serial"``, ``"order"`` or a
+        metadata column.
+    report : mapping
+        ``[report]`` (``folder``).
+    source : Path or None
+        The fleet file.
+    manifest : Path or None
+        The manifest, when the records come from one.
+    """
+
+    records: tuple[FleetRecord, ...]
+    identify: Mapping[str, Any] | None
+    limits: tuple[Limit, ...]
+    trend: str = "order"
+    report: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    source: Path | None = None
+    manifest: Path | None = None
+
+    @property
+    def meta_columns(self) -> tuple[str, ...]:
+        """Metadata columns, in first-seen order."""
+        seen: dict[str, None] = {}
+        for r in self.records:
+            seen.update(dict.fromkeys(r.meta))
+        return tuple(seen)
+
+
+def load_fleet_spec(path: str | os.PathLike[str]) -> FleetSpec:
+    """Read and check a fleet file (see the module docstring for its tables)."""
+    from ..workflows import get_method
+
+    source = Path(path)
+    if not source.is_file():
+        raise DataError(f"fleet file {source} not found; check the path")
+    try:
+        doc = tomllib.loads(source.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise FileFormatError(f"{source} is not a valid TOML fleet file: {exc}") from None
+    unknown = sorted(set(doc) - set(_TABLES))
+    if unknown:
+        raise OptionError(f"unknown table(s) in {source.name}: {', '.join(unknown)}; a fleet "
+                          f"file has {', '.join(f'[{t}]' for t in _TABLES)}")
+    base = source.parent
+    table = _table(doc, "records")
+    records = _records(table, base)
+    manifest = base / table["manifest"] if "manifest" in table else None
+    identify = doc.get("identify")
+    if identify is not None:
+        identify = _table(doc, "identify")
+        method = get_method(identify.get("method", "arx"))
+        method.parse(identify)  # every option checked before any record runs
+    limits = parse_limits(doc.get("limits", {}))
+    trend = _trend(_table(doc, "trend", required=False), records)
+    report = _table(doc, "report", required=False)
+    if set(report) - {"folder"}:
+        raise OptionError(f"unknown key(s) in [report]: {', '.join(sorted(set(report) - {'folder'}))}"
+                          "; a fleet file's [report] has folder")
+    return FleetSpec(tuple(records), None if identify is None else MappingProxyType(identify),
+                     limits, trend, MappingProxyType(report), source, manifest)
+
+
+def _table(doc: Mapping[str, Any], name: str, required: bool = True) -> dict[str, Any]:
+    if name not in doc:
+        if required:
+            raise OptionError(f"the fleet file needs a [{name}] table")
+        return {}
+    value = doc[name]
+    if not isinstance(value, Mapping):
+        raise OptionTypeError(f"[{name}] must be a table; got {value!r}")
+    return dict(value)
+
+
+def _records(table: Mapping[str, Any], base: Path) -> list[FleetRecord]:
+    if ("glob" in table) == ("manifest" in table) or set(table) - {"glob", "manifest"}:
+        raise OptionError("[records] takes exactly one of glob = \"runs/*.toml\" or "
+                          "manifest = \"units.csv\"")
+    if "glob" in table:
+        pattern = table["glob"]
+        if not isinstance(pattern, str):
+            raise OptionTypeError(f"[records] glob must be text; got {pattern!r}")
+        paths = sorted(Path(p) for p in globbing.glob(str(base / pattern), recursive=True))
+        paths = [p for p in paths if p.is_file()]
+        if not paths:
+            raise DataError(f"[records] glob = {pattern!r} finds no file under {base}; "
+                            "check the pattern")
+        records = [FleetRecord(p) for p in paths]
+    else:
+        manifest = table["manifest"]
+        if not isinstance(manifest, str):
+            raise OptionTypeError(f"[records] manifest must be a file name; got {manifest!r}")
+        records = _manifest(base / manifest)
+    _check_unique(records)
+    return records
+
+
+def _manifest(path: Path) -> list[FleetRecord]:
+    if not path.is_file():
+        raise DataError(f"[records] manifest {path} not found; check the path")
+    rows = _parquet_rows(path) if path.suffix.lower() == ".parquet" else _csv_rows(path)
+    if not rows:
+        raise DataError(f"manifest {path} lists no records")
+    if "path" not in rows[0]:
+        raise DataError(f"manifest {path} needs a 'path' column (the experiment file of each "
+                        f"row); it has {', '.join(rows[0])}")
+    records, missing = [], []
+    for row in rows:
+        file = Path(str(row["path"]))
+        file = file if file.is_absolute() else path.parent / file
+        if not file.is_file():
+            missing.append(str(file))
+        meta = {k: "" if v is None else str(v) for k, v in row.items() if k != "path"}
+        records.append(FleetRecord(file, MappingProxyType(meta)))
+    if missing:
+        shown = ", ".join(missing[:5]) + (f" and {len(missing) - 5} more" if len(missing) > 5
+                                          else "")
+        raise DataError(f"manifest {path.name} names {len(missing)} file(s) that do not exist: "
+                        f"{shown}; fix the paths or remove the rows")
+    return records
+
+
+def _csv_rows(path: Path) -> list[dict[str, Any]]:
+    try:
+        with path.open(newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise FileFormatError(f"manifest {path} is not a readable CSV file: {exc}") from None
+    if any(None in row for row in rows):
+        raise FileFormatError(f"manifest {path} has rows with more fields than its header")
+    return [dict(r) for r in rows]
+
+
+def _parquet_rows(path: Path) -> list[dict[str, Any]]:
+    try:
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise OptionError("a Parquet manifest needs pyarrow: pip install 'servoid[fleet]', or "
+                          "give the manifest as CSV") from None
+    try:
+        return list(pq.read_table(path).to_pylist())
+    except Exception as exc:  # noqa: BLE001 - pyarrow raises its own error classes for a damaged file
+        raise FileFormatError(f"manifest {path} is not a readable Parquet file: {exc}") from None
+
+
+def _check_unique(records: list[FleetRecord]) -> None:
+    """A unit may be tested many times (a life test), but not twice on the same date."""
+    seen: dict[tuple[str, str], Path] = {}
+    for r in records:
+        if "serial" not in r.meta:
+            continue
+        key = (r.serial, r.meta.get("date", ""))
+        if key in seen:
+            when = f" on {key[1]}" if key[1] else ""
+            raise DataError(f"serial {r.serial!r} appears twice{when} in the manifest "
+                            f"({seen[key].name} and {r.path.name}); make serials unique, or add "
+                            "a date column when the rows are repeated tests of one unit")
+        seen[key] = r.path
+    paths = [r.path.resolve() for r in records]
+    if len(set(paths)) != len(paths):
+        raise DataError("the fleet names the same experiment file twice; list each record once")
+
+
+def _trend(table: Mapping[str, Any], records: list[FleetRecord]) -> str:
+    columns = {k for r in records for k in r.meta}
+    default = "date" if "date" in columns else "serial" if "serial" in columns else "order"
+    by = table.get("by", default)
+    if set(table) - {"by"}:
+        raise OptionError("[trend] takes by = \"date\" | \"serial\" | \"order\" | a manifest column")
+    if not isinstance(by, str) or (by not in _TREND_AXES and by not in columns):
+        raise OptionError(f"[trend] by must be one of {', '.join(_TREND_AXES)} or a manifest "
+                          f"column ({', '.join(sorted(columns)) or 'none'}); got {by!r}")
+    if by == "date" and "date" not in columns:
+        raise OptionError("[trend] by = \"date\" needs a 'date' column in the manifest")
+    return by

@@ -1,0 +1,96 @@
+"""One record of a fleet, identified as a task: plain data in, plain data out.
+
+:func:`identify_record` is what runs on a Dask worker (or in the process
+for a serial run).  It never raises for a record's own problem: a damaged
+file, a fit that fails or even a defect becomes a failed outcome carrying
+the message, so one bad record cannot end the batch.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import time
+import warnings
+from collections.abc import Mapping
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from .. import __version__
+from .._errors import ServoidError
+from ._summary import summarise
+
+__all__ = ["identify_record", "record_key"]
+
+_CHUNK = 1 << 20
+
+
+def record_key(path: Path, identify: Mapping[str, Any] | None) -> str:
+    """SHA-256 over the experiment file, every file it reads, the options and servoid's version.
+
+    A record whose key is unchanged since its outcome was stored is not run again.
+    """
+    h = hashlib.sha256()
+    h.update(f"servoid {__version__}\n".encode())
+    h.update(json.dumps(dict(identify) if identify is not None else None, sort_keys=True,
+                        default=str).encode())
+    for file in _inputs(path):
+        h.update(f"\n{file.name}\n".encode())
+        try:
+            with file.open("rb") as f:
+                while chunk := f.read(_CHUNK):
+                    h.update(chunk)
+        except OSError:
+            h.update(b"<unreadable>")
+    return h.hexdigest()
+
+
+def _inputs(path: Path) -> list[Path]:
+    """The experiment file and the data files it names (as far as it can be read)."""
+    from ..data import load_experiment_spec
+
+    files = [path]
+    try:
+        spec = load_experiment_spec(path)
+        files += [*spec.data_paths, *spec.validation_paths]
+    except (ServoidError, OSError):
+        pass  # the task will report why; the key still covers the experiment file
+    return files
+
+
+def identify_record(path: str, identify: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Identify one record as ``servoid identify`` would, writing nothing.
+
+    Returns
+    -------
+    dict
+        ``status`` ("ok" or "failed"), ``summary`` (a :class:`RecordSummary`
+        as a dict) or ``error`` (the message), ``warnings`` (their texts)
+        and ``seconds``.
+    """
+    from ..data import load_experiment_spec
+    from ..workflows import identify as run
+
+    start = time.perf_counter()
+    out: dict[str, Any] = {"status": "failed", "summary": None, "error": "", "warnings": []}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            spec = load_experiment_spec(path)
+            if identify is not None:
+                spec = dataclasses.replace(spec, identify=MappingProxyType(dict(identify)))
+            result = run(spec, write=False)
+            out["summary"] = dataclasses.asdict(summarise(result.to_dict()))
+            out["method"] = spec.identify.get("method", "arx")
+            out["status"] = "ok"
+        except ServoidError as exc:
+            out["error"] = f"{type(exc).__name__}: {exc}"
+        except MemoryError:
+            out["error"] = "MemoryError: the record does not fit in this worker's memory"
+        except Exception as exc:  # noqa: BLE001 - a defect in servoid: record it, never end the batch
+            out["error"] = f"internal error ({type(exc).__name__}: {exc}); please report it"
+    out["warnings"] = sorted({str(w.message) for w in caught})
+    out["seconds"] = time.perf_counter() - start
+    return out
