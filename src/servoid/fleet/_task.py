@@ -28,12 +28,12 @@ _CHUNK = 1 << 20
 
 
 def record_key(path: Path, identify: Mapping[str, Any] | None) -> str:
-    """SHA-256 over the experiment file, every file it reads, the options and servoid's version.
+    """SHA-256 over the record's path and bytes, every file it reads, the options, the version.
 
     A record whose key is unchanged since its outcome was stored is not run again.
     """
     h = hashlib.sha256()
-    h.update(f"servoid {__version__}\n".encode())
+    h.update(f"servoid {__version__}\n{path.resolve()}\n".encode())
     h.update(json.dumps(dict(identify) if identify is not None else None, sort_keys=True,
                         default=str).encode())
     for file in _inputs(path):

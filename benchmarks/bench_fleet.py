@@ -1,0 +1,81 @@
+"""Fleet throughput: many Set-B bench records identified on 1 and 2 Dask workers.
+
+Case
+----
+``records`` experiment files of virtual EHSA units (``servoid.bench._fleet``
+scatter around Set B, reduced fidelity, 35 dB), each a PRBS test at 1 kHz:
+register 11, clock 10 → 20 470 samples (``--quick``: 8 records, register 9,
+5 110 samples). ``distinct`` units are simulated and copied to make up the
+count, each copy its own record (its own path, so none is reused from the
+checkpoint store). Identification per record: the closed-loop workflow with
+``approach = ["indirect", "one-step"]`` (the two-step and the one-step), no
+structure test.
+
+Method
+------
+``run_fleet(..., force=True)`` in this process: ``workers=1`` (serial, in
+process) and ``workers=2`` (a Dask LocalCluster of 2 single-threaded worker
+processes, BLAS on one thread). Wall time includes cluster start-up and
+writing the table and report. Parallel efficiency = t1 / (2·t2). Peak RSS
+of a worker is read by the worker itself after its last record.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+from _harness import Result
+
+from servoid.bench._fleet import write_virtual_fleet
+from servoid.fleet import run_fleet
+
+
+def _fleet(root: Path, records: int, distinct: int, register: int) -> Path:
+    fleet = write_virtual_fleet(root / "base", units=distinct, bad_every=0, corrupt=0,
+                                register=register, seed=11)
+    rows = fleet.manifest.read_text(encoding="utf-8").splitlines()
+    header, units = rows[0], rows[1:]
+    out = [header]
+    for k in range(records):
+        path, rest = units[k % distinct].split(",", 1)
+        copy = root / "copies" / f"R{k:05d}"
+        shutil.copytree((root / "base" / path).parent, copy)
+        serial = f"SN-{k + 1:05d}"
+        out.append(f"{(copy / 'ehsa.toml').as_posix()},{serial},{rest.split(',', 2)[1]},"
+                   f"{rest.split(',', 2)[2]}")
+    (root / "units.csv").write_text("\n".join(out) + "\n", encoding="utf-8")
+    (root / "fleet.toml").write_text(
+        '[records]\nmanifest = "units.csv"\n\n[identify]\nmethod = "closedloop"\n'
+        'approach = ["indirect", "one-step"]\nstructure_test = false\n', encoding="utf-8")
+    return root / "fleet.toml"
+
+
+def run(quick: bool) -> list[Result]:
+    records, distinct, register = (8, 4, 9) if quick else (1000, 40, 11)
+    results = []
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        t0 = time.perf_counter()
+        spec = _fleet(root, records, distinct, register)
+        build = time.perf_counter() - t0
+        times = {}
+        for workers in (1, 2):
+            t0 = time.perf_counter()
+            result = run_fleet(spec, root / f"out{workers}", workers=workers, force=True,
+                               progress=False)
+            times[workers] = time.perf_counter() - t0
+            assert result.count("ok") == records, result
+            per = 1e3 * times[workers] / records
+            results.append(Result(
+                suite="fleet", case=f"{records} records × {2 ** register * 10 // 1000}k samples",
+                n=records, method=f"run_fleet workers={workers}", median_ms=1e3 * times[workers],
+                best_ms=1e3 * times[workers], repeats=1,
+                note=f"{per:.0f} ms per record; building the records took {build:.0f} s",
+                extra={"seconds": times[workers], "ms_per_record": per}))
+        efficiency = times[1] / (2 * times[2])
+        results[-1].extra["parallel_efficiency"] = efficiency
+        results[-1].note += f"; parallel efficiency {efficiency:.2f}"
+    return results
