@@ -16,13 +16,14 @@ __all__ = ["atomic_path", "check_writable"]
 def check_writable(path: str | os.PathLike[str], overwrite: bool = False) -> Path:
     """Refuse an existing ``path`` unless ``overwrite``; return it as a Path."""
     path = Path(path)
+    if path.is_dir():  # first: overwriting would not help
+        raise OutputExistsError(f"{path} is a directory, not a file; name a file (inside it, "
+                                "or elsewhere)")
     if path.exists() and not overwrite:
         raise OutputExistsError(
             f"{path} already exists; choose another name or pass overwrite=True "
             "(--overwrite on the command line)"
         )
-    if path.exists() and path.is_dir():
-        raise OutputExistsError(f"{path} is a directory, not a file")
     return path
 
 

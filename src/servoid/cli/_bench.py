@@ -10,9 +10,21 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ._flags import at_least, finite, folder_out, in_flags, positive
+
 __all__ = ["add_bench"]
 
 _SETS = ("B", "C")
+# the bench's parameters → the flags that set them, for its error messages
+_EHSA_WORDS = {"f_acq": "--facq", "f_s": "--fs", "rng seed": "--seed", "snr_db": "--snr",
+               "register length n": "--register/-n", "amplitude": "--amplitude",
+               "bits": "--bits", "periods": "--periods", "clock": "--clock"}
+_EHSA_PHRASES = {"lower the amplitude (or the offset)": "lower the amplitude (--amplitude)",
+                 "raise max_samples (--max-samples)": "raise --max-samples"}
+_PNEUMATIC_WORDS = {"f_acq": "--facq", "snr_db": "--snr", "test": "--tests",
+                    "duration": "--duration", "seed": "--seed"}
+_PNEUMATIC_PHRASES = {"shorten the test or lower oversample": "shorten the test (--duration) "
+                      "or lower the acquisition rate (--facq)"}
 
 
 def add_bench(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> None:
@@ -73,6 +85,8 @@ def add_bench(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
                       help="output folder for ehsa.tdms|csv, ehsa.toml and truth.json")
     ehsa.add_argument("--overwrite", action="store_true",
                       help="replace files of an earlier run in --out")
+    ehsa.add_argument("--max-samples", type=int, default=200_000_000,
+                      help="refuse a longer PRBS at --fs (default: %(default)s)")
     json_flag(ehsa)
     ehsa.set_defaults(run=_run_ehsa)
     _add_pneumatic(rigs, json_flag)
@@ -92,17 +106,25 @@ def _run_ehsa(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
                         f"faster than the sample rate, got {args.clock}")
     if not math.isfinite(args.snr):
         raise DataError(f"--snr must be a finite number of dB, got {args.snr}")
+    positive("--fs", args.fs, "Hz")
+    if args.facq is not None:
+        positive("--facq", args.facq, "Hz")
+    finite("--amplitude", args.amplitude, "m")
+    at_least("--seed", args.seed, 0)
+    at_least("--max-samples", args.max_samples, 1)
+    folder_out("--out", args.out)
     params = SET_B if args.set == "B" else SET_C
     f_acq = 5.0 * args.fs if args.facq is None else args.facq
-    bench = EhsaBench(params=params, fidelity=args.fidelity, f_acq=f_acq, f_s=args.fs,
-                      bits=args.bits, snr_db=args.snr, reference=args.reference)
-    ex = prbs(args.register, clock=args.clock, amplitude=args.amplitude, periods=args.periods,
-              dt=bench.dt)
+    with in_flags(_EHSA_WORDS, _EHSA_PHRASES):
+        bench = EhsaBench(params=params, fidelity=args.fidelity, f_acq=f_acq, f_s=args.fs,
+                          bits=args.bits, snr_db=args.snr, reference=args.reference)
+        ex = prbs(args.register, clock=args.clock, amplitude=args.amplitude,
+                  periods=args.periods, dt=bench.dt, max_samples=args.max_samples)
     unresolved = bench.resolution_note()
     if unresolved:  # now, not after a simulation that is long at the rates that resolve it
         print(f"servoid: warning: {unresolved}", file=sys.stderr)
     start = time.perf_counter()
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), in_flags(_EHSA_WORDS, _EHSA_PHRASES):
         warnings.simplefilter("ignore")  # kept in rec.warnings and printed below
         rec = run(bench, ex, rng=args.seed)
     elapsed = time.perf_counter() - start
@@ -193,8 +215,13 @@ def _run_pneumatic(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
     if not math.isfinite(args.snr):
         raise DataError(f"--snr must be a finite number of dB, got {args.snr}")
+    if args.duration is not None:
+        positive("--duration", args.duration, "s")
+    positive("--facq", args.facq, "Hz")
+    at_least("--seed", args.seed, 0)
+    folder_out("--out", args.out)
     start = time.perf_counter()
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), in_flags(_PNEUMATIC_WORDS, _PNEUMATIC_PHRASES):
         warnings.simplefilter("ignore")  # kept in truth.json and printed below
         files = write_pneumatic_campaign(
             args.out, tests=args.tests, snr_db=args.snr, seed=args.seed, format=args.format,

@@ -7,9 +7,22 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ._flags import in_flags
+
 __all__ = ["add_excite"]
 
 _KINDS = ("prbs", "multisine", "chirp")
+# the signal designers' parameters → the flags that set them, for their error messages
+_WORDS = {"register length n": "--register/-n", "clock": "--clock", "periods": "--periods",
+          "period": "--period", "dt": "--dt", "amplitude": "--amplitude", "offset": "--offset",
+          "duration": "--duration", "f0": "--f0", "f1": "--f1", "f_min": "--f-min",
+          "f_max": "--f-max", "max_samples": "--max-samples", "channel name": "--channel",
+          "unit": "--unit"}
+_PHRASES = {"raise max_samples (--max-samples)": "raise --max-samples",
+            "lengthen the period or widen the band": "lengthen --period or widen the band "
+            "--f-min..--f-max",
+            "rename it or pass time=False": "it is the CSV file's time column: choose another "
+            "--channel"}
 
 
 def add_excite(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> None:
@@ -68,40 +81,56 @@ def _common(p: argparse.ArgumentParser, json_flag: Callable[[argparse.ArgumentPa
 def _run_prbs(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..signals import prbs
 
-    ex = prbs(args.register, clock=args.clock, amplitude=args.amplitude, offset=args.offset,
-              periods=args.periods, dt=args.dt, max_samples=args.max_samples)
+    _check_out(args)
+    with in_flags(_WORDS, _PHRASES):
+        ex = prbs(args.register, clock=args.clock, amplitude=args.amplitude, offset=args.offset,
+                  periods=args.periods, dt=args.dt, max_samples=args.max_samples)
     return _write(ex, args)
 
 
 def _run_multisine(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..signals import multisine
 
+    _check_out(args)
     rng = args.seed if args.phases == "random" else None
-    ex = multisine(args.period, args.dt, args.f_min, args.f_max, amplitude=args.amplitude,
-                   offset=args.offset, periods=args.periods, phases=args.phases, rng=rng,
-                   max_samples=args.max_samples)
+    with in_flags(_WORDS, _PHRASES):
+        ex = multisine(args.period, args.dt, args.f_min, args.f_max, amplitude=args.amplitude,
+                       offset=args.offset, periods=args.periods, phases=args.phases, rng=rng,
+                       max_samples=args.max_samples)
     return _write(ex, args)
 
 
 def _run_chirp(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..signals import chirp
 
-    ex = chirp(dt=args.dt, f0=args.f0, f1=args.f1, duration=args.duration,
-               amplitude=args.amplitude, offset=args.offset, method=args.method,
-               max_samples=args.max_samples)
+    _check_out(args)
+    with in_flags(_WORDS, _PHRASES):
+        ex = chirp(dt=args.dt, f0=args.f0, f1=args.f1, duration=args.duration,
+                   amplitude=args.amplitude, offset=args.offset, method=args.method,
+                   max_samples=args.max_samples)
     return _write(ex, args)
 
 
+def _check_out(args: argparse.Namespace) -> None:
+    """Refuse an --out the writers cannot take before designing the signal."""
+    from .._atomic import check_writable
+    from .._errors import OptionError
+
+    check_writable(args.out, args.overwrite)
+    suffix = args.out.suffix.lower().lstrip(".")
+    if suffix not in ("csv", "tdms"):
+        raise OptionError(f"--out {args.out}: the file type comes from its extension, one of "
+                          f"'csv', 'tdms'; got {suffix!r}")
+
+
 def _write(ex: Any, args: argparse.Namespace) -> tuple[dict[str, Any], str]:
-    from .._errors import check_option
     from ..data import write_csv, write_tdms
     from ..signals import crest_factor
 
-    suffix = args.out.suffix.lower().lstrip(".")
-    check_option("output file type (from the extension)", suffix, ("csv", "tdms"))
-    exp = ex.to_experiment(name=args.channel, role="r", unit=args.unit)
-    writer = write_csv if suffix == "csv" else write_tdms
-    writer(exp, args.out, overwrite=args.overwrite)
+    with in_flags(_WORDS, _PHRASES):
+        exp = ex.to_experiment(name=args.channel, role="r", unit=args.unit)
+        writer = write_csv if args.out.suffix.lower() == ".csv" else write_tdms
+        writer(exp, args.out, overwrite=args.overwrite)
     info = {
         "kind": ex.kind,
         "file": str(args.out),

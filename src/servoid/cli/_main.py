@@ -1,7 +1,8 @@
 """The ``servoid`` command: a thin shell over the public API.
 
 Exit codes: 0 success, 1 a servoid or file error (the message says what
-and how to fix it), 2 a usage error (from the argument parser).
+and how to fix it), 2 a usage error (from the argument parser). With
+``--json`` every failure, a usage error too, prints ``{"ok": false, ...}``.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import sys
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from .. import __version__
 from .._errors import ServoidError, ServoidWarning
@@ -23,9 +24,16 @@ __all__ = ["main"]
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``servoid`` command; return the exit code."""
     parser = _parser()
+    words = list(sys.argv[1:] if argv is None else argv)
     try:
-        args = parser.parse_args(argv)
-    except SystemExit as stop:  # argparse exits on --help/--version (0) or usage errors (2)
+        args = parser.parse_args(words)
+    except _UsageError as usage:
+        usage.parser.print_usage(sys.stderr)
+        print(f"{usage.parser.prog}: error: {usage.message}", file=sys.stderr)
+        if "--json" in words:
+            print(json.dumps({"ok": False, "error": usage.message, "type": "UsageError"}))
+        return 2
+    except SystemExit as stop:  # argparse exits on --help/--version (0)
         return int(stop.code or 0)
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -58,8 +66,24 @@ def _warnings(caught: list[warnings.WarningMessage]) -> list[str]:
     return list(dict.fromkeys(messages))
 
 
+class _UsageError(Exception):
+    """A usage error of the argument parser, kept for the ``--json`` answer."""
+
+    def __init__(self, parser: argparse.ArgumentParser, message: str) -> None:
+        super().__init__(message)
+        self.parser = parser
+        self.message = message
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, raising its usage errors instead of exiting (sub-parsers too)."""
+
+    def error(self, message: str) -> NoReturn:
+        raise _UsageError(self, message)
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="servoid",
         description="Identify servo actuators from test-bench data.",
         epilog="Run 'servoid COMMAND --help' for the options of a command.",
@@ -94,6 +118,10 @@ def _parser() -> argparse.ArgumentParser:
                           help="replace results of an earlier run (inputs are never overwritten)")
     identify.add_argument("--allow-outside", action="store_true",
                           help="let [report] folder point outside the experiment file's folder")
+    identify.add_argument("--max-bytes", type=int, default=None,
+                          help="refuse a rig file (data or validation record) larger than this "
+                          "many bytes before reading it (default: no limit on the file; a "
+                          ".mat variable keeps the reader's 2 GiB budget)")
     _json_flag(identify)
     identify.set_defaults(run=_run_identify)
 
@@ -121,7 +149,10 @@ def _json_flag(parser: argparse.ArgumentParser) -> None:
 
 def _run_demo(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..workflows import run_demo
+    from ._flags import at_least, folder_out
 
+    at_least("--seed", args.seed, 0)
+    folder_out("--out", Path(args.out))
     result = run_demo(args.out, seed=args.seed, overwrite=args.overwrite)
     return result.to_dict(), str(result)
 
@@ -141,7 +172,10 @@ def _run_methods(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 def _run_identify(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..workflows import identify
+    from ._flags import at_least
 
+    if args.max_bytes is not None:
+        at_least("--max-bytes", args.max_bytes, 1)
     result = identify(args.experiment, args.out, overwrite=args.overwrite,
-                      allow_outside=args.allow_outside)
+                      allow_outside=args.allow_outside, max_bytes=args.max_bytes)
     return result.to_dict() | {"files": [str(f) for f in result.files]}, str(result)

@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._atomic import atomic_path
 from ..validate import ValidationReport
+from ._text import plain
 
 __all__ = ["new_figure", "plot_residuals", "plot_validation", "save_figure"]
 
@@ -33,7 +34,7 @@ def plot_validation(
     fig = new_figure((9, 5.5))
     ax, ax_err = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     unit = unit or getattr(report, "unit", "")
-    label_unit = f" [{unit}]" if unit else ""
+    label_unit = f" [{plain(unit)}]" if unit else ""  # channel names and units as typed
     if first > 0:
         why = "initial conditions" if report.initial == "measured" else "excluded transient"
         for axis in (ax, ax_err):
@@ -44,10 +45,10 @@ def plot_validation(
             label=f"simulated (fit {report.fit_percent:.1f} %)")
     ax.plot(t[first:], report.predicted[first:], color="C0", lw=0.8, ls="--",
             label=f"{report.horizon}-step predicted (fit {report.prediction_fit_percent:.1f} %)")
-    ax.set_ylabel(f"{report.output}{label_unit}")
+    ax.set_ylabel(f"{plain(report.output)}{label_unit}")
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
-    ax.set_title(f"Validation{': ' + report.experiment if report.experiment else ''}")
+    ax.set_title(f"Validation{': ' + plain(report.experiment) if report.experiment else ''}")
     ax_err.plot(t[first:], report.measured[first:] - report.simulated[first:], color="C3", lw=0.8)
     ax_err.set_ylabel(f"error{label_unit}")
     ax_err.set_xlabel("time [s]")

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ._figures import new_figure, save_figure
+from ._text import plain
 
 __all__ = ["plot_force_fit", "plot_friction", "plot_linear", "plot_loop"]
 
@@ -25,7 +26,7 @@ def plot_force_fit(regressions: Mapping[str, Any], estimates: Mapping[str, Any],
         est = estimates[key]
         fitted = reg.regressors @ est.parameters
         ax.plot(reg.time, fitted, color=f"C{k + 1}", lw=0.8,
-                label=f"{key} ({est.options['relative_error']:.3g} %)")
+                label=f"{plain(key)} ({est.options['relative_error']:.3g} %)")
         ax_err.plot(reg.time, reg.force - fitted, color=f"C{k + 1}", lw=0.6)
     ax.set_ylabel("force [N]")
     ax.legend(loc="upper right", fontsize=8)
@@ -53,7 +54,7 @@ def plot_friction(regressions: Mapping[str, Any], estimates: Mapping[str, Any],
     v = np.linspace(qd.min(), qd.max(), 400)
     v = v[v != 0]
     for k, (key, e) in enumerate(estimates.items()):
-        ax.plot(v, e.model.friction(v), color=f"C{k + 1}", lw=1.5, label=key)
+        ax.plot(v, e.model.friction(v), color=f"C{k + 1}", lw=1.5, label=plain(key))
     ax.set_xlabel("velocity [m/s]")
     ax.set_ylabel("friction + offset [N]")
     ax.legend(fontsize=8)
@@ -70,9 +71,10 @@ def plot_loop(time: Any, position: Any, force: Any, sims: Mapping[str, Any], pat
     axes[0].plot(time, position, color="0.2", lw=1.0, label="measured")
     axes[2].plot(time, force, color="0.2", lw=0.8, label="measured")
     for k, (key, sim) in enumerate(sims.items()):
-        axes[0].plot(time, sim.position, color=f"C{k + 1}", lw=0.8, ls="--", label=key)
-        axes[1].plot(time, 1e6 * (position - sim.position), color=f"C{k + 1}", lw=0.6, label=key)
-        axes[2].plot(time, sim.force, color=f"C{k + 1}", lw=0.6, label=key)
+        axes[0].plot(time, sim.position, color=f"C{k + 1}", lw=0.8, ls="--", label=plain(key))
+        axes[1].plot(time, 1e6 * (position - sim.position), color=f"C{k + 1}", lw=0.6,
+                     label=plain(key))
+        axes[2].plot(time, sim.force, color=f"C{k + 1}", lw=0.6, label=plain(key))
     axes[0].set_ylabel("position [m]")
     axes[1].set_ylabel("position error [µm]")
     axes[2].set_ylabel("force [N]")
@@ -90,7 +92,7 @@ def plot_linear(time: Any, position: Any, simulated: Any, label: str, path: str 
     fig = new_figure((9, 4))
     ax = fig.subplots()
     ax.plot(time, position, color="0.2", lw=1.0, label="measured")
-    ax.plot(time, simulated, color="C3", lw=0.8, label=f"{label} simulated from the input")
+    ax.plot(time, simulated, color="C3", lw=0.8, label=f"{plain(label)} simulated from the input")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("position [m]")
     ax.legend(fontsize=8)

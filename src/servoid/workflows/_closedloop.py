@@ -45,6 +45,7 @@ from ..report import (
 from ..validate import ValidationReport, validate
 from ._arx import HORIZON
 from ._common import (
+    keyed,
     parameter_table,
     read_truth,
     report_options,
@@ -188,7 +189,9 @@ def loop_from_table(table: Mapping[str, Any]) -> FeedbackLoop:
             "and F = <feedback gain> to the experiment file"
         )
     c = as_float("c", table["c"], where="[loop]")
-    return FeedbackLoop(c, _feedback(table["F"]))
+    feedback = _feedback(table["F"])
+    with keyed({"c": "[loop] c", "F": "[loop] F"}):
+        return FeedbackLoop(c, feedback)
 
 
 def _feedback(value: Any) -> float | TransferFunction:
@@ -327,13 +330,14 @@ def _validate(result: ClosedLoopResult, data: Any, horizon: int,
     chosen = spec.validation.initial
     initial = "estimate" if chosen == "auto" else chosen
     transient = spec.validation.transient
-    if result.closed_loop is not None:
-        return validate(result.closed_loop.to_polynomial("oe"), result.align(data), input="r",
-                        horizon=horizon, initial=initial, transient=transient)
-    # the plant from (u, y): u depends on past residuals through the loop, so only the
-    # lags where u leads are tested (closed_loop=True)
-    return validate(result.plant.to_polynomial("oe"), data, input="u", horizon=horizon,
-                    initial=initial, transient=transient, closed_loop=True)
+    with keyed({"transient": "[validation] transient", "horizon": "[identify] horizon"}):
+        if result.closed_loop is not None:
+            return validate(result.closed_loop.to_polynomial("oe"), result.align(data),
+                            input="r", horizon=horizon, initial=initial, transient=transient)
+        # the plant from (u, y): u depends on past residuals through the loop, so only the
+        # lags where u leads are tested (closed_loop=True)
+        return validate(result.plant.to_polynomial("oe"), data, input="u", horizon=horizon,
+                        initial=initial, transient=transient, closed_loop=True)
 
 
 def _truth_from_spec(spec: ExperimentSpec) -> dict[str, float] | None:

@@ -3,18 +3,20 @@
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Mapping, Sequence
+import re
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from .._checks import as_float, as_str, read_json
-from .._errors import FileFormatError, OptionError, OutputExistsError
+from .._errors import DataError, FileFormatError, OptionError, OutputExistsError, ServoidError
 from ..estimate import Estimate
 from ..report import Figure, Section, Table
 from ..validate import ValidationReport
 
-__all__ = ["REPORT_KEYS", "check_outputs", "parameter_table", "read_truth", "report_options",
-           "sha256", "spec_inputs", "validation_section"]
+__all__ = ["REPORT_KEYS", "check_outputs", "check_sizes", "keyed", "parameter_table",
+           "read_truth", "report_options", "sha256", "spec_inputs", "validation_section"]
 
 REPORT_KEYS = ("folder", "truth")
 
@@ -53,6 +55,41 @@ def spec_inputs(spec: Any) -> tuple[Path, ...]:
         if truth:
             out.append(spec.source.parent / truth)
     return tuple(out)
+
+
+@contextmanager
+def keyed(keys: Mapping[str, str]) -> Iterator[None]:
+    """Name the experiment-file key behind a library error about one of its parameters.
+
+    ``keys`` maps a parameter the workflow passes on (``transient``) to the
+    key it came from (``[validation] transient``); an error whose message
+    starts with the parameter is re-raised starting with the key instead.
+    """
+    try:
+        yield
+    except ServoidError as exc:
+        text = str(exc)
+        for word, key in keys.items():
+            if re.match(rf"{re.escape(word)}\b", text):  # servoid errors take one message
+                raise type(exc)(key + text[len(word):]) from None
+        raise
+
+
+def check_sizes(paths: Sequence[Path], max_bytes: int) -> None:
+    """Refuse a file larger than ``max_bytes`` before anything reads it.
+
+    A missing file is left to the reader, whose message names it.
+    """
+    if isinstance(max_bytes, bool) or not isinstance(max_bytes, int) or max_bytes < 1:
+        raise OptionError(f"max_bytes (--max-bytes) must be a positive whole number of bytes, "
+                          f"got {max_bytes!r}")
+    for path in paths:
+        size = path.stat().st_size if path.is_file() else 0
+        if size > max_bytes:
+            raise DataError(
+                f"{path} has {size:,} bytes, over the budget of {max_bytes:,}; if the file is "
+                "what you meant to read, raise --max-bytes (max_bytes=)"
+            )
 
 
 def check_outputs(targets: Sequence[Path], inputs: Sequence[Path], overwrite: bool) -> None:

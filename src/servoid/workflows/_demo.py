@@ -14,10 +14,12 @@ validated on the held-back half. Every printed number comes from the run.
 from __future__ import annotations
 
 import os
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .._checks import as_int
 from .._errors import OutputExistsError
 from ..bench import BenchRun, EhsaBench, run, write_bench_files
 from ..signals import prbs
@@ -88,19 +90,30 @@ def run_demo(
         Write into a non-empty folder that is not an earlier demo's.
     """
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OutputExistsError(f"{out} is a file; the demo writes a folder of files: choose "
+                                "another --out")
     if out.is_dir() and any(out.iterdir()) and not (out / _MARKER).exists() and not overwrite:
         raise OutputExistsError(
             f"{out} is not empty and holds no earlier demo: the demo would replace files "
             "there. Choose another --out or pass --overwrite"
         )
-    out.mkdir(parents=True, exist_ok=True)
-    (out / _MARKER).write_text("written by servoid demo; its files here may be replaced\n")
-    bench = EhsaBench(snr_db=snr_db)
+    seed = as_int("seed", seed, minimum=0)
+    bench = EhsaBench(snr_db=snr_db)  # what can be refused is refused before the folder exists
     excitation = prbs(11, clock=10, amplitude=1e-3, dt=bench.dt)
-    record = run(bench, excitation, rng=seed)
-    files = write_bench_files(record, out, format="tdms", overwrite=True)
-    toml = next(p for p in files if p.suffix == ".toml")
-    result = identify(toml, out / "report", overwrite=True)
+    # the outermost folder this call creates: on failure it goes, with what the call wrote
+    created = next((p for p in (*reversed(out.parents), out) if not p.exists()), None)
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        (out / _MARKER).write_text("written by servoid demo; its files here may be replaced\n")
+        record = run(bench, excitation, rng=seed)
+        files = write_bench_files(record, out, format="tdms", overwrite=True)
+        toml = next(p for p in files if p.suffix == ".toml")
+        result = identify(toml, out / "report", overwrite=True)
+    except BaseException:
+        if created is not None:  # a folder this call made holds only this call's files
+            shutil.rmtree(created, ignore_errors=True)
+        raise
     if not isinstance(result, ClosedLoopIdentification):  # the bench's TOML asks for closedloop
         raise TypeError(f"the demo's experiment file gave {type(result).__name__}")
     return DemoResult(record, result, tuple(files))

@@ -36,6 +36,7 @@ from ..report import (
 )
 from ..validate import ValidationReport, validate
 from ._common import (
+    keyed,
     parameter_table,
     read_truth,
     report_options,
@@ -342,12 +343,13 @@ def lti_result(
         measured = _measured_frf(estimation, estimate, closed_loop)
     if not characteristics:
         characteristics = _characteristics(estimate, validations[0])
-    reports = tuple(
-        validate(estimate, v, input=input_role, output=output,
-                 horizon=options.get("horizon", 5), initial=spec.validation.initial,
-                 transient=spec.validation.transient, limits=spec.limits(output),
-                 closed_loop=closed_loop)
-        for v in validations for output in outputs_of(estimate))
+    with keyed({"transient": "[validation] transient", "horizon": "[identify] horizon"}):
+        reports = tuple(
+            validate(estimate, v, input=input_role, output=output,
+                     horizon=options.get("horizon", 5), initial=spec.validation.initial,
+                     transient=spec.validation.transient, limits=spec.limits(output),
+                     closed_loop=closed_loop)
+            for v in validations for output in outputs_of(estimate))
     if edge:
         all_notes.append(f"the chosen {', '.join(edge)} sits on the edge of the searched grid; "
                          "widen the grid to be sure the best order is inside it")

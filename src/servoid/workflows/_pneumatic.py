@@ -38,7 +38,7 @@ import numpy as np
 
 from .. import __version__
 from .._checks import as_float, as_mapping, as_str, type_error
-from .._errors import DataError, check_option
+from .._errors import DataError, OptionError, check_option
 from ..actuators import PositionController
 from ..data import Experiment, ExperimentSpec, load_experiment_spec
 from ..multistep import (
@@ -49,6 +49,7 @@ from ..multistep import (
     identify_multistep,
 )
 from ..report import Figure, Page, Section, Table, new_figure, save_figure
+from ..report._text import plain
 from ._common import read_truth, report_options, sha256
 from ._options import boolean, choice, number, optional, text
 from ._registry import FigureWriter, Method, Option
@@ -186,6 +187,11 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         sources[test] = base / options[test]
     if options["validation"] is not None:
         sources["validation"] = base / options["validation"]
+    own = spec.source.resolve() if spec.source else None
+    for test, path in sources.items():
+        if own is not None and path.resolve() == own:
+            raise OptionError(f"[identify] {test} = {options[test]!r} names this campaign file "
+                              f"itself; name the experiment file of the {test} test")
     for test, path in sources.items():
         sub = load_experiment_spec(path)
         records[test] = _named(sub.load(), test)
@@ -263,10 +269,10 @@ def _plot_comparison(comp: RecordComparison, path: Path, overwrite: bool, *, tit
         ax.plot(comp.t, comp.measured[ch] * scale, color="0.2", lw=0.9, label="measured")
         ax.plot(comp.t, comp.predicted[ch] * scale, color="C1", lw=0.9,
                 label=f"predicted (fit {comp.fit[ch]:.1f} %)")
-        ax.set_ylabel(f"{label} [{unit}]")
+        ax.set_ylabel(f"{plain(label)} [{plain(unit)}]")
         ax.legend(loc="upper right", fontsize=7)
         ax.grid(alpha=0.3)
-    np.atleast_1d(axes)[0].set_title(f"{title} on the record {comp.record!r}")
+    np.atleast_1d(axes)[0].set_title(plain(f"{title} on the record {comp.record!r}"))
     np.atleast_1d(axes)[-1].set_xlabel("time [s]")
     fig.tight_layout()
     save_figure(fig, path, overwrite)

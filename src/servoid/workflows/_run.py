@@ -19,9 +19,16 @@ from pathlib import Path
 from typing import Any
 
 from .. import __version__
-from .._errors import OptionError, ServoidWarning, check_option
+from .._checks import read_json
+from .._errors import (
+    FileFormatError,
+    OptionError,
+    OutputExistsError,
+    ServoidWarning,
+    check_option,
+)
 from ..data import ExperimentSpec, load_experiment_spec
-from ._common import check_outputs, report_options, sha256
+from ._common import check_outputs, check_sizes, report_options, sha256, spec_inputs
 from ._methods import METHODS
 from ._registry import Identification, Method
 
@@ -35,6 +42,8 @@ _TEMPORARY = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp$")
 # [loop] describes the rig (what is known about its feedback) and may stay whatever the method;
 # a [validation] record that a method cannot use would be silently ignored, so it is refused.
 _OPTIONAL_TABLES = ("validation",)
+# methods that fit every output channel when [identify] output is not set
+_MULTI_OUTPUT = ("n4sid",)
 
 
 def method_names() -> tuple[str, ...]:
@@ -62,6 +71,7 @@ def identify(
     write: bool = True,
     truth: Mapping[str, float] | None = None,
     allow_outside: bool = False,
+    max_bytes: int | None = None,
 ) -> Any:
     """Run the identification an experiment file describes.
 
@@ -87,6 +97,10 @@ def identify(
     allow_outside : bool
         Let ``[report] folder`` point outside the experiment file's folder
         (the command line decides where outputs may go, not the TOML).
+    max_bytes : int, optional
+        Refuse a rig file (estimation or validation record) larger than
+        this before reading anything (``--max-bytes``); default no limit
+        on the file.
 
     Returns
     -------
@@ -99,8 +113,20 @@ def identify(
     method = get_method(spec.identify.get("method", "arx"))
     options = method.parse(spec.identify)
     _check_tables(spec, method)
-    report_options(spec.report)
+    report = report_options(spec.report)
+    if truth is None and "truth" in report and spec.source is not None:
+        # read at the end of a run; a missing or malformed file should not cost the run first
+        path = spec.source.parent / report["truth"]
+        if path.exists() and not path.is_file():
+            raise FileFormatError(f"[report] truth = {report['truth']!r} is {path}, a folder; "
+                                  "name the JSON file of known values")
+        read_json(path, "[report] truth file")
+    _check_channels(spec, method, options)
+    if max_bytes is not None:
+        check_sizes([*spec.data_paths, *spec.validation_paths], max_bytes)
     folder = _folder(spec, out, allow_outside) if write else None
+    if folder is not None:  # before a fit that may take minutes, what can be known now
+        _check_folder(folder, spec, overwrite)
     result = method.run(spec, options, truth)
     if folder is None:
         return result
@@ -135,18 +161,101 @@ def write_results(result: Identification, folder: str | os.PathLike[str], *,
     check_outputs([*targets.values(), manifest], list(result.inputs()),
                   overwrite or interrupted)
     replace = overwrite or interrupted
+    made = _missing_folders(folder)
     folder.mkdir(parents=True, exist_ok=True)
     if replace and manifest.exists():
         manifest.unlink()  # from here on the folder is incomplete until the new manifest lands
-    for name, writer in figures.items():
-        writer(targets[name], replace)
-    from ..report import write_html, write_json
+    new = [p for p in targets.values() if not p.exists()]
+    try:
+        for name, writer in figures.items():
+            writer(targets[name], replace)
+        from ..report import write_html, write_json
 
-    write_html(result.page(targets), targets["report.html"], overwrite=replace)
-    write_json(result.to_dict(), targets["results.json"], overwrite=replace)
-    write_json(_manifest(result, targets), manifest, overwrite=False)
+        write_html(result.page(targets), targets["report.html"], overwrite=replace)
+        write_json(result.to_dict(), targets["results.json"], overwrite=replace)
+        write_json(_manifest(result, targets), manifest, overwrite=False)
+    except BaseException:
+        # no half-written results: what this run created goes (files it replaced are
+        # already gone, and the missing manifest marks the folder incomplete)
+        for path in new:
+            path.unlink(missing_ok=True)
+        for path in reversed(made):
+            if path.is_dir() and not any(path.iterdir()):
+                path.rmdir()
+        raise
     return dataclasses.replace(result, folder=folder,  # type: ignore[type-var]
                                files=(*targets.values(), manifest))
+
+
+def _missing_folders(folder: Path) -> list[Path]:
+    """``folder`` and its parents that do not exist yet, outermost first."""
+    missing = []
+    for path in (folder, *folder.parents):
+        if path.exists():
+            break
+        missing.append(path)
+    return missing[::-1]
+
+
+def _check_folder(folder: Path, spec: ExperimentSpec, overwrite: bool) -> None:
+    """Refuse a results folder that cannot take this run, before the run.
+
+    The figure names depend on the result; the fixed names, the inputs and
+    an earlier complete run are known now.  :func:`write_results` checks
+    everything again once the result is there.
+    """
+    if folder.exists() and not folder.is_dir():
+        raise OutputExistsError(
+            f"{folder} is a file, not a folder; results go into a folder: pass --out <folder> "
+            "(or change [report] folder)"
+        )
+    fixed = [folder / name for name in ("results.json", "report.html", MANIFEST)]
+    check_outputs(fixed, list(spec_inputs(spec)), overwrite=True)
+    if not overwrite and (folder / MANIFEST).exists() and _complete(folder / MANIFEST):
+        check_outputs([folder / MANIFEST], [], overwrite=False)
+
+
+def _check_channels(spec: ExperimentSpec, method: Method, options: Mapping[str, Any]) -> None:
+    """The channels ``[identify]`` input/output name exist in ``[channels]``."""
+    names = [c.name for c in spec.channels]
+    listed = ", ".join(f"{c.name} (role {c.role})" for c in spec.channels)
+    output = options.get("output")
+    for name in [output] if isinstance(output, str) else list(output or []):
+        if name not in names:
+            raise OptionError(
+                f"[identify] output = {name!r} is not a channel of the experiment file; its "
+                f"[channels] are {listed}"
+            )
+    for key in ("position", "force", "reference"):  # a channel, or a role some channel has
+        value = options.get(key)
+        if isinstance(value, str) and value not in names and \
+                not any(c.role == value for c in spec.channels):
+            raise OptionError(
+                f"[identify] {key} = {value!r} is not a channel of the experiment file; its "
+                f"[channels] are {listed}"
+            )
+    role = options.get("input")
+    if isinstance(role, str) and role in ("u", "r") and role not in names and \
+            not any(c.role == role for c in spec.channels):
+        raise OptionError(
+            f"[identify] input = {role!r} needs a channel with role = {role!r}, and no "
+            f"[channels.<name>] table has one (the channels are {listed}): set its role, or "
+            f"choose input = {'r' if role == 'u' else 'u'!r}"
+        )
+    if "output" in method.keys and output is None:
+        outputs = [c.name for c in spec.channels if c.role == "y"]
+        if not outputs:
+            raise OptionError(
+                f"method = \"{method.name}\" fits a measured output, and no [channels.<name>] "
+                f"table has role = \"y\" (the channels are {listed}): set role = \"y\" on the "
+                "output channel"
+            )
+        if len(outputs) > 1 and method.name not in _MULTI_OUTPUT:
+            raise OptionError(
+                f"the experiment file has {len(outputs)} output channels ({', '.join(outputs)}) "
+                f"and method = \"{method.name}\" fits one: set [identify] output = "
+                f"\"{outputs[0]}\" (or another of them)"
+            )
 
 
 def _manifest(result: Identification, targets: Mapping[str, Path]) -> dict[str, Any]:
