@@ -21,6 +21,7 @@ Example::
 
 from ._config import FIDELITIES, REFERENCES, EhsaBench, Fidelity, Reference
 from ._files import RigFormat, experiment_document, truth_document, write_bench_files
+from ._fleet import FLEET_LIMITS, FLEET_SCATTER, VirtualFleet, write_virtual_fleet
 from ._lti import Intersample, simulate_lti, simulate_lti_loop
 from ._pneumatic import (
     PNEUMATIC_CHANNELS,
@@ -41,6 +42,8 @@ from ._run import CHANNELS, BenchRun, EhsaTruth, digitize, run
 __all__ = [
     "CHANNELS",
     "FIDELITIES",
+    "FLEET_LIMITS",
+    "FLEET_SCATTER",
     "PNEUMATIC_CHANNELS",
     "PNEUMATIC_TESTS",
     "REFERENCES",
@@ -54,6 +57,7 @@ __all__ = [
     "PneumaticTest",
     "PneumaticTestName",
     "Reference",
+    "VirtualFleet",
     "RigFormat",
     "digitize",
     "experiment_document",
@@ -64,6 +68,7 @@ __all__ = [
     "simulate_lti",
     "simulate_lti_loop",
     "truth_document",
+    "write_virtual_fleet",
     "write_bench_files",
     "write_pneumatic_campaign",
 ]

@@ -1,4 +1,4 @@
-"""``servoid bench ehsa|pneumatic``: rehearse tests on a virtual rig."""
+"""``servoid bench ehsa|pneumatic|fleet``: rehearse tests on a virtual rig or a fleet."""
 
 from __future__ import annotations
 
@@ -204,6 +204,10 @@ def _add_pneumatic(rigs: Any, json_flag: Callable[[argparse.ArgumentParser], Non
                     help="replace files of an earlier run in --out")
     json_flag(pn)
     pn.set_defaults(run=_run_pneumatic)
+
+    from ._fleet import add_bench_fleet
+
+    add_bench_fleet(rigs, json_flag)
 
 
 def _run_pneumatic(args: argparse.Namespace) -> tuple[dict[str, Any], str]:

@@ -1,7 +1,8 @@
 """The ``servoid`` command: a thin shell over the public API.
 
 Exit codes: 0 success, 1 a servoid or file error (the message says what
-and how to fix it), 2 a usage error (from the argument parser). With
+and how to fix it), 2 a usage error (from the argument parser), 130
+interrupted (Ctrl-C; a fleet writes the table of the records done first). With
 ``--json`` every failure, a usage error too, prints ``{"ok": false, ...}``.
 """
 
@@ -39,6 +40,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ServoidWarning)
             payload, text = args.run(args)
+    except KeyboardInterrupt:
+        print("servoid: interrupted", file=sys.stderr)
+        return 130
     except (ServoidError, OSError) as exc:
         message = str(exc) or type(exc).__name__
         if getattr(args, "json", False):
@@ -137,9 +141,11 @@ def _parser() -> argparse.ArgumentParser:
 
     from ._bench import add_bench
     from ._excite import add_excite
+    from ._fleet import add_fleet
 
     add_excite(commands, _json_flag)
     add_bench(commands, _json_flag)
+    add_fleet(commands, _json_flag)
     return parser
 
 

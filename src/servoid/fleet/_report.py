@@ -29,8 +29,8 @@ def fleet_page(result: FleetResult) -> Page:
                  if result.interrupted else "") + ".")
     summary = Section("Summary", paragraphs=(
         counts,
-        ("Identification: " + ", ".join(f"{k} = {v}" for k, v in spec.identify.items())
-         if spec.identify is not None else "Identification: each record's own [identify].")
+        ("Identification: " + ", ".join(f"{k} = {_toml(v)}" for k, v in spec.identify.items())
+         + "." if spec.identify is not None else "Identification: each record's own [identify].")
         + f" Trend axis: {spec.trend}.",
         f"Acceptance rule: {RULE}.",
         (f"Outliers: robust z-score |θ − median|/(1.4826·MAD) > {OUTLIER_Z}, flagged even "
@@ -66,10 +66,11 @@ def _limits_table(result: FleetResult) -> Table:
 
 def _parameter_section(result: FleetResult, p: ParameterStats) -> Section:
     c, d = p.control, p.drift
-    text = [(f"Median {c.centre:.6g} {p.unit}, robust spread {c.spread:.3g} {p.unit} over {p.n} "
-            f"units; control limits [{c.low:.6g}, {c.high:.6g}] {p.unit}.")]
+    unit = "" if p.unit in ("", "-") else f" {p.unit}"
+    text = [(f"Median {c.centre:.6g}{unit}, robust spread {c.spread:.3g}{unit} over {p.n} "
+            f"units; control limits [{c.low:.6g}, {c.high:.6g}]{unit}.")]
     if d is not None:
-        text.append((f"Drift against {d.axis}: {d.slope:.4g} {p.unit} per {d.axis}, 95 % "
+        text.append((f"Drift against {d.axis}: {d.slope:.4g}{unit} per {d.axis}, 95 % "
                      f"interval [{d.ci_low:.4g}, {d.ci_high:.4g}] — ")
                     + ("significant: the parameter moves over the fleet's "
                        f"{result.spec.trend}." if d.significant else
@@ -146,7 +147,17 @@ def _units_table(result: FleetResult) -> Table:
         cells += ["" if not math.isfinite(fit) else f"{fit:.1f}",
                   "pass" if r["pass"] else "FAIL", r.get("outlier") or ""]
         rows.append(tuple(str(c) for c in cells))
-    return Table(cols, tuple(rows), "Every record (sortable)")
+    return Table(cols, tuple(rows), "Every record", sortable=True)
+
+
+def _toml(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    return str(value)
 
 
 def _f(x: Any) -> float:

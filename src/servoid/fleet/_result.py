@@ -148,10 +148,11 @@ class FleetResult:
                             if self.failing_units else ""))
         for p in self.parameters:
             c, d = p.control, p.drift
-            text = (f"  {p.name}: median {c.centre:.6g} {p.unit}, control limits "
+            unit = "" if p.unit in ("", "-") else f" {p.unit}"
+            text = (f"  {p.name}: median {c.centre:.6g}{unit}, control limits "
                     f"[{c.low:.6g}, {c.high:.6g}]")
             if d is not None:
-                text += (f"; drift {d.slope:.3g} {p.unit}/{d.axis} "
+                text += (f"; drift {d.slope:.3g}{unit}/{d.axis} "
                          f"[{d.ci_low:.3g}, {d.ci_high:.3g}]"
                          + (" (significant)" if d.significant else ""))
             if p.outliers:

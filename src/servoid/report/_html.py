@@ -24,6 +24,7 @@ class Table:
     columns: tuple[str, ...]
     rows: tuple[tuple[str, ...], ...]
     caption: str = ""
+    sortable: bool = False  # a click on a column title sorts the rows by it
 
 
 @dataclass(frozen=True)
