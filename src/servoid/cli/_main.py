@@ -64,9 +64,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _warnings(caught: list[warnings.WarningMessage]) -> list[str]:
     messages = [str(w.message) for w in caught if issubclass(w.category, ServoidWarning)]
-    for w in caught:  # anything else keeps Python's own display
+    for w in caught:  # a library's warning: its words, without Python source lines
         if not issubclass(w.category, ServoidWarning):
-            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+            print(f"servoid: warning ({w.category.__name__}): {w.message}", file=sys.stderr)
     return list(dict.fromkeys(messages))
 
 
