@@ -36,6 +36,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except SystemExit as stop:  # argparse exits on --help/--version (0)
         return int(stop.code or 0)
+    from ..workflows._provenance import set_command
+
+    set_command(["servoid", *words])
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ServoidWarning)

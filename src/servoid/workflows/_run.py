@@ -30,6 +30,7 @@ from .._errors import (
 from ..data import ExperimentSpec, load_experiment_spec
 from ._common import check_outputs, check_sizes, report_options, sha256, spec_inputs
 from ._methods import METHODS
+from ._provenance import provenance
 from ._registry import Identification, Method
 
 __all__ = ["MANIFEST", "get_method", "identify", "method_names", "write_results"]
@@ -171,8 +172,11 @@ def write_results(result: Identification, folder: str | os.PathLike[str], *,
             writer(targets[name], replace)
         from ..report import write_html, write_json
 
-        write_html(result.page(targets), targets["report.html"], overwrite=replace)
         write_json(result.to_dict(), targets["results.json"], overwrite=replace)
+        page = result.page(targets)
+        done = {n: p for n, p in targets.items() if n != "report.html"}
+        page = dataclasses.replace(page, meta=(*page.meta, *provenance(result, done)))
+        write_html(page, targets["report.html"], overwrite=replace)
         write_json(_manifest(result, targets), manifest, overwrite=False)
     except BaseException:
         # no half-written results: what this run created goes (files it replaced are
