@@ -1,5 +1,8 @@
 """Progress on stderr for work that takes more than a couple of seconds.
 
+Two forms: :class:`Progress` counts items of a batch; :func:`stage` shows
+one step ("fitting the one-step model … 0:07") once it has run 2 s.
+
 On a terminal: one line redrawn in place (a bar, counts, elapsed time and
 an ETA).  When stderr is not a terminal: a plain line now and then (every
 tenth of the work, at most every few seconds).  ``enabled=False`` (under
@@ -9,10 +12,13 @@ tenth of the work, at most every few seconds).  ``enabled=False`` (under
 from __future__ import annotations
 
 import sys
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import TextIO
 
-__all__ = ["Progress"]
+__all__ = ["Progress", "configure", "stage"]
 
 _WIDTH = 24
 _MIN_INTERVAL = 0.2  # s between redraws on a terminal
@@ -102,3 +108,47 @@ class Progress:
             self.stream.write(self.text() + "\n")
             self.stream.flush()
             self._line_step, self._line_at = step, now
+
+
+# -- stage lines -----------------------------------------------------------------------------
+_STAGES = {"enabled": False, "stream": None}
+_STAGE_DELAY = 2.0  # s: a stage shorter than this prints nothing
+
+
+def configure(enabled: bool, stream: TextIO | None = None) -> None:
+    """Switch stage lines on (the command line does, on a terminal without --json/--quiet)."""
+    _STAGES["enabled"], _STAGES["stream"] = enabled, stream
+
+
+@contextmanager
+def stage(label: str) -> Iterator[None]:
+    """Show ``servoid: <label> … 12 s`` on stderr while a step longer than 2 s runs.
+
+    Off unless :func:`configure` switched it on (the API stays silent); the
+    line is redrawn each second by a background thread and cleared at the end.
+    """
+    if not _STAGES["enabled"]:
+        yield
+        return
+    stream = _STAGES["stream"] or sys.stderr
+    done = threading.Event()
+    start = time.monotonic()
+
+    def tick() -> None:
+        shown = False
+        while not done.wait(_STAGE_DELAY if not shown else 1.0):
+            stream.write(f"\rservoid: {label} … {_clock(time.monotonic() - start)}\x1b[K")
+            stream.flush()
+            shown = True
+        if shown:
+            stream.write(f"\rservoid: {label} … done in {_clock(time.monotonic() - start)}"
+                         "\x1b[K\n")
+            stream.flush()
+
+    thread = threading.Thread(target=tick, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from .._progress import stage
 from ._flags import at_least, finite, folder_out, in_flags, positive
 
 __all__ = ["add_bench"]
@@ -124,7 +125,9 @@ def _run_ehsa(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     if unresolved:  # now, not after a simulation that is long at the rates that resolve it
         print(f"servoid: warning: {unresolved}", file=sys.stderr)
     start = time.perf_counter()
-    with warnings.catch_warnings(), in_flags(_EHSA_WORDS, _EHSA_PHRASES):
+    with warnings.catch_warnings(), in_flags(_EHSA_WORDS, _EHSA_PHRASES), \
+            stage(f"simulating the {args.fidelity} EHSA bench ({ex.n_samples} samples at "
+                  f"{bench.f_s:g} Hz)"):
         warnings.simplefilter("ignore")  # kept in rec.warnings and printed below
         rec = run(bench, ex, rng=args.seed)
     elapsed = time.perf_counter() - start
@@ -225,7 +228,8 @@ def _run_pneumatic(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     at_least("--seed", args.seed, 0)
     folder_out("--out", args.out)
     start = time.perf_counter()
-    with warnings.catch_warnings(), in_flags(_PNEUMATIC_WORDS, _PNEUMATIC_PHRASES):
+    with warnings.catch_warnings(), in_flags(_PNEUMATIC_WORDS, _PNEUMATIC_PHRASES), \
+            stage("simulating the servopneumatic bench's tests"):
         warnings.simplefilter("ignore")  # kept in truth.json and printed below
         files = write_pneumatic_campaign(
             args.out, tests=args.tests, snr_db=args.snr, seed=args.seed, format=args.format,

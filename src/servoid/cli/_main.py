@@ -36,9 +36,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except SystemExit as stop:  # argparse exits on --help/--version (0)
         return int(stop.code or 0)
+    from .._progress import configure
     from ..workflows._provenance import set_command
 
     set_command(["servoid", *words])
+    configure(sys.stderr.isatty() and not getattr(args, "json", False)
+              and not getattr(args, "quiet", False))
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ServoidWarning)

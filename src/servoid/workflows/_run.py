@@ -27,6 +27,7 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._progress import stage
 from ..data import ExperimentSpec, load_experiment_spec
 from ._common import check_outputs, check_sizes, report_options, sha256, spec_inputs
 from ._methods import METHODS
@@ -128,10 +129,12 @@ def identify(
     folder = _folder(spec, out, allow_outside) if write else None
     if folder is not None:  # before a fit that may take minutes, what can be known now
         _check_folder(folder, spec, overwrite)
-    result = method.run(spec, options, truth)
+    with stage(f"identifying ({method.name})"):
+        result = method.run(spec, options, truth)
     if folder is None:
         return result
-    return write_results(result, folder, overwrite=overwrite)
+    with stage("writing the figures and the report"):
+        return write_results(result, folder, overwrite=overwrite)
 
 
 def write_results(result: Identification, folder: str | os.PathLike[str], *,
