@@ -109,7 +109,11 @@ def plot_residuals(
             f"input {k} – residual cross-correlation (independence p = "
             f"{res.independence_pvalue:.3g}); band {how}"
             + ("; negative lags not tested (closed loop)" if res.causal else ""))
-    axes[-1].set_xlabel("lag [samples]")
+    axes[0].set_ylabel("autocorrelation [-]")
+    for ax in axes[1:]:
+        ax.set_ylabel("cross-correlation [-]")
+    for ax in axes:
+        ax.set_xlabel("lag [samples]")
     fig.tight_layout()
     save_figure(fig, path, overwrite)
 

@@ -287,6 +287,7 @@ def _plot_steps(res: MultistepResult, path: Path, overwrite: bool) -> None:
         axes[0].axvline(s0["p_krit"], color="C3", lw=0.8)
         axes[0].set_title(f"S0: RSS(p_krit), minimum {s0['p_krit']:.4f}", fontsize=9)
         axes[0].set_xlabel("p_krit [-]")
+        axes[0].set_ylabel("RSS of the S0 fit")
     s0v = res.steps.get("S0 ẋ_krit")
     if s0v is not None:
         axes[1].plot(s0v.extra["map_speed"], s0v.extra["map_force"], ".", ms=1.5)
@@ -303,6 +304,8 @@ def _plot_steps(res: MultistepResult, path: Path, overwrite: bool) -> None:
     ax2.set_ylim(200, 400)
     axes[2].set_title(f"S2: RLS κ = {s2['kappa']:.4f}, R = {s2['R']:.1f}", fontsize=9)
     axes[2].set_xlabel("RLS update (decimated)")
+    axes[2].set_ylabel("κ [-]")
+    ax2.set_ylabel("R [J/(kg·K)]")
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.tight_layout()
