@@ -13,12 +13,12 @@ acceptance limits, trends, control limits, drift and outliers.
 ('SN-0107',)
 """
 
+from ..workflows._summary import ParameterValue, RecordSummary, summarise
 from ._limits import RULE, Limit
 from ._result import FleetResult, ParameterStats
 from ._run import run_fleet
 from ._spec import FleetRecord, FleetSpec, load_fleet_spec
 from ._stats import ControlLimits, Drift, control_limits, drift, robust_z
-from ._summary import ParameterValue, RecordSummary, summarise
 
 __all__ = [
     "RULE",

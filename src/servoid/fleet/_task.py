@@ -20,7 +20,7 @@ from typing import Any
 
 from .. import __version__
 from .._errors import ServoidError
-from ._summary import summarise
+from ..workflows._summary import summarise
 
 __all__ = ["identify_record", "record_key"]
 

@@ -24,15 +24,20 @@ def new_figure(figsize: tuple[float, float]) -> Figure:
 def plot_validation(
     report: ValidationReport, path: str | os.PathLike[str], unit: str = "", overwrite: bool = False
 ) -> None:
-    """Save measured vs simulated and predicted output.
+    """Save measured vs simulated and predicted output, its error and a zoom.
 
     The samples before ``report.first`` (measured initial conditions or an
-    excluded transient) are shaded; ``unit`` defaults to the report's.
+    excluded transient) are shaded; ``unit`` defaults to the report's. The
+    zoom panel shows a twentieth of the record (at least 200 samples)
+    around the largest simulation error, where a reviewer should look.
     """
     t = report.time
     first = report.first
-    fig = new_figure((9, 5.5))
-    ax, ax_err = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    fig = new_figure((9, 7.5))
+    grid = fig.add_gridspec(3, 1, height_ratios=[3, 1, 2.2])
+    ax = fig.add_subplot(grid[0])
+    ax_err = fig.add_subplot(grid[1], sharex=ax)
+    ax_zoom = fig.add_subplot(grid[2])
     unit = unit or getattr(report, "unit", "")
     label_unit = f" [{plain(unit)}]" if unit else ""  # channel names and units as typed
     if first > 0:
@@ -53,7 +58,27 @@ def plot_validation(
     ax_err.set_ylabel(f"error{label_unit}")
     ax_err.set_xlabel("time [s]")
     ax_err.grid(alpha=0.3)
+    _zoom(ax_zoom, report, label_unit)
+    fig.tight_layout()
     save_figure(fig, path, overwrite)
+
+
+def _zoom(ax: Axes, report: ValidationReport, label_unit: str) -> None:
+    t, first = report.time, report.first
+    error = np.abs(report.measured[first:] - report.simulated[first:])
+    n = t.size - first
+    width = min(max(n // 20, 200), n)
+    centre = first + (int(np.nanargmax(error)) if np.isfinite(error).any() else 0)
+    lo = int(np.clip(centre - width // 2, first, t.size - width))
+    part = slice(lo, lo + width)
+    ax.plot(t[part], report.measured[part], color="0.2", lw=1.0, label="measured")
+    ax.plot(t[part], report.simulated[part], color="C1", lw=1.0, label="simulated")
+    ax.plot(t[part], report.predicted[part], color="C0", lw=0.8, ls="--", label="predicted")
+    ax.set_title(f"zoom: {width} samples around the largest simulation error", fontsize=9)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(f"{plain(report.output)}{label_unit}")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right", fontsize=7)
 
 
 def plot_residuals(

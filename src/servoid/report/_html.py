@@ -51,6 +51,7 @@ class Section:
     paragraphs: tuple[str, ...] = ()
     tables: tuple[Table, ...] = ()
     figures: tuple[Figure, ...] = ()
+    box: bool = False  # drawn framed: the page's verdict
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ from ._common import check_outputs, check_sizes, report_options, sha256, spec_in
 from ._methods import METHODS
 from ._provenance import provenance
 from ._registry import Identification, Method
+from ._summary import verdict_section
 
 __all__ = ["MANIFEST", "get_method", "identify", "method_names", "write_results"]
 
@@ -178,7 +179,8 @@ def write_results(result: Identification, folder: str | os.PathLike[str], *,
         write_json(result.to_dict(), targets["results.json"], overwrite=replace)
         page = result.page(targets)
         done = {n: p for n, p in targets.items() if n != "report.html"}
-        page = dataclasses.replace(page, meta=(*page.meta, *provenance(result, done)))
+        page = dataclasses.replace(page, meta=(*page.meta, *provenance(result, done)),
+                                   sections=(verdict_section(result.to_dict()), *page.sections))
         write_html(page, targets["report.html"], overwrite=replace)
         write_json(_manifest(result, targets), manifest, overwrite=False)
     except BaseException:

@@ -1,20 +1,22 @@
-"""One identification's ``results.json`` as a fleet row: parameters, fit and flags.
+"""One identification's ``results.json`` in brief: parameters, fit, test verdicts, flags.
 
-The fleet runner calls the registered method like ``servoid identify``
-does and reads only the dictionary every result writes to
-``results.json``.  Each method family writes its parameters in one of a
-few shapes; :func:`summarise` knows them and returns the same plain
-:class:`RecordSummary` for all.
+The report's verdict box and the fleet runner read only the dictionary
+every result writes to ``results.json``.  Each method family writes its
+parameters in one of a few shapes; :func:`summarise` knows them and
+returns the same plain :class:`RecordSummary` for all.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
 
-__all__ = ["ParameterValue", "RecordSummary", "summarise"]
+if TYPE_CHECKING:
+    from ..report import Section
+
+__all__ = ["ParameterValue", "RecordSummary", "summarise", "verdict_section"]
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,8 @@ class RecordSummary:
         The structure test rejected the model structure (closed loop).
     flags : tuple of str
         The estimate's flags (unresolved resonance, boundary, …).
+    notes : int
+        Number of notes (warnings) of the run.
     """
 
     parameters: tuple[ParameterValue, ...]
@@ -53,6 +57,7 @@ class RecordSummary:
     independent: bool | None = None
     structure_rejected: bool | None = None
     flags: tuple[str, ...] = ()
+    notes: int = 0
 
     def names(self) -> tuple[str, ...]:
         """Parameter names, in order."""
@@ -60,6 +65,13 @@ class RecordSummary:
 
 
 def summarise(results: Mapping[str, Any]) -> RecordSummary:
+    """Return the summary of a ``results.json`` dictionary (see :func:`_summarise`)."""
+    summary = _summarise(results)
+    notes = results.get("notes")
+    return replace(summary, notes=len(notes) if isinstance(notes, list) else 0)
+
+
+def _summarise(results: Mapping[str, Any]) -> RecordSummary:
     """Return the fleet summary of a ``results.json`` dictionary.
 
     Known shapes: the closed-loop physical fit (``parameters`` per
@@ -133,3 +145,35 @@ def _num(x: Any) -> float:
         return float(x)
     except (TypeError, ValueError):
         return math.nan
+
+
+def verdict_section(results: Mapping[str, Any]) -> Section:
+    """The report's verdict box: fit, residual tests, structure test, warnings."""
+    from ..report import Section
+
+    s = summarise(results)
+    lines = []
+    if s.fit_percent is not None:
+        lines.append(f"Validation fit: {s.fit_percent:.1f} %"
+                     + (" — the model does worse than the output's mean." if s.fit_percent < 0
+                        else "."))
+    else:
+        lines.append("Validation fit: not computed by this method.")
+    for verdict, good, bad in (
+            (s.white, "Residuals: white — no structure left that the model misses.",
+             ("Residuals: NOT white — the noise model or the model order is too simple; the "
+             "intervals assume more than the data show.")),
+            (s.independent, "Residuals independent of the input — no input dynamics left.",
+             ("Residuals correlated with the input — the model structure is rejected by the "
+             "data."))):
+        if verdict is not None:
+            lines.append(good if verdict else bad)
+    if s.structure_rejected is not None:
+        lines.append("Structure test: the data reject the reduced model — its intervals "
+                     "understate the error (see the structure test)." if s.structure_rejected
+                     else "Structure test: no richer structure explains the data significantly "
+                     "better.")
+    if s.flags:
+        lines.append("Flags: " + "; ".join(s.flags) + ".")
+    lines.append(f"Warnings: {s.notes} (see the notes)." if s.notes else "Warnings: none.")
+    return Section("Verdict", paragraphs=tuple(lines), box=True)
