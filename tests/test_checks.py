@@ -7,15 +7,19 @@ import math
 import numpy as np
 import pytest
 
-from servoid import DataError, FileFormatError, OptionTypeError, ServoidError
+from servoid import DataError, FileFormatError, MissingFileError, OptionTypeError, ServoidError
 from servoid._checks import (
+    as_array,
     as_bool,
     as_float,
     as_float_list,
+    as_instance,
     as_int,
     as_int_list,
     as_mapping,
+    as_path,
     as_str,
+    as_str_list,
     read_json,
     type_error,
 )
@@ -136,5 +140,54 @@ def test_read_json(tmp_path):
     binary.write_bytes(b"\xff\xfe{")
     with pytest.raises(FileFormatError, match="is not UTF-8 text"):
         read_json(binary, "truth file")
-    with pytest.raises(FileNotFoundError):
+    with pytest.raises(MissingFileError, match="missing.json: no such file") as missing:
         read_json(tmp_path / "missing.json", "truth file")
+    assert isinstance(missing.value, FileNotFoundError)
+
+
+def test_as_array_accepts_numbers_without_copying():
+    x = np.arange(3.0)
+    assert as_array("x", x) is x  # a float array comes back as is: the caller must copy
+    np.testing.assert_array_equal(as_array("x", [1, 2]), [1.0, 2.0])
+    assert math.isnan(as_array("x", [math.nan], finite=False)[0])
+
+
+@pytest.mark.parametrize(
+    ("value", "kwargs", "error", "message"),
+    [
+        ("abc", {}, OptionTypeError, "x must be an array of real numbers, got 'abc' (str)"),
+        (None, {}, OptionTypeError, "x must be an array of real numbers, got None (NoneType)"),
+        (["a", 1], {}, OptionTypeError, "x must be an array of real numbers"),
+        ([1j], {}, OptionTypeError, "x must hold real numbers, got complex values"),
+        ([[1.0], [1.0, 2.0]], {}, DataError, "x must be a rectangular array of numbers"),
+        (np.ones((2, 2)), {"ndim": 1}, DataError, "x must be 1-D, got an array of shape (2, 2)"),
+        (1.0, {"ndim": 1}, DataError, "x must be 1-D, got a scalar"),
+        ([1.0], {"min_size": 2}, DataError, "x needs at least 2 values, got 1"),
+        ([1.0, math.inf], {}, DataError,
+         "x has 1 non-finite value(s), the first (inf) at index 1; remove or interpolate them"),
+    ],
+)
+def test_as_array_refuses(value, kwargs, error, message):
+    with pytest.raises(error) as info:
+        as_array("x", value, **kwargs)
+    assert str(info.value).startswith(message)
+
+
+def test_as_instance_as_path_as_str_list(tmp_path):
+    assert as_instance("n", 3, int) == 3
+    with pytest.raises(OptionTypeError, match=r"^n must be a int or float, got 'x' \(str\)$"):
+        as_instance("n", "x", (int, float))
+    with pytest.raises(OptionTypeError, match=r"n must be an integer count, got None"):
+        as_instance("n", None, int, "an integer count")
+    assert as_path("path", "a.csv").name == "a.csv"
+    with pytest.raises(OptionTypeError, match=r"path must be a file path \(str or pathlib"):
+        as_path("path", 3)
+    with pytest.raises(DataError, match="path must be a file path, got an empty string"):
+        as_path("path", " ")
+    with pytest.raises(MissingFileError, match=r"nope\.csv: no such file; check the path"):
+        as_path("path", tmp_path / "nope.csv", must_exist=True)
+    assert as_str_list("names", ("a", "b")) == ["a", "b"]
+    with pytest.raises(OptionTypeError, match="names must be a list of strings, got 'ab'"):
+        as_str_list("names", "ab")
+    with pytest.raises(OptionTypeError, match="names must be a list of strings"):
+        as_str_list("names", ["a", 1])

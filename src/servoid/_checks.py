@@ -17,24 +17,34 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from collections.abc import Mapping, Sequence
 from numbers import Integral, Real
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
-from ._errors import DataError, FileFormatError, OptionTypeError
+import numpy as np
+from numpy.typing import NDArray
+
+from ._errors import DataError, FileFormatError, MissingFileError, OptionTypeError
 
 __all__ = [
+    "as_array",
     "as_bool",
     "as_float",
     "as_float_list",
+    "as_instance",
     "as_int",
     "as_int_list",
     "as_mapping",
+    "as_path",
     "as_str",
+    "as_str_list",
     "read_json",
     "type_error",
 ]
+
+_T = TypeVar("_T")
 
 
 def _label(name: str, where: str) -> str:
@@ -176,14 +186,113 @@ def as_float_list(
     return [as_float(f"{name}[{i}]", v, finite=finite, where=where) for i, v in enumerate(items)]
 
 
+def as_array(
+    name: str,
+    value: object,
+    *,
+    ndim: int | None = None,
+    min_size: int = 0,
+    finite: bool = True,
+    where: str = "",
+) -> NDArray[np.float64]:
+    """Return ``value`` as a float array, refusing text, None and complex numbers.
+
+    ``ndim`` fixes the number of dimensions, ``min_size`` the fewest
+    elements, ``finite`` refuses NaN and inf (naming the first). The input
+    is never modified: a float array comes back as is (no copy), so the
+    caller must copy before writing into it.
+    """
+    label = _label(name, where)
+    if value is None or isinstance(value, (str, bytes, Mapping)):
+        raise type_error(name, value, "an array of real numbers", where=where)
+    try:
+        raw = np.asarray(value)
+    except ValueError as exc:  # a ragged nested list
+        raise DataError(f"{label} must be a rectangular array of numbers ({exc})") from None
+    if raw.dtype.kind == "c":
+        raise OptionTypeError(f"{label} must hold real numbers, got complex values; pass the "
+                              "real part (or the magnitude) explicitly")
+    if raw.dtype.kind not in "biuf":
+        try:
+            raw = raw.astype(float)
+        except (TypeError, ValueError):
+            raise type_error(name, value, "an array of real numbers", where=where) from None
+    arr = np.asarray(raw, dtype=float)
+    if ndim is not None and arr.ndim != ndim:
+        shape = "a scalar" if arr.ndim == 0 else f"an array of shape {arr.shape}"
+        raise DataError(f"{label} must be {ndim}-D, got {shape}")
+    if arr.size < min_size:
+        raise DataError(f"{label} needs at least {min_size} values, got {arr.size}")
+    if finite:
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            first = int(np.flatnonzero(bad.ravel())[0])
+            kind = "NaN" if np.isnan(arr.ravel()[first]) else "inf"
+            raise DataError(f"{label} has {int(bad.sum())} non-finite value(s), the first ({kind}) "
+                            f"at index {first}; remove or interpolate them first")
+    return arr
+
+
+def as_instance(name: str, value: object, cls: type[_T] | tuple[type, ...], expected: str = "",
+                *, where: str = "") -> _T:
+    """Return ``value`` if it is an instance of ``cls``, else an :class:`OptionTypeError`.
+
+    ``expected`` words the type for the message (default: the class name).
+    """
+    if not isinstance(value, cls):
+        if not expected:
+            names = [c.__name__ for c in (cls if isinstance(cls, tuple) else (cls,))]
+            expected = "a " + " or ".join(names)
+        raise type_error(name, value, expected, where=where)
+    return value  # type: ignore[return-value]
+
+
+def as_path(name: str, value: object, *, must_exist: bool = False, where: str = "") -> Path:
+    """Return ``value`` (a str or path-like) as a Path.
+
+    ``must_exist`` raises :class:`~servoid.MissingFileError` naming the path
+    when nothing exists there.
+    """
+    if isinstance(value, bytes) or not isinstance(value, (str, os.PathLike)):
+        raise type_error(name, value, "a file path (str or pathlib.Path)", where=where)
+    if isinstance(value, str) and not value.strip():
+        raise DataError(f"{_label(name, where)} must be a file path, got an empty string")
+    path = Path(value)
+    if must_exist and not path.exists():
+        raise MissingFileError(f"{path}: no such file; check the {name} (relative paths are "
+                               f"taken from {Path.cwd()})")
+    return path
+
+
+def as_str_list(
+    name: str,
+    value: object,
+    *,
+    length: int | None = None,
+    min_length: int = 0,
+    where: str = "",
+) -> list[str]:
+    """Return a list or tuple of strings (names, units) as a list.
+
+    A single string is refused: ``"abc"`` is not ``["a", "b", "c"]``.
+    """
+    items = _as_list(name, value, "a list of strings", where, length, min_length)
+    if not all(isinstance(v, str) for v in items):
+        raise type_error(name, value, "a list of strings", where=where)
+    return items
+
+
 def read_json(path: str | Path, what: str) -> Any:
     """Parse a JSON file; ``what`` says what it is (``"truth file"``).
 
-    A missing file raises :class:`FileNotFoundError`; malformed JSON, or
-    bytes that are not UTF-8, raise :class:`~servoid.FileFormatError`
-    naming the file and the parser's complaint.
+    A missing file raises :class:`~servoid.MissingFileError` (a
+    ``FileNotFoundError``); malformed JSON, or bytes that are not UTF-8,
+    raise :class:`~servoid.FileFormatError` naming the file and the
+    parser's complaint.
     """
-    path = Path(path)
+    path = as_path(what, path)
+    if not path.exists():
+        raise MissingFileError(f"{what} {path}: no such file")
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:

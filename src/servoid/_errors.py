@@ -7,7 +7,8 @@ and from the built-in exception a Python user would expect, so both
     ServoidError
     ├── DataError(ValueError)          bad signal values, shapes, sampling
     │   └── FileFormatError            malformed, truncated or unreadable file
-    ├── ChannelError(KeyError)         a named channel is missing
+    ├── MissingFileError(FileNotFoundError)  an input file does not exist
+    ├── ChannelError(KeyError)         a named channel (or parameter) is missing
     ├── OptionError(ValueError)        an option outside its set of values
     ├── OptionTypeError(TypeError)     an option or argument of the wrong type
     ├── IdentifiabilityError(ValueError)  data cannot determine the parameters
@@ -28,6 +29,7 @@ __all__ = [
     "DataError",
     "FileFormatError",
     "IdentifiabilityError",
+    "MissingFileError",
     "ModelError",
     "OptionError",
     "OptionTypeError",
@@ -50,8 +52,12 @@ class FileFormatError(DataError):
     """A file is malformed, truncated or not of the expected format."""
 
 
+class MissingFileError(ServoidError, FileNotFoundError):
+    """An input file (or folder) named by the user does not exist."""
+
+
 class ChannelError(ServoidError, KeyError):
-    """A channel named by the user does not exist."""
+    """A channel (or a parameter) named by the user does not exist."""
 
     def __str__(self) -> str:  # KeyError quotes its message; keep it readable
         return str(self.args[0]) if self.args else ""
@@ -88,6 +94,10 @@ class ServoidWarning(UserWarning):
 def check_option(name: str, value: object, valid: Iterable[object]) -> None:
     """Raise :class:`OptionError` unless ``value`` is one of ``valid``."""
     choices = tuple(valid)
-    if value not in choices:
+    try:
+        found = value in choices
+    except (TypeError, ValueError):  # an array compares element-wise: never an option
+        found = False
+    if found is not True:
         listed = ", ".join(repr(c) for c in choices)
         raise OptionError(f"{name} must be one of {listed}; got {value!r}")

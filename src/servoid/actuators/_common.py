@@ -18,7 +18,8 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import DataError, ModelError
+from .._checks import as_array
+from .._errors import DataError, ModelError, OptionTypeError
 
 __all__ = [
     "Bounds",
@@ -51,7 +52,7 @@ def check_fields(obj: Any, bounds: Bounds) -> None:
     for f in dataclasses.fields(obj):
         value = getattr(obj, f.name)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise TypeError(f"{cls}.{f.name} must be a real number, got {value!r}")
+            raise OptionTypeError(f"{cls}.{f.name} must be a real number, got {value!r}")
         value = float(value)
         if not math.isfinite(value):
             raise ModelError(f"{cls}.{f.name} must be finite, got {value}")
@@ -69,21 +70,21 @@ def replace_fields(obj: _T, changes: Mapping[str, Any]) -> _T:
     names = {f.name for f in dataclasses.fields(obj)}  # type: ignore[arg-type]
     unknown = sorted(set(changes) - names)
     if unknown:
-        raise TypeError(f"{type(obj).__name__} has no parameter(s) {', '.join(unknown)}")
+        raise OptionTypeError(f"{type(obj).__name__} has no parameter(s) {', '.join(unknown)}")
     return dataclasses.replace(obj, **changes)  # type: ignore[type-var]
 
 
 def check_instance(name: str, value: object, cls: type[_T]) -> _T:
     """Return `value` if it is a `cls`, else raise TypeError."""
     if not isinstance(value, cls):
-        raise TypeError(f"{name} must be {cls.__name__}, got {type(value).__name__}")
+        raise OptionTypeError(f"{name} must be {cls.__name__}, got {type(value).__name__}")
     return value
 
 
 def check_finite(name: str, value: object, error: type[Exception] = DataError) -> float:
     """Return a finite real scalar as float (TypeError, else `error`)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a real number, got {value!r}")
+        raise OptionTypeError(f"{name} must be a real number, got {value!r}")
     v = float(value)
     if not math.isfinite(v):
         raise error(f"{name} must be finite, got {v}")
@@ -101,7 +102,7 @@ def check_period(name: str, value: object) -> float:
 def check_bool(name: str, value: object) -> bool:
     """Return a Python or numpy bool as bool, else raise TypeError."""
     if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be a bool, got {value!r}")
+        raise OptionTypeError(f"{name} must be a bool, got {value!r}")
     return bool(value)
 
 
@@ -110,7 +111,7 @@ def check_signal(name: str, x: ArrayLike, unit: str, n: int | None = None) -> ND
     try:
         arr = np.array(x, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of real numbers: {exc}") from None
+        raise OptionTypeError(f"{name} must be an array of real numbers: {exc}") from None
     if arr.ndim != 1 or arr.size == 0:
         raise DataError(f"{name} must be a non-empty 1-D array [{unit}], got shape {arr.shape}")
     if n is not None and arr.size != n:
@@ -126,7 +127,7 @@ def check_signal(name: str, x: ArrayLike, unit: str, n: int | None = None) -> ND
 
 def check_state(x0: ArrayLike, names: tuple[str, ...]) -> NDArray[np.float64]:
     """Return a finite float copy of an initial state ordered as `names`."""
-    state = np.array(x0, dtype=np.float64)
+    state = np.array(as_array("x0", x0, finite=False), dtype=np.float64)
     if state.shape != (len(names),):
         raise DataError(f"x0 must have shape ({len(names)},) ({', '.join(names)}), "
                         f"got {state.shape}")
@@ -162,6 +163,29 @@ def integration_step(dt: float, dt_int: object) -> float:
     return dt / decimation
 
 
+#: Most fixed integration steps a simulation may take: about 3 min of RK4 at 1e7 steps/s,
+#: 30 times a 100 s EHSA record at its default 2 µs step.
+MAX_STEPS = 2 * 10**9
+
+
+def check_steps(n_samples: int, dt: float, h: float, what: str) -> int:
+    """Return ``dt/h`` steps per sample, or refuse a simulation beyond :data:`MAX_STEPS`.
+
+    An integration step orders of magnitude below the sample period comes from
+    a parameter far outside its physical range (a stiffness of 1e300 gives
+    steps of 1e-150 s): refuse it instead of starting a run that cannot end.
+    """
+    per_sample = dt / h
+    if per_sample * n_samples > MAX_STEPS:
+        raise ModelError(
+            f"{what} would take {per_sample * n_samples:.3g} integration steps of {h:.3g} s "
+            f"({per_sample:.3g} per sample of {dt:g} s), over the budget of {MAX_STEPS:.0e}; the "
+            "fastest mode of the parameters is far beyond a real actuator's: check them "
+            "(a stiffness, mass or volume off by orders of magnitude?), or pass a shorter input"
+        )
+    return max(1, round(per_sample))
+
+
 def freeze_arrays(obj: object, names: Iterable[str], *, flags: tuple[str, ...] = (),
                   optional: tuple[str, ...] = ()) -> None:
     """Replace fields of a frozen dataclass by read-only array copies.
@@ -173,6 +197,9 @@ def freeze_arrays(obj: object, names: Iterable[str], *, flags: tuple[str, ...] =
         value = getattr(obj, name)
         if value is None and name in optional:
             continue
-        arr = np.array(value, dtype=bool if name in flags else np.float64)
+        if name in flags:
+            arr = np.array(value, dtype=bool)
+        else:
+            arr = np.array(as_array(name, value, finite=False), dtype=np.float64)
         arr.setflags(write=False)
         object.__setattr__(obj, name, arr)

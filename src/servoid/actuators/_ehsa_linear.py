@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
-from .._errors import ModelError, check_option
+from .._errors import ModelError, OptionTypeError, check_option
 from ..models import TransferFunction
 from ._common import check_finite, check_instance
 from ._ehsa_params import EhsaParameters
@@ -79,7 +79,7 @@ class ReducedEhsa:
         for name, unit in (("K", "1/s"), ("omega_hp", "rad/s"), ("delta_hp", "-")):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
-                raise TypeError(f"ReducedEhsa.{name} must be a real number, got {value!r}")
+                raise OptionTypeError(f"ReducedEhsa.{name} must be a real number, got {value!r}")
             if not (math.isfinite(value) and value > 0.0):
                 raise ModelError(f"ReducedEhsa.{name} must be finite and > 0 [{unit}], "
                                  f"got {value}")
@@ -100,7 +100,7 @@ class ReducedEhsa:
             ``K = K_s2·K_qs/A_p``, ``ω_hp``, ``δ_hp`` of `params`.
         """
         if not isinstance(params, EhsaParameters):
-            raise TypeError(f"params must be EhsaParameters, got {type(params).__name__}")
+            raise OptionTypeError(f"params must be EhsaParameters, got {type(params).__name__}")
         return cls(params.K, params.omega_hp, params.delta_hp)
 
     @classmethod

@@ -43,6 +43,7 @@ from ._common import (
     check_period,
     check_signal,
     check_state,
+    check_steps,
     freeze_arrays,
     integration_step,
     largest_step,
@@ -195,7 +196,7 @@ def simulate_ehsa(
     dt = check_period("dt", dt)
     ref = check_signal("y_r", y_r, "m")
     h = default_dt_int(params, dt) if dt_int is None else integration_step(dt, dt_int)
-    decimation = max(1, round(dt / h))
+    decimation = check_steps(ref.size, dt, h, "simulate_ehsa")
     linear = check_bool("linear", linear)
     friction = check_bool("friction", friction) and not linear
     state = np.zeros(len(STATE_NAMES)) if x0 is None else check_state(x0, STATE_NAMES)

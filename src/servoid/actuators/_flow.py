@@ -35,7 +35,9 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import ModelError, check_option
+from .._checks import as_array
+from .._errors import ModelError, OptionTypeError, check_option
+from ._common import check_finite
 
 __all__ = [
     "FLOW_KINDS",
@@ -195,9 +197,9 @@ def orifice_mass_flow(
     26.6
     """
     check_option("flow", flow, FLOW_KINDS)
-    a = np.asarray(area, dtype=np.float64)
-    pu = np.asarray(p_up, dtype=np.float64)
-    pd = np.asarray(p_down, dtype=np.float64)
+    a = as_array("area", area, finite=False)
+    pu = as_array("p_up", p_up, finite=False)
+    pd = as_array("p_down", p_down, finite=False)
     if np.any(a < 0.0) or not np.all(np.isfinite(a)):
         raise ModelError("area must be finite and >= 0 m²")
     for name, v in (("p_up", pu), ("p_down", pd)):
@@ -249,11 +251,12 @@ def chamber_pressure_rate(
     ndarray
         ``κ·(R·T·ṁ − p·V̇)/V`` [Pa/s].
     """
-    vol = np.asarray(V, dtype=np.float64)
-    if np.any(vol <= 0.0):
+    vol = as_array("V", V, finite=False)
+    if vol.size and np.any(vol <= 0.0):
         raise ModelError(f"V must be > 0 m³, got min {vol.min():g}")
-    return kappa * (R * T * np.asarray(m_dot, dtype=np.float64)
-                    - np.asarray(p, dtype=np.float64) * np.asarray(V_dot, dtype=np.float64)) / vol
+    R, T, kappa = (check_finite(n, v) for n, v in (("R", R), ("T", T), ("kappa", kappa)))
+    return kappa * (R * T * as_array("m_dot", m_dot, finite=False)
+                    - as_array("p", p, finite=False) * as_array("V_dot", V_dot, finite=False)) / vol
 
 
 # -- compiled scalar kernels -------------------------------------------------
@@ -319,7 +322,7 @@ def chamber_pressure_rate_nb(
 
 def _check_positive_float(name: str, value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a real number, got {value!r}")
+        raise OptionTypeError(f"{name} must be a real number, got {value!r}")
     v = float(value)
     if not (math.isfinite(v) and v > 0.0):
         raise ModelError(f"{name} must be finite and > 0, got {v}")
@@ -335,7 +338,7 @@ def _check_kappa(kappa: object) -> float:
 
 def _check_b(b: object) -> float:
     if isinstance(b, bool) or not isinstance(b, (int, float, np.integer, np.floating)):
-        raise TypeError(f"b must be a real number, got {b!r}")
+        raise OptionTypeError(f"b must be a real number, got {b!r}")
     v = float(b)
     if not (0.0 <= v < 1.0):
         raise ModelError(f"b (critical pressure ratio) must be in [0, 1), got {v:g}")
@@ -343,7 +346,7 @@ def _check_b(b: object) -> float:
 
 
 def _check_ratio(pi: ArrayLike) -> NDArray[np.float64]:
-    x = np.asarray(pi, dtype=np.float64)
+    x = as_array("pi", pi, finite=False)
     if np.any(~np.isfinite(x)) or np.any(x < 0.0):
         raise ModelError("pressure ratio pi must be finite and >= 0")
     return x

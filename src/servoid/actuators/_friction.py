@@ -33,7 +33,7 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import ModelError
+from .._errors import DataError, ModelError, OptionTypeError
 from ._common import check_finite
 
 __all__ = [
@@ -145,7 +145,7 @@ def karnopp_friction(
         ``sgn(v)·F_c + c·v`` for |v| > ε; inside the band
         ``clip(F, −F_s, F_s)``.
     """
-    x, f = np.broadcast_arrays(_array("v", v), _array("F", F))
+    x, f = _pair(v, F)
     fc, fs, e = _nonneg("F_c", F_c), _nonneg("F_s", F_s), _pos("eps", eps)
     slide = np.sign(x) * fc + _nonneg("c", c) * x
     return np.where(np.abs(x) > e, slide, np.clip(f, -fs, fs))
@@ -195,13 +195,13 @@ def three_regime_friction(
     >>> three_regime_friction([0.2, 0.05, 0.0, 0.0], [0, 0, 40.0, 100.0], **kw).tolist()
     [79.0, 85.0, 40.0, 85.0]
     """
-    x, f = np.broadcast_arrays(_array("v", v), _array("F", F))
+    x, f = _pair(v, F)
     fh, dk, ck = _nonneg("F_haft", F_haft), _nonneg("d_k", d_k), _nonneg("c_k", c_k)
     e, vk = _pos("eps", eps), _pos("v_krit", v_krit)
     if vk <= e:
         raise ModelError(f"v_krit must be > eps = {e:g} m/s, got {vk:g} m/s")
     if not isinstance(blend, (bool, np.bool_)):
-        raise TypeError(f"blend must be a bool, got {blend!r}")
+        raise OptionTypeError(f"blend must be a bool, got {blend!r}")
     av = np.abs(x)
     sliding = np.sign(x) * (dk + ck * av)
     if blend:
@@ -269,11 +269,20 @@ def three_regime_nb(
 # -- private helpers ---------------------------------------------------------
 
 
+def _pair(v: ArrayLike, F: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    x, f = _array("v", v), _array("F", F)
+    try:
+        return tuple(np.broadcast_arrays(x, f))  # type: ignore[return-value]
+    except ValueError:
+        raise DataError(f"v and F must have the same shape (or one be a scalar), got "
+                        f"{x.shape} and {f.shape}") from None
+
+
 def _array(name: str, x: ArrayLike) -> NDArray[np.float64]:
     try:
         a = np.asarray(x, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of real numbers: {exc}") from None
+        raise OptionTypeError(f"{name} must be an array of real numbers: {exc}") from None
     if not np.all(np.isfinite(a)):
         raise ModelError(f"{name} must be finite")
     return a

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from .._errors import OptionTypeError
 from ._ehsa_linear import ReducedEhsa
 
 __all__ = ["SET_A", "PaperConsistency", "PaperSetA", "paper_consistency"]
@@ -187,7 +188,7 @@ def paper_consistency(paper: PaperSetA = SET_A) -> PaperConsistency:
         Roots, errors, verdicts and the reduced-form parameters.
     """
     if not isinstance(paper, PaperSetA):
-        raise TypeError(f"paper must be PaperSetA, got {type(paper).__name__}")
+        raise OptionTypeError(f"paper must be PaperSetA, got {type(paper).__name__}")
     ref = paper.eq14_roots()
     decoded = paper.closed_loop_roots(paper.pole_slow)
     literal = paper.closed_loop_roots(paper.pole_slow_literal)

@@ -46,7 +46,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
-from .._errors import DataError, ModelError, check_option
+from .._errors import DataError, ModelError, OptionTypeError, check_option
 from ._common import (
     check_bool,
     check_finite,
@@ -54,6 +54,7 @@ from ._common import (
     check_period,
     check_signal,
     check_state,
+    check_steps,
     freeze_arrays,
     integration_step,
     largest_step,
@@ -100,7 +101,8 @@ class PositionController:
         for name in ("K_p", "K_d"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise TypeError(f"PositionController.{name} must be a real number, got {value!r}")
+                raise OptionTypeError(f"PositionController.{name} must be a real number, "
+                                      f"got {value!r}")
             if not (math.isfinite(value) and value >= 0.0):
                 raise ModelError(f"PositionController.{name} must be finite and >= 0, "
                                  f"got {value}")
@@ -328,8 +330,8 @@ def simulate_pneumatic(
     check_option("flow", flow, FLOW_KINDS)
     blend = check_bool("blend", blend)
     if controller is not None and not isinstance(controller, PositionController):
-        raise TypeError(f"controller must be a PositionController or None, "
-                        f"got {type(controller).__name__}")
+        raise OptionTypeError(f"controller must be a PositionController or None, "
+                              f"got {type(controller).__name__}")
     closed = controller is not None
     if closed:
         if r is None:
@@ -347,7 +349,7 @@ def simulate_pneumatic(
         ref = np.zeros(n)
     fe = np.zeros(n) if f_ext is None else check_signal("f_ext", f_ext, "N", n)
     h = pneumatic_dt_int(params, dt) if dt_int is None else integration_step(dt, dt_int)
-    decimation = max(1, round(dt / h))
+    decimation = check_steps(n, dt, h, "simulate_pneumatic")
     state = pneumatic_rest_state(params, 0.0, float(fe[0])) if x0 is None else _check_x0(
         params, x0)
     kp = controller.K_p if closed else 0.0

@@ -39,7 +39,8 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import DataError, ModelError, check_option
+from .._checks import as_array, as_float
+from .._errors import DataError, ModelError, OptionTypeError, check_option
 
 __all__ = ["CascadeController", "RigidAxis", "RigidLoopResponse", "simulate_rigid_loop"]
 
@@ -82,10 +83,10 @@ class RigidAxis:
         for name in ("mass", "viscous", "coulomb", "offset", "viscous_negative",
                      "coulomb_negative"):
             value = getattr(self, name)
-            if value is None:
+            if value is None and name in ("viscous_negative", "coulomb_negative"):
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-                raise TypeError(f"{name} must be a number, got {type(value).__name__}")
+                raise OptionTypeError(f"{name} must be a number, got {type(value).__name__}")
             if not math.isfinite(value):
                 raise ModelError(f"{name} must be finite, got {value}")
             object.__setattr__(self, name, float(value))
@@ -163,7 +164,7 @@ class CascadeController:
         for name in ("kp", "kv", "gtau", "saturation"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-                raise TypeError(f"{name} must be a number, got {type(value).__name__}")
+                raise OptionTypeError(f"{name} must be a number, got {type(value).__name__}")
             if not value > 0 or math.isnan(value) or (name != "saturation"
                                                       and not math.isfinite(value)):
                 raise ModelError(f"{name} must be finite and > 0, got {value}")
@@ -251,11 +252,12 @@ def simulate_rigid_loop(
     True
     """
     if not isinstance(axis, RigidAxis):
-        raise TypeError(f"axis must be a RigidAxis, got {type(axis).__name__}")
+        raise OptionTypeError(f"axis must be a RigidAxis, got {type(axis).__name__}")
     if not isinstance(controller, CascadeController):
-        raise TypeError(f"controller must be a CascadeController, got {type(controller).__name__}")
+        raise OptionTypeError(f"controller must be a CascadeController, "
+                              f"got {type(controller).__name__}")
     check_option("integration", integration, INTEGRATIONS)
-    ref = np.ascontiguousarray(r, dtype=float)
+    ref = np.ascontiguousarray(as_array("r", r, finite=False))
     if ref.ndim != 1 or ref.size < 2:
         raise DataError(f"r must be 1-D with at least 2 samples, got shape {ref.shape}")
     if not np.all(np.isfinite(ref)):
@@ -264,7 +266,8 @@ def simulate_rigid_loop(
         raise DataError(f"dt must be > 0 s, got {dt!r}")
     if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
         raise DataError(f"substeps must be an integer >= 1, got {substeps!r}")
-    q_start = float(ref[0]) if q0 is None else float(q0)
+    q_start = float(ref[0]) if q0 is None else as_float("q0", q0, finite=False)
+    v0 = as_float("v0", v0, finite=False)
     if not (math.isfinite(q_start) and math.isfinite(v0)):
         raise DataError(f"q0 and v0 must be finite, got {q0!r} and {v0!r}")
     gains = np.array([controller.kp, controller.kv, controller.gtau, controller.saturation,

@@ -57,8 +57,8 @@ __all__ = [
     "PneumaticTest",
     "PneumaticTestName",
     "Reference",
-    "VirtualFleet",
     "RigFormat",
+    "VirtualFleet",
     "digitize",
     "experiment_document",
     "pneumatic_experiment_document",
@@ -68,7 +68,7 @@ __all__ = [
     "simulate_lti",
     "simulate_lti_loop",
     "truth_document",
-    "write_virtual_fleet",
     "write_bench_files",
     "write_pneumatic_campaign",
+    "write_virtual_fleet",
 ]

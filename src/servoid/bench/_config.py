@@ -17,7 +17,7 @@ from numbers import Real
 from typing import Literal
 
 from .._checks import as_int, type_error
-from .._errors import DataError, check_option
+from .._errors import DataError, OptionTypeError, check_option
 from ..actuators import SET_B, EhsaParameters
 from ..models import TransferFunction
 from ._analog import butterworth
@@ -140,7 +140,8 @@ class EhsaBench:
 
     def __post_init__(self) -> None:
         if not isinstance(self.params, EhsaParameters):
-            raise TypeError(f"params must be EhsaParameters, got {type(self.params).__name__}")
+            raise OptionTypeError(f"params must be EhsaParameters, "
+                                  f"got {type(self.params).__name__}")
         check_option("fidelity", self.fidelity, FIDELITIES)
         check_option("reference", self.reference, REFERENCES)
         f_acq = _positive("f_acq", self.f_acq, "Hz")

@@ -14,7 +14,7 @@ from numbers import Integral
 import numpy as np
 from numpy.typing import NDArray
 
-from .._errors import DataError, ServoidWarning
+from .._errors import DataError, OptionTypeError, ServoidWarning
 
 __all__ = ["note_warning", "quantise", "resolve_rng"]
 
@@ -53,6 +53,6 @@ def resolve_rng(rng: object, caller: str) -> tuple[np.random.Generator, int | No
         if rng < 0:
             raise DataError(f"rng seed must be >= 0, got {rng}")
         return np.random.default_rng(int(rng)), int(rng)
-    raise TypeError(
+    raise OptionTypeError(
         f"{caller} needs rng=, a numpy.random.Generator or an integer seed (so the record can "
         f"be reproduced), got {type(rng).__name__}")

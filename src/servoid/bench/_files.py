@@ -26,7 +26,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 from .._atomic import atomic_path, check_writable
-from .._errors import check_option
+from .._checks import as_bool, as_instance, as_path, as_str
+from .._errors import OptionTypeError, check_option
 from ..data import write_csv, write_experiment_spec, write_tdms
 from ._run import CHANNELS, BenchRun
 
@@ -84,11 +85,12 @@ def write_bench_files(
     ['ehsa.tdms', 'ehsa.toml', 'truth.json']
     """
     if not isinstance(run, BenchRun):
-        raise TypeError(f"run must be a BenchRun, got {type(run).__name__}")
+        raise OptionTypeError(f"run must be a BenchRun, got {type(run).__name__}")
     check_option("format", format, _FORMATS)
     if not isinstance(name, str) or not name or "/" in name or os.sep in name:
-        raise TypeError(f"name must be a plain file stem, got {name!r}")
-    folder = Path(folder)
+        raise OptionTypeError(f"name must be a plain file stem, got {name!r}")
+    folder = as_path("folder", folder)
+    as_bool("overwrite", overwrite)
     rig = folder / f"{name}.{format}"
     toml = folder / f"{name}.toml"
     truth = folder / "truth.json"
@@ -121,7 +123,8 @@ def experiment_document(run: BenchRun, file: str) -> dict[str, Any]:
     dict
         TOML-shaped, for :func:`servoid.data.write_experiment_spec`.
     """
-    data: dict[str, Any] = {"file": file}
+    as_instance("run", run, BenchRun, "a BenchRun (from servoid.bench.run)")
+    data: dict[str, Any] = {"file": as_str("file", file)}
     if file.lower().endswith(".csv"):
         data["time"] = "time"
     # 15 significant digits: 1/(10 V/35 MPa) prints as 3500000.0, not ...0005.
@@ -161,6 +164,7 @@ def truth_document(run: BenchRun) -> dict[str, Any]:
     dict
         JSON-ready: the truth, the SNR and seed, the rig and the design.
     """
+    as_instance("run", run, BenchRun, "a BenchRun (from servoid.bench.run)")
     b, ex = run.bench, run.excitation
     rig = {
         "f_acq": b.f_acq, "f_s": b.f_s, "decimation": b.decimation, "oversample": b.oversample,

@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_path
+from .._checks import as_path
 from .._errors import DataError
 from ..actuators import SET_B, EhsaParameters
 from ._config import EhsaBench
@@ -91,7 +92,10 @@ def write_virtual_fleet(
     snr_db: float = 35.0,
     overwrite: bool = False,
 ) -> VirtualFleet:
-    """Write bench records of `units` EHSA units, their manifest, truth and fleet file.
+    """Write a virtual fleet: records, manifest, truth, fleet file.
+
+    One bench record per EHSA unit (``units`` of them), their manifest, the
+    truth and the fleet file.
 
     Parameters
     ----------
@@ -125,7 +129,7 @@ def write_virtual_fleet(
         raise DataError(f"bad_every must be a whole number >= 0; got {bad_every!r}")
     from ..signals import prbs
 
-    root = Path(folder)
+    root = as_path("folder", folder)
     root.mkdir(parents=True, exist_ok=True)
     gen = np.random.default_rng(seed)
     excitation = prbs(register, clock=clock, amplitude=1e-3, periods=1, dt=1e-3)

@@ -29,14 +29,19 @@ import numpy as np
 import scipy.signal as sps
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import as_int
+from .._checks import as_array, as_float, as_int, type_error
 from .._errors import DataError, ModelError, check_option
 from ..data import Experiment
 from ..models import StateSpace, TransferFunction
+from ..signals._checks import MAX_SAMPLES
 from ._analog import butterworth, discretise, realise
 from ._daq import resolve_rng
 
 __all__ = ["Intersample", "simulate_lti", "simulate_lti_loop"]
+
+#: Largest oversampling factor: the analog path is simulated dt/oversample apart, and
+#: beyond this the fast step is far below any plant a rig records at dt.
+MAX_OVERSAMPLE = 10_000
 
 Intersample = Literal["zoh", "foh", "fast"]
 
@@ -89,11 +94,17 @@ def simulate_lti(
         notes record the generator, the intersample behaviour and the seed.
     """
     check_option("intersample", intersample, ("zoh", "foh", "fast"))
-    os_ = as_int("oversample", oversample, minimum=1)
+    os_ = as_int("oversample", oversample, minimum=1, maximum=MAX_OVERSAMPLE)
     fast_dt = _check_plant(plant, dt) / os_
-    uu = np.asarray(u, dtype=float)
-    if uu.ndim != 1 or not np.all(np.isfinite(uu)):
+    uu = as_array("u", u)
+    if uu.ndim != 1:
         raise DataError(f"u must be a finite 1-D array, got shape {uu.shape}")
+    fast_samples = uu.size if intersample == "fast" else uu.size * os_
+    if fast_samples > MAX_SAMPLES:
+        raise DataError(
+            f"the analog simulation would have {fast_samples:,} fast samples (N·oversample), over "
+            f"the budget of {MAX_SAMPLES:,}; shorten u or lower oversample"
+        )
     if intersample == "fast":
         if uu.size % os_:
             raise DataError(f"a fast input needs N·oversample samples, got {uu.size}")
@@ -158,14 +169,14 @@ def simulate_lti_loop(
     Experiment
         Channels ``r``, ``u`` and the measured ``y``.
     """
-    os_ = as_int("oversample", oversample, minimum=1)
+    os_ = as_int("oversample", oversample, minimum=1, maximum=MAX_OVERSAMPLE)
     fast_dt = _check_plant(plant, dt) / os_
     if not isinstance(controller, TransferFunction) or controller.dt is None:
         raise ModelError("controller must be a discrete TransferFunction at the logging dt")
     if not np.isclose(controller.dt, dt, rtol=1e-9):
         raise ModelError(f"controller.dt = {controller.dt} s differs from dt = {dt} s")
-    rr = np.asarray(r, dtype=float)
-    if rr.ndim != 1 or not np.all(np.isfinite(rr)):
+    rr = as_array("r", r)
+    if rr.ndim != 1:
         raise DataError(f"r must be a finite 1-D array, got shape {rr.shape}")
     n = rr.size
     lag = _delay_steps(plant, dt, "dt")  # a whole number of logging periods: a FIFO of u
@@ -224,6 +235,7 @@ def _undelayed(plant: TransferFunction) -> TransferFunction:
 
 
 def _cutoff(anti_alias: float, dt: float) -> float:
+    anti_alias = as_float("anti_alias", anti_alias, finite=False, unit="Hz")
     if not 0 < anti_alias < 0.5 / dt:
         raise DataError(f"anti_alias must lie in (0, {0.5 / dt:g}) Hz (Nyquist), got {anti_alias}")
     return float(anti_alias)
@@ -261,7 +273,10 @@ def _noise(n: int, std: float, model: tuple[ArrayLike, ArrayLike] | None,
     e = rng.standard_normal(n) * float(std)
     if model is None:
         return e
-    c, d = (np.atleast_1d(np.asarray(p, dtype=float)) for p in model)
+    if isinstance(model, (str, bytes)) or not isinstance(model, (tuple, list)) or len(model) != 2:
+        raise type_error("noise_model", model, "a pair (C, D) of polynomials in q⁻¹")
+    c, d = (np.atleast_1d(as_array(f"noise_model {label}", p))
+            for label, p in zip("CD", model, strict=True))
     for label, p in (("C", c), ("D", d)):
         if p.ndim != 1 or p[0] != 1.0:
             raise ModelError(f"noise_model {label} must be monic in q⁻¹ ({label}[0] == 1)")

@@ -47,7 +47,7 @@ import numpy as np
 import scipy.signal as sps
 from numpy.typing import NDArray
 
-from .._errors import DataError, check_option
+from .._errors import DataError, OptionTypeError, check_option
 from ..actuators import (
     PNEUMATIC_NOMINAL,
     PneumaticParameters,
@@ -155,8 +155,8 @@ class PneumaticTest:
         check_option("test name", self.name, _TEST_NAMES)
         object.__setattr__(self, "duration", _positive("duration", self.duration, "s"))
         if self.controller is not None and not isinstance(self.controller, PositionController):
-            raise TypeError(f"controller must be a PositionController or None, "
-                            f"got {type(self.controller).__name__}")
+            raise OptionTypeError(f"controller must be a PositionController or None, "
+                                  f"got {type(self.controller).__name__}")
         for name, unit in (("u_amplitude", "V"), ("u_frequency", "Hz"), ("r_amplitude", "m"),
                            ("r_frequency", "Hz"), ("force_amplitude", "N"),
                            ("force_frequency", "Hz"), ("force_delay", "s")):
@@ -173,7 +173,7 @@ class PneumaticTest:
         if self.controller is None and not self.u_amplitude:
             raise DataError(f"test {self.name!r}: an open-loop test needs u_amplitude != 0")
         if not isinstance(self.purpose, str):
-            raise TypeError(f"purpose must be a str, got {self.purpose!r}")
+            raise OptionTypeError(f"purpose must be a str, got {self.purpose!r}")
 
     @property
     def closed_loop(self) -> bool:
@@ -352,7 +352,7 @@ class PneumaticBench:
     def __post_init__(self) -> None:
         p = self.params
         if not isinstance(p, PneumaticParameters):
-            raise TypeError(f"params must be PneumaticParameters, got {type(p).__name__}")
+            raise OptionTypeError(f"params must be PneumaticParameters, got {type(p).__name__}")
         for name in ("p_S", "p_R", "p_amb"):
             if getattr(p, name) <= 0.0:
                 raise DataError(f"params.{name} must be an absolute pressure > 0 Pa, got "
@@ -376,8 +376,8 @@ class PneumaticBench:
             _set(self, "snr_db", snr)
         if self.noise_std is not None:
             if not isinstance(self.noise_std, Mapping):
-                raise TypeError(f"noise_std must be a mapping channel → std, got "
-                                f"{type(self.noise_std).__name__}")
+                raise OptionTypeError(f"noise_std must be a mapping channel → std, got "
+                                      f"{type(self.noise_std).__name__}")
             sensors = [c for c in PNEUMATIC_CHANNELS if c not in _COMMANDS]
             std = {}
             for name, value in self.noise_std.items():
@@ -411,7 +411,7 @@ class PneumaticBench:
                 f"p_S = {p.p_S:g} Pa does not fit; pass a larger pressure_range")
         check_option("flow", self.flow, ("ellipse", "saint-venant"))
         if not isinstance(self.blend, bool):
-            raise TypeError(f"blend must be a bool, got {self.blend!r}")
+            raise OptionTypeError(f"blend must be a bool, got {self.blend!r}")
 
     @property
     def dt(self) -> float:
@@ -581,13 +581,13 @@ def run_pneumatic(
     (2000, ('u', 'x_ref', 'x_v'))
     """
     if not isinstance(bench, PneumaticBench):
-        raise TypeError(f"bench must be a PneumaticBench, got {type(bench).__name__}")
+        raise OptionTypeError(f"bench must be a PneumaticBench, got {type(bench).__name__}")
     if isinstance(test, str):
         check_option("test", test, _TEST_NAMES)
         test = PNEUMATIC_TESTS[test]
     elif not isinstance(test, PneumaticTest):
-        raise TypeError(f"test must be a PneumaticTest or a test name, got "
-                        f"{type(test).__name__}")
+        raise OptionTypeError(f"test must be a PneumaticTest or a test name, got "
+                              f"{type(test).__name__}")
     n = round(test.duration * bench.f_acq)
     if n < 2:
         raise DataError(f"test {test.name!r}: duration {test.duration:g} s is under two "

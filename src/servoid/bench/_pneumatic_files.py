@@ -26,14 +26,14 @@ import math
 import os
 import warnings
 from collections.abc import Sequence
-from numbers import Integral
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .._atomic import atomic_path, check_writable
-from .._errors import DataError, ServoidWarning, check_option
+from .._checks import as_bool, as_instance, as_int, as_path, as_str, type_error
+from .._errors import DataError, OptionTypeError, ServoidWarning, check_option
 from ..actuators import PNEUMATIC_NOMINAL, PneumaticParameters
 from ..data import Experiment, write_csv, write_experiment_spec, write_tdms
 from ._files import RigFormat
@@ -144,15 +144,15 @@ def write_pneumatic_campaign(
     ...     [p.name for p in files]
     ['valve.tdms', 'valve.toml', 'pneumatic.toml', 'truth.json']
     """
+    folder = as_path("folder", folder)
+    as_bool("overwrite", overwrite)
     check_option("format", format, _FORMATS)
-    if isinstance(seed, bool) or not isinstance(seed, Integral) or seed < 0:
-        raise DataError(f"seed must be an integer >= 0, got {seed!r}")
+    seed = as_int("seed", seed, minimum=0)
     if snr_db is not None and not (isinstance(snr_db, (int, float))
                                    and not isinstance(snr_db, bool) and math.isfinite(snr_db)):
         raise DataError(f"snr_db must be a finite number of dB (or None), got {snr_db!r}")
     plan = _plan(tests, duration)
     bench = PneumaticBench(params=params, f_acq=f_acq, snr_db=snr_db)
-    folder = Path(folder)
     names = [t.name for t in plan]
     targets = [folder / f"{n}.{ext}" for n in names for ext in (format, "toml")]
     targets += [folder / CAMPAIGN, folder / "truth.json"]
@@ -253,7 +253,8 @@ def pneumatic_experiment_document(run: PneumaticRun, file: str) -> dict[str, Any
     dict
         TOML-shaped, for :func:`servoid.data.write_experiment_spec`.
     """
-    data: dict[str, Any] = {"file": file}
+    as_instance("run", run, PneumaticRun, "a PneumaticRun (from servoid.bench.run_pneumatic)")
+    data: dict[str, Any] = {"file": as_str("file", file)}
     if file.lower().endswith(".csv"):
         data["time"] = "time"
     channels = {}
@@ -295,6 +296,11 @@ def pneumatic_truth_document(runs: Sequence[PneumaticRun], seed: int | None,
         JSON-ready: the identified parameters and the known constants at
         the top level, all parameters, units, the rig and every test.
     """
+    if isinstance(runs, (str, bytes)) or not isinstance(runs, Sequence) or not runs or not all(
+            isinstance(r, PneumaticRun) for r in runs):
+        raise type_error("runs", runs, "a non-empty list of PneumaticRun")
+    if seed is not None:
+        seed = as_int("seed", seed, minimum=0)
     return _truth(runs[0].bench, {r.test.name: _test_info(r) for r in runs}, seed,
                   warnings_issued)
 
@@ -355,8 +361,8 @@ def _truth(b: PneumaticBench, tests: dict[str, dict[str, Any]], seed: int | None
 
 def _plan(tests: object, duration: float | None) -> list[PneumaticTest]:
     if isinstance(tests, (str, PneumaticTest)) or not isinstance(tests, Sequence):
-        raise TypeError(f"tests must be a sequence of test names or PneumaticTest, "
-                        f"got {tests!r}")
+        raise OptionTypeError(f"tests must be a sequence of test names or PneumaticTest, "
+                              f"got {tests!r}")
     if not tests:
         raise DataError("tests must name at least one test")
     plan: list[PneumaticTest] = []
@@ -367,7 +373,7 @@ def _plan(tests: object, duration: float | None) -> list[PneumaticTest]:
         elif isinstance(t, PneumaticTest):
             test = t
         else:
-            raise TypeError(f"tests must hold test names or PneumaticTest, got {t!r}")
+            raise OptionTypeError(f"tests must hold test names or PneumaticTest, got {t!r}")
         if duration is not None:
             test = test.with_duration(duration)
         if any(q.name == test.name for q in plan):

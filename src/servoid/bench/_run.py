@@ -43,7 +43,7 @@ import numpy as np
 import scipy.signal as sps
 from numpy.typing import NDArray
 
-from .._errors import DataError, check_option
+from .._errors import DataError, OptionTypeError, check_option
 from ..actuators import EhsaParameters, ReducedEhsa, full_order_closed_loop, simulate_ehsa
 from ..data import Channel, Experiment, decimate
 from ..models import StateSpace, TransferFunction
@@ -265,7 +265,7 @@ def run(
     (6350, ('yr_cmd', 'y_pos'))
     """
     if not isinstance(bench, EhsaBench):
-        raise TypeError(f"bench must be an EhsaBench, got {type(bench).__name__}")
+        raise OptionTypeError(f"bench must be an EhsaBench, got {type(bench).__name__}")
     _check_excitation(bench, excitation)
     gen, seed = resolve_rng(rng, "run")
     notes: list[str] = []
@@ -305,7 +305,7 @@ def digitize(
         Samples clipped at ±``adc_range``.
     """
     if not isinstance(bench, EhsaBench):
-        raise TypeError(f"bench must be an EhsaBench, got {type(bench).__name__}")
+        raise OptionTypeError(f"bench must be an EhsaBench, got {type(bench).__name__}")
     check_option("hold", hold, ("foh", "zoh"))
     x = np.asarray(volts, dtype=np.float64)
     if x.ndim != 1 or x.size < bench.oversample or x.size % bench.oversample:
@@ -482,8 +482,8 @@ def _experiment(values: dict[str, NDArray[np.float64]], bench: EhsaBench,
 
 def _check_excitation(bench: EhsaBench, ex: object) -> None:
     if not isinstance(ex, Excitation):
-        raise TypeError(f"excitation must be a servoid.signals.Excitation, got "
-                        f"{type(ex).__name__}")
+        raise OptionTypeError(f"excitation must be a servoid.signals.Excitation, got "
+                              f"{type(ex).__name__}")
     if not math.isclose(ex.dt, bench.dt, rel_tol=1e-9):
         raise DataError(
             f"excitation.dt = {ex.dt:g} s must be the identification period 1/f_s = "

@@ -11,10 +11,19 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._errors import ChannelError, DataError, FileFormatError, ServoidError, check_option
+from .._checks import as_float, as_mapping, as_path, as_str, type_error
+from .._errors import (
+    ChannelError,
+    DataError,
+    FileFormatError,
+    MissingFileError,
+    ServoidError,
+    check_option,
+)
 from ._experiment import ROLES, Channel, Experiment, _check_time
 
-__all__ = ["RolesArg", "build_experiment", "existing_file", "library_errors"]
+__all__ = ["RolesArg", "build_experiment", "check_reader_options", "existing_file",
+           "library_errors"]
 
 RolesArg = Mapping[str, str | Sequence[str]] | None
 
@@ -24,13 +33,46 @@ TIME_TOLERANCE = 1e-3
 
 
 def existing_file(path: str | os.PathLike[str]) -> Path:
-    """Return ``path`` as a Path, or raise FileNotFoundError naming it."""
-    path = Path(path)
+    """Return ``path`` as a Path, or raise :class:`MissingFileError` naming it.
+
+    A path of the wrong type is an :class:`~servoid.OptionTypeError`, a
+    folder or device a :class:`FileFormatError`.
+    """
+    path = as_path("path", path)
     if not path.exists():
-        raise FileNotFoundError(f"{path}: no such file")
+        raise MissingFileError(
+            f"{path}: no such file; check the path (relative paths are taken from {Path.cwd()})"
+        )
     if not path.is_file():
-        raise FileFormatError(f"{path} is not a regular file")
+        raise FileFormatError(f"{path} is not a regular file; pass the path of a file")
     return path
+
+
+def check_reader_options(
+    *,
+    dt: object = None,
+    roles: object = None,
+    names: Mapping[str, object] | None = None,
+) -> float | None:
+    """Check the options every reader shares; return ``dt`` as a float or None.
+
+    ``dt`` must be None or a positive number of seconds, ``roles`` None or a
+    mapping of role to a name or a list of names; ``names`` holds further
+    options that must be None or a string (``time``, ``group``).
+    """
+    out = None if dt is None else as_float("dt", dt, positive=True, unit="s")
+    if roles is not None:
+        as_mapping("roles", roles)
+        for role, listed in roles.items():  # type: ignore[attr-defined]
+            check_option("role", role, ROLES)
+            items = [listed] if isinstance(listed, str) else listed
+            if isinstance(items, (bytes, Mapping)) or not isinstance(items, Sequence) or \
+                    not all(isinstance(n, str) for n in items):
+                raise type_error(f"roles[{role!r}]", listed, "a channel name or a list of names")
+    for key, value in (names or {}).items():
+        if value is not None:
+            as_str(key, value)
+    return out
 
 
 @contextmanager

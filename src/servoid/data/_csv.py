@@ -35,9 +35,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._atomic import atomic_path
+from .._checks import as_bool, as_path, as_str
 from .._errors import DataError, FileFormatError
-from ._columns import RolesArg, build_experiment, existing_file
-from ._experiment import Experiment
+from ._columns import RolesArg, build_experiment, check_reader_options, existing_file
+from ._experiment import Experiment, check_experiment
 
 __all__ = ["read_csv", "write_csv"]
 
@@ -92,6 +93,10 @@ def read_csv(
         A column named in ``roles`` is not in the file.
     """
     path = existing_file(path)
+    dt = check_reader_options(dt=dt, roles=roles, names={"time": time})
+    as_str("delimiter", delimiter)
+    if len(delimiter) != 1:
+        raise DataError(f"delimiter must be one character (',' or ';' or '\\t'), got {delimiter!r}")
     try:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -152,6 +157,10 @@ def write_csv(
     pathlib.Path
         The file written.
     """
+    check_experiment(exp, "exp")
+    as_path("path", path)
+    as_bool("overwrite", overwrite)
+    as_bool("time", time)
     if time and "time" in exp.names:
         raise DataError("a channel is called 'time'; rename it or pass time=False")
     header = [_header_cell(ch.name, ch.unit) for ch in exp.channels]

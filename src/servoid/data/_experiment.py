@@ -10,12 +10,13 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import ChannelError, DataError, check_option
+from .._checks import as_array, as_float, as_int, as_mapping, type_error
+from .._errors import ChannelError, DataError, OptionTypeError, check_option
 
 if TYPE_CHECKING:
     from scipy.signal import dlti  # noqa: F401
 
-__all__ = ["ROLES", "Channel", "Experiment", "ExperimentSet", "Role"]
+__all__ = ["ROLES", "Channel", "Experiment", "ExperimentSet", "Role", "check_experiment"]
 
 Role = Literal["r", "u", "y", "side"]
 ROLES: tuple[Role, ...] = ("r", "u", "y", "side")
@@ -35,7 +36,10 @@ class Channel:
         if not isinstance(self.name, str) or not self.name:
             raise DataError(f"channel name must be a non-empty string, got {self.name!r}")
         check_option("channel role", self.role, ROLES)
-        values = np.array(self.values, dtype=np.float64, copy=True)
+        if not isinstance(self.unit, str):
+            raise type_error(f"unit of channel {self.name!r}", self.unit, "a string")
+        values = np.array(as_array(f"channel {self.name!r}", self.values, finite=False),
+                          dtype=np.float64, copy=True)
         if values.ndim != 1:
             raise DataError(
                 f"channel {self.name!r} must be 1-D, got an array of shape {values.shape}"
@@ -85,16 +89,24 @@ class Experiment:
     def __post_init__(self) -> None:
         dt = self.dt
         if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating, np.integer)):
-            raise TypeError(f"dt must be a number of seconds, got {type(dt).__name__}")
+            raise OptionTypeError(f"dt must be a number of seconds, got {type(dt).__name__}")
         if not np.isfinite(dt) or dt <= 0:
             raise DataError(f"dt must be > 0 s, got {dt}")
         object.__setattr__(self, "dt", float(dt))
+        object.__setattr__(self, "t0", as_float("t0", self.t0))
+        if not isinstance(self.name, str):
+            raise type_error("name", self.name, "a string")
+        if not isinstance(self.notes, Mapping):
+            raise type_error("notes", self.notes, "a mapping")
+        if isinstance(self.channels, (str, bytes, Channel)) or not isinstance(
+                self.channels, Iterable):
+            raise type_error("channels", self.channels, "a sequence of Channel objects")
         channels = tuple(self.channels)
         if not channels:
             raise DataError("an Experiment needs at least one channel")
         for ch in channels:
             if not isinstance(ch, Channel):
-                raise TypeError(f"channels must be Channel objects, got {type(ch).__name__}")
+                raise OptionTypeError(f"channels must be Channel objects, got {type(ch).__name__}")
         lengths = {ch.name: ch.values.size for ch in channels}
         if len(set(lengths.values())) > 1:
             listed = ", ".join(f"{k}: {v}" for k, v in lengths.items())
@@ -105,6 +117,9 @@ class Experiment:
             raise DataError(f"channel names must be unique, repeated: {', '.join(dupes)}")
         if channels[0].values.size < 2:
             raise DataError(f"an Experiment needs at least 2 samples, got {channels[0].values.size}")
+        if not np.isfinite(self.dt * channels[0].values.size + abs(self.t0)):
+            raise DataError(f"dt = {self.dt:g} s and t0 = {self.t0:g} s: the record's time stamps "
+                            "overflow double precision; give dt and t0 in seconds")
         object.__setattr__(self, "channels", channels)
         object.__setattr__(self, "notes", MappingProxyType(dict(self.notes)))
 
@@ -151,8 +166,10 @@ class Experiment:
         name : str
             A label for reports.
         """
-        names = dict(names or {})
-        units = dict(units or {})
+        names = dict(as_mapping("names", names) if names is not None else {})
+        units = dict(as_mapping("units", units) if units is not None else {})
+        side = as_mapping("side", side) if side is not None else {}
+        time_tolerance = as_float("time_tolerance", time_tolerance, positive=True)
         channels: list[Channel] = []
         for role, data in (("r", r), ("u", u), ("y", y)):
             if data is None:
@@ -161,19 +178,21 @@ class Experiment:
             role_names = _role_names(role, arr.shape[1], names.get(role))
             for k, ch_name in enumerate(role_names):
                 channels.append(Channel(ch_name, role, arr[:, k], units.get(ch_name, "")))
-        for ch_name, data in (side or {}).items():
-            arr = np.asarray(data, dtype=float)
+        for ch_name, data in side.items():
+            arr = as_array(f"side channel {ch_name!r}", data, finite=False)
             if arr.ndim != 1:
                 raise DataError(f"side channel {ch_name!r} must be 1-D, got shape {arr.shape}")
             channels.append(Channel(ch_name, "side", arr, units.get(ch_name, "")))
         if time is not None:
             n = channels[0].values.size if channels else 0
-            dt_t, t0 = _check_time(np.asarray(time, dtype=float), n, time_tolerance)
+            dt_t, t0 = _check_time(as_array("time", time, finite=False), n, time_tolerance)
             if dt is not None and not np.isclose(dt, dt_t, rtol=time_tolerance):
                 raise DataError(f"dt = {dt} s disagrees with the time stamps (mean step {dt_t} s)")
             dt = dt_t
         if dt is None:
             raise DataError("give either dt [s] or a time column")
+        if not channels:
+            raise DataError("an Experiment needs at least one channel: pass r=, u=, y= or side=")
         return cls(tuple(channels), dt, t0=t0, name=name)
 
     # -- access ---------------------------------------------------------------------------------
@@ -211,6 +230,8 @@ class Experiment:
 
         Raises :class:`ChannelError` listing the others if it is absent.
         """
+        if not isinstance(name, str):
+            raise type_error("channel name", name, f"a string, one of: {', '.join(self.names)}")
         for ch in self.channels:
             if ch.name == name:
                 return ch
@@ -220,7 +241,7 @@ class Experiment:
 
     def __getitem__(self, name: str) -> NDArray[np.float64]:
         if not isinstance(name, str):
-            raise TypeError(
+            raise OptionTypeError(
                 f"index an Experiment by channel name, got {type(name).__name__}; "
                 "use exp.slice(start, stop) for a range of samples"
             )
@@ -274,6 +295,7 @@ class Experiment:
 
     def require_samples(self, needed: int, purpose: str) -> None:
         """Raise DataError unless there are ``needed`` samples or more."""
+        needed = as_int("needed", needed)
         if self.n_samples < needed:
             raise DataError(
                 f"{purpose} needs at least {needed} samples, the experiment"
@@ -299,7 +321,9 @@ class Experiment:
     def select(self, *names: str) -> Experiment:
         """Keep only the named channels, in the order given."""
         if len(names) == 1 and not isinstance(names[0], str):
-            names = tuple(names[0])  # type: ignore[arg-type]
+            if not isinstance(names[0], (list, tuple)):
+                raise type_error("names", names[0], "channel names or a list of them")
+            names = tuple(names[0])
         return self.replace_channels(self.channel(n) for n in names)
 
     def drop(self, *names: str) -> Experiment:
@@ -310,6 +334,7 @@ class Experiment:
 
     def rename(self, mapping: Mapping[str, str]) -> Experiment:
         """Rename channels, ``{old: new}``."""
+        as_mapping("mapping", mapping)
         for old in mapping:
             self.channel(old)
         return self.replace_channels(
@@ -332,6 +357,9 @@ class Experiment:
 
     def slice(self, start: int | None = None, stop: int | None = None) -> Experiment:
         """Samples ``start:stop`` as a new experiment; t0 follows."""
+        for label, index in (("start", start), ("stop", stop)):
+            if index is not None:
+                as_int(label, index)
         idx = range(self.n_samples)[slice(start, stop)]
         if len(idx) < 2:
             raise DataError(
@@ -392,12 +420,15 @@ class ExperimentSet:
     experiments: tuple[Experiment, ...]
 
     def __post_init__(self) -> None:
+        if isinstance(self.experiments, (str, bytes, Experiment)) or not isinstance(
+                self.experiments, Iterable):
+            raise type_error("experiments", self.experiments, "a sequence of Experiments")
         exps = tuple(self.experiments)
         if not exps:
             raise DataError("an ExperimentSet needs at least one experiment")
         for e in exps:
             if not isinstance(e, Experiment):
-                raise TypeError(f"ExperimentSet holds Experiments, got {type(e).__name__}")
+                raise OptionTypeError(f"ExperimentSet holds Experiments, got {type(e).__name__}")
         first = exps[0]
         for k, e in enumerate(exps[1:], start=1):
             if not np.isclose(e.dt, first.dt, rtol=1e-9):
@@ -440,11 +471,24 @@ def as_segments(data: Experiment | ExperimentSet) -> tuple[Experiment, ...]:
         return (data,)
     if isinstance(data, ExperimentSet):
         return data.experiments
-    raise TypeError(f"expected an Experiment or ExperimentSet, got {type(data).__name__}")
+    raise OptionTypeError(
+        f"data must be an Experiment or ExperimentSet (build one with Experiment.from_arrays "
+        f"or read_experiment), got {type(data).__name__}"
+    )
+
+
+def check_experiment(value: object, name: str = "data") -> Experiment:
+    """Return ``value`` if it is an Experiment, else an OptionTypeError naming ``name``."""
+    if not isinstance(value, Experiment):
+        raise OptionTypeError(
+            f"{name} must be an Experiment (build one with Experiment.from_arrays or "
+            f"read_experiment), got {type(value).__name__}"
+        )
+    return value
 
 
 def _as_samples(data: ArrayLike, role: str) -> NDArray[np.float64]:
-    arr = np.asarray(data, dtype=float)
+    arr = as_array(role, data, finite=False)
     if arr.ndim == 1:
         return arr[:, None]
     if arr.ndim != 2:

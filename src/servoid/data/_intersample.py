@@ -26,6 +26,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._checks import as_array
 from .._errors import DataError
 
 __all__ = ["IntersampleCheck", "detect_intersample"]
@@ -104,7 +105,7 @@ def detect_intersample(signal: ArrayLike) -> IntersampleCheck:
     >>> detect_intersample(np.sin(0.05 * np.arange(400))).kind
     'bandlimited'
     """
-    x = np.asarray(signal, dtype=float)
+    x = as_array("signal", signal, finite=False)
     if x.ndim != 1 or x.size < _MIN_SAMPLES:
         raise DataError(f"signal must be 1-D with at least {_MIN_SAMPLES} samples, "
                         f"got shape {x.shape}")

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any, Literal
 
+from .._checks import as_path
 from .._errors import OptionError, check_option
 from ._csv import read_csv
 from ._experiment import Experiment
@@ -40,10 +40,11 @@ def format_of(path: str | os.PathLike[str], format: Format | None = None) -> For
     str
         One of :data:`FORMATS`.
     """
+    path = as_path("path", path)
     if format is not None:
         check_option("format", format, FORMATS)
         return format
-    ext = Path(path).suffix.lower()
+    ext = path.suffix.lower()
     if ext not in _EXTENSIONS:
         raise OptionError(
             f"cannot tell the format of {os.fspath(path)!r} from its extension {ext!r}; "

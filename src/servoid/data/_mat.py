@@ -25,8 +25,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._checks import as_str_list
 from .._errors import ChannelError, DataError, FileFormatError, OptionError
-from ._columns import RolesArg, build_experiment, existing_file, library_errors
+from ._columns import (
+    RolesArg,
+    build_experiment,
+    check_reader_options,
+    existing_file,
+    library_errors,
+)
 from ._experiment import Experiment
 from ._mat_check import MatEntry, check_mat, format_bytes
 
@@ -88,6 +95,9 @@ def read_mat(
         A v7.3 file and h5py is not installed.
     """
     path = existing_file(path)
+    dt = check_reader_options(dt=dt, roles=roles, names={"time": time})
+    if variables is not None:
+        variables = as_str_list("variables", variables)
     if isinstance(max_bytes, bool) or not isinstance(max_bytes, int) or max_bytes <= 0:
         raise OptionError(f"max_bytes must be a positive whole number of bytes, got {max_bytes!r}")
     wanted = None if variables is None else {*variables, *([time] if time is not None else [])}

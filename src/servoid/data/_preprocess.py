@@ -7,14 +7,23 @@ is never modified.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from numbers import Real
 from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import as_float, as_int
-from .._errors import DataError, check_option
-from ._experiment import Channel, Experiment
+from .._checks import (
+    as_array,
+    as_bool,
+    as_float,
+    as_int,
+    as_mapping,
+    as_str,
+    type_error,
+)
+from .._errors import DataError, OptionTypeError, check_option
+from ._experiment import Channel, Experiment, check_experiment
 
 __all__ = [
     "calibrate",
@@ -27,6 +36,9 @@ __all__ = [
 ]
 
 DetrendKind = Literal["mean", "linear", "offset"]
+
+#: Highest Butterworth order accepted: beyond it the sections add nothing but rounding.
+_MAX_ORDER = 20
 
 
 def calibrate(
@@ -45,16 +57,25 @@ def calibrate(
     units : mapping, optional
         New unit per channel, e.g. ``{"position": "m"}``.
     """
-    units = dict(units or {})
+    check_experiment(exp, "exp")
+    as_mapping("gains", gains)
+    units = dict(as_mapping("units", units) if units is not None else {})
     table: dict[str, tuple[float, float]] = {}
     for name, spec in gains.items():
         exp.channel(name)
-        gain, offset = (spec, 0.0) if np.isscalar(spec) else tuple(spec)  # type: ignore[misc]
-        if not (np.isfinite(gain) and np.isfinite(offset)) or gain == 0:
+        pair = [spec, 0.0] if isinstance(spec, Real) else spec
+        if isinstance(pair, np.ndarray):
+            pair = pair.tolist()
+        if isinstance(pair, (str, bytes)) or not isinstance(pair, Sequence) or len(pair) != 2:
+            raise type_error(f"gains[{name!r}]", spec, "a gain or a (gain, offset) pair")
+        gain = as_float(f"gains[{name!r}] gain", pair[0])
+        offset = as_float(f"gains[{name!r}] offset", pair[1])
+        if gain == 0:
             raise DataError(f"calibration of {name!r} needs a finite non-zero gain, got {spec!r}")
-        table[name] = (float(gain), float(offset))
-    for name in units:
+        table[name] = (gain, offset)
+    for name, unit in units.items():
         exp.channel(name)
+        as_str(f"units[{name!r}]", unit, empty=True)
     return exp.replace_channels(
         ch.with_values(table[ch.name][0] * ch.values + table[ch.name][1], units.get(ch.name))
         if ch.name in table
@@ -83,11 +104,14 @@ def detrend(
         Operating point per channel, required for ``kind="offset"``.
     """
     from scipy import signal as sps  # deferred: importing scipy.signal costs ~1 s
+    check_experiment(exp, "exp")
     check_option("kind", kind, ("mean", "linear", "offset"))
     if channels is None:
         channels = [ch.name for ch in exp.channels if ch.role != "side"]
-    for name in channels:
-        exp.channel(name)
+    channels = _channel_list(exp, channels)
+    if offsets is not None:
+        as_mapping("offsets", offsets)
+        offsets = {n: as_float(f"offsets[{n!r}]", v) for n, v in offsets.items()}
     if kind == "offset":
         if not offsets:
             raise DataError('detrend(kind="offset") needs offsets={channel: value}')
@@ -129,7 +153,10 @@ def decimate(exp: Experiment, q: int, ftype: Literal["fir", "iir"] = "fir") -> E
         forward and backward.
     """
     from scipy import signal as sps  # deferred: importing scipy.signal costs ~1 s
-    if isinstance(q, bool) or not isinstance(q, (int, np.integer)) or q < 1:
+    check_experiment(exp, "exp")
+    if isinstance(q, bool) or not isinstance(q, (int, np.integer)):
+        raise type_error("decimation factor q", q, "an integer >= 1")
+    if q < 1:
         raise DataError(f"decimation factor q must be an integer >= 1, got {q!r}")
     check_option("ftype", ftype, ("fir", "iir"))
     if q == 1:
@@ -178,12 +205,23 @@ def lowpass(
         Channels to filter; default all.
     """
     from scipy import signal as sps  # deferred: importing scipy.signal costs ~1 s
+    check_experiment(exp, "exp")
     nyquist = 0.5 / exp.dt
     cutoff = as_float("cutoff", cutoff, finite=False)
-    order = as_int("order", order, minimum=1)
+    order = as_int("order", order, minimum=1, maximum=_MAX_ORDER)
     if not 0 < cutoff < nyquist:
         raise DataError(
             f"cutoff must lie in (0, {nyquist:g}) Hz (the Nyquist frequency), got {cutoff}"
+        )
+    # Below one cycle per record the filter's transient outlasts the record: the output is
+    # the record's mean plus a start-up ramp, and for cut-offs near 1e-9·fs the filter's
+    # initial-condition solve is singular in double precision.
+    lowest = 1.0 / exp.duration
+    if cutoff < lowest:
+        raise DataError(
+            f"cutoff = {cutoff:g} Hz is below 1/(N·dt) = {lowest:.3g} Hz, the lowest frequency "
+            f"a record of {exp.duration:.3g} s resolves: the filter would return little more "
+            "than the mean. Raise the cutoff, or use detrend to remove the mean or a trend"
         )
     sos = sps.butter(order, cutoff, btype="low", fs=1.0 / exp.dt, output="sos")
     return filter(exp, sos, zero_phase=zero_phase, channels=channels)
@@ -209,17 +247,43 @@ def filter(
         Channels to filter; default all.
     """
     from scipy import signal as sps  # deferred: importing scipy.signal costs ~1 s
-    sos = np.atleast_2d(np.asarray(sos, dtype=float))
-    if sos.shape[1] != 6:
-        raise DataError(f"sos must have shape (n_sections, 6), got {sos.shape}")
-    names = exp.names if channels is None else tuple(channels)
-    for n in names:
-        exp.channel(n)
+    check_experiment(exp, "exp")
+    sos = np.atleast_2d(as_array("sos", sos))
+    if sos.ndim != 2 or sos.shape[1] != 6 or sos.shape[0] < 1:
+        raise DataError(f"sos must have shape (n_sections, 6), as from scipy.signal.butter(..., "
+                        f"output='sos'), got {sos.shape}")
+    if not np.all(sos[:, 3] != 0):
+        raise DataError("sos must have a non-zero a0 (column 3) in every section, as from "
+                        "scipy.signal.butter(..., output='sos')")
+    radius = max((float(np.abs(np.roots(section[3:])).max(initial=0.0)) for section in sos),
+                 default=0.0)
+    if radius >= 1.0:
+        raise DataError(
+            f"the filter in sos is unstable (a pole of magnitude {radius:.6g} >= 1): its output "
+            "would grow without bound. Design it again, e.g. scipy.signal.butter(..., "
+            "output='sos', fs=1/dt)"
+        )
+    as_bool("zero_phase", zero_phase)
+    names = exp.names if channels is None else tuple(_channel_list(exp, channels))
     if zero_phase:
         exp.require_samples(3 * (2 * sos.shape[0] + 1) + 1, "zero-phase filtering")
     run = sps.sosfiltfilt if zero_phase else sps.sosfilt
+    out = {}
+    for ch in exp.channels:
+        if ch.name in names:
+            try:
+                values = run(sos, ch.values)
+            except np.linalg.LinAlgError as exc:
+                raise DataError(f"the filter cannot be applied to {ch.name!r} ({exc}): its "
+                                "poles lie on or too close to the unit circle") from None
+            if not np.all(np.isfinite(values)):
+                raise DataError(
+                    f"filtering {ch.name!r} gave non-finite values: the filter in sos is "
+                    "unstable (a pole on or outside the unit circle) or overflows; check sos"
+                )
+            out[ch.name] = values
     return exp.replace_channels(
-        ch.with_values(run(sos, ch.values)) if ch.name in names else ch for ch in exp.channels
+        ch.with_values(out[ch.name]) if ch.name in out else ch for ch in exp.channels
     )
 
 
@@ -238,6 +302,7 @@ def split(
         Excitation period [samples]: the split point is moved down to a whole
         number of periods, and the second part is cut to whole periods too.
     """
+    check_experiment(exp, "exp")
     n = exp.n_samples
     if isinstance(at, (float, np.floating)):
         if not 0 < at < 1:
@@ -246,9 +311,10 @@ def split(
     elif isinstance(at, (int, np.integer)) and not isinstance(at, bool):
         index = int(at)
     else:
-        raise TypeError(f"at must be a fraction (float) or a sample index (int), got {at!r}")
+        raise OptionTypeError(f"at must be a fraction (float) or a sample index (int), got {at!r}")
     stop = n
     if period is not None:
+        period = as_int("period", period)
         if period < 1:
             raise DataError(f"period must be >= 1 sample, got {period}")
         index = (index // period) * period
@@ -275,6 +341,9 @@ def split_periods(exp: Experiment, period: int, skip: int = 0) -> list[Experimen
     skip : int
         Leading periods to drop (transient).
     """
+    check_experiment(exp, "exp")
+    period = as_int("period", period)
+    skip = as_int("skip", skip)
     if period < 2:
         raise DataError(f"period must be >= 2 samples, got {period}")
     if skip < 0:
@@ -288,3 +357,16 @@ def split_periods(exp: Experiment, period: int, skip: int = 0) -> list[Experimen
     return [exp.slice(k * period, (k + 1) * period) for k in range(skip, count)]
 
 
+
+
+def _channel_list(exp: Experiment, channels: object) -> list[str]:
+    """``channels`` as a list of names of ``exp``, each checked."""
+    if isinstance(channels, str):
+        channels = [channels]
+    if isinstance(channels, (bytes, Mapping)) or not isinstance(channels, Sequence):
+        raise type_error("channels", channels, "a list of channel names")
+    for name in channels:
+        if not isinstance(name, str):
+            raise type_error("channels", channels, "a list of channel names")
+        exp.channel(name)
+    return list(channels)

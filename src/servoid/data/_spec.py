@@ -77,6 +77,7 @@ from typing import Any, Literal
 import numpy as np
 
 from .._atomic import atomic_path
+from .._checks import as_bool, as_path, type_error
 from .._errors import ChannelError, FileFormatError, OptionError, check_option
 from ._columns import existing_file
 from ._experiment import ROLES, Channel, Experiment, ExperimentSet, Role
@@ -669,7 +670,10 @@ def write_experiment_spec(
     pathlib.Path
         The file written.
     """
-    target = Path(path)
+    target = as_path("path", path)
+    as_bool("overwrite", overwrite)
+    if not isinstance(spec, (ExperimentSpec, Mapping)):
+        raise type_error("spec", spec, "an ExperimentSpec or a TOML-shaped mapping")
     if not isinstance(spec, ExperimentSpec):
         spec = ExperimentSpec.from_dict(spec, base_dir=target.parent)
     doc = spec.to_dict()

@@ -29,9 +29,16 @@ from typing import Any
 import numpy as np
 
 from .._atomic import atomic_path
+from .._checks import as_bool, as_path, as_str
 from .._errors import DataError, FileFormatError, OptionError
-from ._columns import RolesArg, build_experiment, existing_file, library_errors
-from ._experiment import Experiment
+from ._columns import (
+    RolesArg,
+    build_experiment,
+    check_reader_options,
+    existing_file,
+    library_errors,
+)
+from ._experiment import Experiment, check_experiment
 
 __all__ = ["read_tdms", "write_tdms"]
 
@@ -79,6 +86,7 @@ def read_tdms(
         ``group`` missing or not given when the file has several groups.
     """
     path = existing_file(path)
+    dt = check_reader_options(dt=dt, roles=roles, names={"group": group, "time": time})
     with _truncation_watch() as warnings, library_errors(path, "TDMS"), \
             _BoundedReader(io.FileIO(path, "rb")) as file:
         from nptdms import TdmsFile
@@ -159,8 +167,10 @@ def write_tdms(
     """
     from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
 
-    if not group:
-        raise DataError("group must be a non-empty string")
+    check_experiment(exp, "exp")
+    as_path("path", path)
+    as_bool("overwrite", overwrite)
+    as_str("group", group)
     notes = {k: v for k, v in exp.notes.items() if _is_simple(v)}
     objects: list[Any] = [
         RootObject(properties={"name": exp.name}),

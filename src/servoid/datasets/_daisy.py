@@ -9,7 +9,7 @@ from typing import Literal
 
 import numpy as np
 
-from .._errors import FileFormatError, check_option
+from .._errors import FileFormatError, MissingFileError, check_option
 from ..data import Experiment
 
 __all__ = ["DAISY_CITATION", "DAISY_RECORDS", "DaisyRecord", "daisy_path", "load_daisy"]
@@ -47,8 +47,8 @@ def daisy_path(name: DaisyRecord) -> Path:
     check_option("name", name, DAISY_RECORDS)
     path = Path(str(resources.files("servoid.datasets").joinpath("daisy", f"{name}.dat")))
     if not path.is_file():
-        raise FileNotFoundError(f"the DaISy file {path.name} is missing from the installation "
-                                f"({path}); reinstall servoid with its package data")
+        raise MissingFileError(f"the DaISy file {path.name} is missing from the installation "
+                               f"({path}); reinstall servoid with its package data")
     return path
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
+from .._errors import MissingFileError
 from ..data import Experiment, read_mat
 
 __all__ = ["EMPS_CITATION", "emps_path", "load_emps"]
@@ -27,7 +28,7 @@ def emps_path() -> Path:
     resource = resources.files("servoid.datasets").joinpath("emps", "DATA_EMPS.mat")
     path = Path(str(resource))
     if not path.is_file():
-        raise FileNotFoundError(
+        raise MissingFileError(
             f"the EMPS data file is missing from the installation ({path}); reinstall servoid "
             "with its package data"
         )

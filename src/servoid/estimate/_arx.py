@@ -14,7 +14,7 @@ from .._checks import as_int
 from .._errors import DataError, ServoidWarning, check_option
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import PolynomialModel
-from ._channels import check_not_constant
+from ._channels import check_magnitude, check_not_constant
 from ._channels import output_name as _channel_output
 from ._estimate import Estimate
 from ._gram import lagged_gram
@@ -124,7 +124,7 @@ def fit_arx(
         first.signal(input)  # raises a DataError naming what exists
     output_name = _channel_output(first, output)
     orders = ArxOrders(na, nb, nk, len(input_names))
-    start = orders.max_lag if start is None else int(start)
+    start = orders.max_lag if start is None else as_int("start", start, minimum=0)
     if start < orders.max_lag:
         raise DataError(f"start must be >= the longest lag {orders.max_lag}, got {start}")
     n_par = orders.n_parameters
@@ -137,7 +137,9 @@ def fit_arx(
             ". Use a longer record or lower orders"
         )
     signals = [_signals(seg, output_name, input_names) for seg in segments]
+    check_magnitude("output", [z[0] for z in signals])
     for k, name in enumerate(input_names, start=1):
+        check_magnitude(f"input {name!r}", [z[k] for z in signals])
         check_not_constant(name, [z[k] for z in signals])
     names = _parameter_names(orders, input_names)
     sig, lag = orders.columns()

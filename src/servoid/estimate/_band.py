@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._checks import as_array, as_instance, as_int
 from .._errors import DataError
 from ._estimate import Estimate
 
@@ -72,7 +73,10 @@ def frequency_band(estimate: Estimate, frequency: ArrayLike, *, input: int = 0,
     FrequencyBand
         Response and standard deviations of magnitude and phase.
     """
-    f = np.asarray(frequency, dtype=float).ravel()
+    as_instance("estimate", estimate, Estimate, "an Estimate (from a fit_* function)")
+    as_int("input", input, minimum=0)
+    as_int("output", output, minimum=0)
+    f = as_array("frequency", frequency, finite=False).ravel()
     if f.size == 0 or not np.all(np.isfinite(f)) or np.any(f <= 0):
         raise DataError("frequency must be finite values > 0 Hz")
     omega = 2 * np.pi * f

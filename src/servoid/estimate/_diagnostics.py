@@ -87,10 +87,12 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import signal as sps
 from scipy import stats
 
+from .._checks import as_array, as_str_list, type_error
 from .._errors import DataError, ServoidWarning
 from ._covariance import residual_ar
 
 __all__ = [
+    "MAX_STARTS",
     "Identifiability",
     "IdentifiabilityFlag",
     "MultistartSummary",
@@ -118,6 +120,9 @@ FLOOR_FACTOR = 0.5
 MIN_STEP = 1e-4
 #: Two starts reached the same minimum when their costs agree to this relative amount.
 SAME_MINIMUM = 1e-6
+#: Most extra starts a multistart fit takes: each is a full fit, and a few dozen already
+#: show whether the minimum is unique.
+MAX_STARTS = 1000
 
 
 @dataclass(frozen=True)
@@ -222,7 +227,7 @@ class Identifiability:
     def __post_init__(self) -> None:
         for name in ("values", "std", "correlation", "singular_values", "weakest_direction",
                      "curvature_ratio", "std_floor", "step"):
-            arr = np.array(getattr(self, name), dtype=float)
+            arr = np.array(as_array(name, getattr(self, name), finite=False), dtype=float)
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
 
@@ -318,10 +323,12 @@ def check_identifiability(
     DataError
         Shapes that do not agree, or a non-finite residual at θ̂.
     """
-    theta = np.asarray(theta, dtype=float).ravel()
+    if not callable(residual_fn):
+        raise type_error("residual_fn", residual_fn, "a function theta -> residuals")
+    theta = as_array("theta", theta).ravel()
     n = theta.size
-    names = tuple(names)
-    cov = np.asarray(covariance, dtype=float)
+    names = tuple(as_str_list("names", names))
+    cov = as_array("covariance", covariance, finite=False)
     if len(names) != n or cov.shape != (n, n):
         raise DataError(f"theta has {n} entries; names has {len(names)} and covariance "
                         f"shape {cov.shape} (expected ({n}, {n}))")
@@ -335,7 +342,7 @@ def check_identifiability(
     if jacobian is None:
         jac = _central_jacobian(residual_fn, theta, r0.size)
     else:
-        jac = np.asarray(jacobian, dtype=float)
+        jac = as_array("jacobian", jacobian)
         if jac.shape != (r0.size, n):
             raise DataError(f"jacobian must have shape {(r0.size, n)}, got {jac.shape}")
     return assess(residual_fn, theta, r0, jac, cov, names, layout, multistart, warn=warn,

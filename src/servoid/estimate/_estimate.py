@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from types import MappingProxyType
@@ -12,7 +12,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from .._errors import DataError, ModelError
+from .._checks import as_array, as_float, as_mapping, type_error
+from .._errors import ChannelError, DataError, ModelError
 
 __all__ = ["Estimate", "ParameterRow"]
 
@@ -81,12 +82,18 @@ class Estimate:
 
     def __post_init__(self) -> None:
         for name in ("parameters", "covariance"):
-            arr = np.array(getattr(self, name), dtype=float)
+            arr = np.array(as_array(name, getattr(self, name), finite=False), dtype=float)
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
         if not self.units:
             object.__setattr__(self, "units", ("",) * self.parameters.size)
-        object.__setattr__(self, "names", tuple(self.names))
+        for name in ("names", "units"):
+            value = getattr(self, name)
+            if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or not all(
+                    isinstance(v, str) for v in value):
+                raise type_error(name, value, "a sequence of strings")
+            object.__setattr__(self, name, tuple(value))
+        as_mapping("options", self.options)
         object.__setattr__(self, "options", MappingProxyType(dict(self.options)))
 
     @property
@@ -107,8 +114,9 @@ class Estimate:
         level : float
             Coverage probability in (0, 1); Student-t quantile with N − n degrees of freedom.
         """
+        level = as_float("level", level)
         if not 0 < level < 1:
-            raise ValueError(f"level must lie in (0, 1), got {level}")
+            raise DataError(f"level must lie in (0, 1), e.g. 0.95, got {level}")
         half = stats.t.ppf(0.5 + level / 2, self.dof) * self.std
         return np.column_stack([self.parameters - half, self.parameters + half])
 
@@ -138,7 +146,7 @@ class Estimate:
         if self.model_function is None:
             raise ModelError(f"this {self.method} estimate does not say how its model depends on "
                              "its parameters, so no uncertainty can be carried to the model")
-        theta = np.asarray(theta, dtype=float)
+        theta = as_array("theta", theta, finite=False)
         if theta.shape != self.parameters.shape:
             raise DataError(f"theta must have shape {self.parameters.shape}, got {theta.shape}")
         return self.model_function(theta)
@@ -147,7 +155,8 @@ class Estimate:
         try:
             return float(self.parameters[self.names.index(name)])
         except ValueError:
-            raise KeyError(f"no parameter {name!r}; parameters are {', '.join(self.names)}") from None
+            raise ChannelError(f"no parameter {name!r}; parameters are "
+                               f"{', '.join(self.names)}") from None
 
     @cached_property
     def residuals(self) -> NDArray[np.float64]:

@@ -54,6 +54,7 @@ from .._errors import (
     IdentifiabilityError,
     ModelError,
     OptionError,
+    OptionTypeError,
     ServoidWarning,
     check_option,
 )
@@ -67,6 +68,8 @@ _WEIGHTINGS: tuple[FrfWeighting, ...] = ("auto", "variance", "relative", "none")
 # variances from these estimators were estimated from n_averages averages (not known)
 _ESTIMATED_VARIANCE = ("periodic", "welch", "welch-indirect")
 _SK_MAX_ITER = 50
+#: Most solver iterations accepted: scipy counts function calls in a C int.
+_MAX_ITER = 1_000_000
 _SK_TOL = 1e-10
 # warn that the structure is rejected when the cost exceeds its expectation by this many std
 _REJECT_SIGMAS = 6.0
@@ -154,7 +157,7 @@ def fit_frf(
     ([1.0, 60.0, 10000.0], 20000.0)
     """
     if not isinstance(frd, FrequencyResponseData):
-        raise TypeError(f"frd must be a FrequencyResponseData, got {type(frd).__name__}")
+        raise OptionTypeError(f"frd must be a FrequencyResponseData, got {type(frd).__name__}")
     n = as_int("n_poles", n_poles, minimum=1, maximum=30)
     m = max(n - 1, 0) if n_zeros is None else as_int("n_zeros", n_zeros, minimum=0)
     if m > n:
@@ -162,6 +165,8 @@ def fit_frf(
     tau = as_float("delay", delay, nonneg=True, unit="s")
     check_option("weighting", weighting, _WEIGHTINGS)
     iters = as_int("max_iter", max_iter, minimum=1)
+    if iters > _MAX_ITER:
+        raise DataError(f"max_iter must be <= {_MAX_ITER:,}, got {iters:,}")
     tol_ = as_float("tol", tol, positive=True)
     has_delay_field = "delay" in {f.name for f in fields(TransferFunction)}
     if tau > 0 and not has_delay_field:
@@ -189,7 +194,14 @@ def fit_frf(
     positive = omega[omega > 0]
     if positive.size == 0:
         raise IdentifiabilityError("the response has only the DC line; it cannot fix any pole")
-    w_s = float(math.sqrt(positive.min() * positive.max()))
+    # The geometric mean by logs: the product of the extreme lines can overflow or underflow.
+    w_s = math.exp(0.5 * (math.log(positive.min()) + math.log(positive.max())))
+    if n * abs(math.log10(w_s)) > 300:
+        raise DataError(
+            f"the lines lie around {w_s / (2 * math.pi):.3g} Hz: the coefficients of an order-{n} "
+            "model there (powers of ω up to ω^n) over- or underflow double precision; express "
+            "the frequencies in another unit (kHz, MHz, mHz) or lower n_poles"
+        )
     g_s = float(np.median(np.abs(g_meas)))
     if not g_s > 0:
         raise DataError("the response is zero on most lines; there is nothing to fit")

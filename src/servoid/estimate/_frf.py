@@ -61,6 +61,7 @@ from .._checks import as_float, as_int
 from .._errors import ChannelError, DataError, OptionError, OptionTypeError, check_option
 from ..data import ROLES, Channel, Experiment
 from ..models import FrequencyResponseData, NonlinearDistortion
+from ._channels import check_magnitude
 
 __all__ = ["FrfMethod", "estimate_frf"]
 
@@ -168,7 +169,7 @@ def estimate_frf(
     ('periodic', 4, True)
     """
     if not isinstance(data, Experiment):
-        raise TypeError(f"data must be an Experiment, got {type(data).__name__}")
+        raise OptionTypeError(f"data must be an Experiment, got {type(data).__name__}")
     check_option("method", method, _METHODS)
     u_ch = _channel(data, input, "input", "input")
     y_ch = _channel(data, "y" if output is None else output, "output", "output")
@@ -176,6 +177,7 @@ def estimate_frf(
     if u_ch.name == y_ch.name:
         raise DataError(f"input and output are the same channel {u_ch.name!r}")
     _check_varies(u_ch, "input")
+    check_magnitude(f"output channel {y_ch.name!r}", [y_ch.values])
     if r_ch is not None:
         _check_varies(r_ch, "reference")
     dt = data.dt

@@ -38,11 +38,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import integrate, optimize
 
-from .._checks import as_int
+from .._checks import as_array, as_float, as_int, as_str, type_error
 from .._errors import (
     ConvergenceError,
     DataError,
     IdentifiabilityError,
+    OptionTypeError,
     ServoidWarning,
     check_option,
 )
@@ -55,7 +56,13 @@ from ._covariance import (
     least_squares_covariance,
     resolve,
 )
-from ._diagnostics import assess, draw_starts, summarise_starts, weakest_parameters
+from ._diagnostics import (
+    MAX_STARTS,
+    assess,
+    draw_starts,
+    summarise_starts,
+    weakest_parameters,
+)
 from ._estimate import Estimate
 from ._tf_greybox import _bootstrap_options, _bootstrap_result, _generator
 
@@ -102,6 +109,16 @@ class GreyboxParameter:
     unit: str = ""
     fixed: bool = False
     transform: Transform = "none"
+
+    def __post_init__(self) -> None:
+        as_str("name", self.name)
+        where = f"parameter {self.name!r}:"
+        for field_name in ("value", "lower", "upper"):
+            object.__setattr__(self, field_name, as_float(
+                field_name, getattr(self, field_name), finite=False, where=where))
+        as_str("unit", self.unit, empty=True, where=where)
+        if not isinstance(self.fixed, (bool, np.bool_)):
+            raise type_error("fixed", self.fixed, "true or false", where=where)
 
 
 @dataclass(frozen=True, eq=False)
@@ -262,11 +279,19 @@ def fit_greybox(
     check_option("integrator", integrator, ("rk4", "solve_ivp"))
     check_option("covariance", covariance, GREYBOX_COVARIANCES)
     multistart = as_int("multistart", multistart, minimum=0)
+    if multistart > MAX_STARTS:  # each start is a full fit
+        raise DataError(f"multistart must be <= {MAX_STARTS} extra starts, got {multistart}")
     n_bootstrap = as_int("n_bootstrap", n_bootstrap, minimum=2)
     kind = resolve(covariance, noise_model=False)
     generator = _generator(rng) if multistart or kind == "bootstrap" else None
     check_option("hold", hold, ("zoh", "foh"))
     check_option("method", method, ("trf", "dogbox", "lm"))
+    if isinstance(parameters, (str, bytes, GreyboxParameter)) or not isinstance(
+            parameters, Sequence):
+        raise type_error("parameters", parameters,
+                         "a list of GreyboxParameter or (name, value, ...) tuples")
+    if rhs is not None and not callable(rhs):
+        raise type_error("rhs", rhs, "a function rhs(t, x, u, theta) or None")
     params = [_as_parameter(p) for p in parameters]
     names = tuple(p.name for p in params)
     if len(set(names)) != len(names):
@@ -516,7 +541,7 @@ def _as_parameter(p: GreyboxParameter | tuple[Any, ...]) -> GreyboxParameter:
         return p
     if isinstance(p, tuple) and 2 <= len(p) <= 7:
         return GreyboxParameter(*p)
-    raise TypeError(
+    raise OptionTypeError(
         "parameters must be GreyboxParameter or (name, value, lower, upper, unit, fixed) "
         f"tuples, got {p!r}"
     )
@@ -553,10 +578,10 @@ def _record(
         y = np.column_stack([data[n] for n in names])
         return t, np.asarray(u, dtype=float), y, names
     if not isinstance(data, tuple) or len(data) != 3:
-        raise TypeError("data must be an Experiment or a tuple (t, u, y)")
-    t = np.asarray(data[0], dtype=float)
-    u = np.asarray(data[1], dtype=float)
-    y = np.asarray(data[2], dtype=float)
+        raise OptionTypeError("data must be an Experiment or a tuple (t, u, y)")
+    t = as_array("t", data[0], finite=False)
+    u = as_array("u", data[1], finite=False)
+    y = as_array("y", data[2], finite=False)
     u = u[:, None] if u.ndim == 1 else u
     y = y[:, None] if y.ndim == 1 else y
     if t.ndim != 1 or t.size < 2 or u.shape[0] != t.size or y.shape[0] != t.size:

@@ -36,6 +36,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from .._errors import DataError
+
 __all__ = ["HOLDS", "Hold", "filter_bank", "piece_transition"]
 
 Hold = Literal["zoh", "foh", "bandlimited"]
@@ -130,7 +132,7 @@ def _interval_polynomials(x: NDArray[np.float64], hold: Hold) -> NDArray[np.floa
     # cubic through 4 neighbouring samples: nodes −1..2 inside, 0..3 at the start, −2..1 at the end
     out = np.zeros((n, 4))
     if n < 4:
-        raise ValueError("the band-limited hold needs at least 4 samples")
+        raise DataError("the band-limited hold needs at least 4 samples; use a longer record")
     inner = np.linalg.inv(np.vander(np.arange(-1.0, 3.0), 4, increasing=True))
     windows = np.lib.stride_tricks.sliding_window_view(x, 4)  # rows x[j−1 .. j+2], j = 1..n−3
     out[1 : n - 2] = windows @ inner.T

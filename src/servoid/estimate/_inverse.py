@@ -49,7 +49,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize
 
-from .._errors import ChannelError, ConvergenceError, DataError, check_option
+from .._errors import ChannelError, ConvergenceError, DataError, OptionTypeError, check_option
 from ..actuators import CascadeController, RigidAxis, RigidLoopResponse, simulate_rigid_loop
 from ..data import Channel, Experiment, decimate, lowpass
 from ._estimate import Estimate
@@ -140,7 +140,7 @@ def inverse_dynamics_regression(
         Force, regressors and their time base after parallel decimation.
     """
     if not isinstance(data, Experiment):
-        raise TypeError(f"data must be an Experiment, got {type(data).__name__}")
+        raise OptionTypeError(f"data must be an Experiment, got {type(data).__name__}")
     check_option("model", model, FRICTION_MODELS)
     check_option("decimation_filter", decimation_filter, ("fir", "iir"))
     check_option("differentiation", differentiation, ("central", "backward"))
@@ -364,13 +364,15 @@ def fit_closed_loop_oe(
         The solver stopped without meeting its tolerances.
     """
     if not isinstance(data, Experiment):
-        raise TypeError(f"data must be an Experiment, got {type(data).__name__}")
+        raise OptionTypeError(f"data must be an Experiment, got {type(data).__name__}")
     if not isinstance(controller, CascadeController):
-        raise TypeError(f"controller must be a CascadeController, got {type(controller).__name__}")
+        raise OptionTypeError(f"controller must be a CascadeController, "
+                              f"got {type(controller).__name__}")
     check_option("output", output, ("position", "force", "both"))
     axis0 = start.model if isinstance(start, Estimate) else start
     if not isinstance(axis0, RigidAxis):
-        raise TypeError(f"start must be a RigidAxis or its Estimate, got {type(start).__name__}")
+        raise OptionTypeError(f"start must be a RigidAxis or its Estimate, "
+                              f"got {type(start).__name__}")
     if model is None:
         model = "symmetric" if axis0.is_symmetric else "asymmetric"
     check_option("model", model, FRICTION_MODELS)

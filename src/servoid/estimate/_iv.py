@@ -61,7 +61,7 @@ from numpy.typing import NDArray
 from scipy import signal as sps
 
 from .._checks import as_int
-from .._errors import IdentifiabilityError, OptionError, check_option
+from .._errors import DataError, IdentifiabilityError, OptionError, check_option
 from ..data import Experiment, ExperimentSet
 from ..models import PolynomialModel
 from ._arx import ArxOrders, _parameter_names
@@ -79,6 +79,8 @@ Arrays = tuple[NDArray[np.float64], ...]
 
 #: cond(scaled ζᵀφ) above which the instruments do not determine θ.
 _IV_COND_LIMIT = 1e10
+#: Most refinement passes: the estimate settles in a handful (Young & Jakeman).
+_MAX_ITERATIONS = 100
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,6 +170,9 @@ def fit_iv(
     check_option("instrument", instrument, ("auto", "r"))
     check_option("covariance", covariance, COVARIANCES)
     iterations = as_int("iterations", iterations, minimum=0)
+    if iterations > _MAX_ITERATIONS:
+        raise DataError(f"iterations must be <= {_MAX_ITERATIONS} refinement passes, got "
+                        f"{iterations}; the estimate settles in a handful")
     if instrument == "r" and input == "r":
         raise OptionError("instrument='r' builds instruments from the reference for a model "
                           "driven by u; for a model from r to y use instrument='auto'")

@@ -23,7 +23,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import linalg
 
+from .._checks import as_array, as_int, as_str_list
 from .._errors import DataError, IdentifiabilityError
+from ._channels import check_magnitude
 
 __all__ = ["GRAM_COND_LIMIT", "LeastSquaresResult", "lstsq", "solve_gram"]
 
@@ -99,12 +101,16 @@ def lstsq(
     IdentifiabilityError
         When Φ is rank deficient (a column is zero or a combination of others).
     """
-    phi = np.asarray(phi, dtype=float)
-    y = np.asarray(y, dtype=float)
+    phi = as_array("phi", phi)
+    y = as_array("y", y)
     if phi.ndim != 2 or y.ndim != 1 or phi.shape[0] != y.shape[0]:
         raise DataError(f"need phi (N, n) and y (N,), got {phi.shape} and {y.shape}")
     n_rows, n = phi.shape
+    if n == 0:
+        raise DataError("phi has no columns: least squares needs at least one parameter")
+    names = _names(names, n)
     _check_rows(n_rows, n)
+    _check_magnitude(phi, y)
     scale = np.sqrt(np.einsum("ij,ij->j", phi, phi))
     _check_columns(scale, names)
     # Factor [Φ/scale | y] once, keeping only R: Q is never formed, and the last
@@ -147,8 +153,20 @@ def solve_gram(
         None when the scaled condition number exceeds ``GRAM_COND_LIMIT``:
         the caller must use QR instead.
     """
+    gram = as_array("gram", gram, finite=False)
+    if gram.ndim != 2 or gram.shape[0] != gram.shape[1] or gram.shape[0] < 2:
+        raise DataError(f"gram must be a square (n + 1, n + 1) matrix with n >= 1, got shape "
+                        f"{gram.shape}")
+    n_rows = as_int("n_rows", n_rows, minimum=1)
     n = gram.shape[0] - 1
+    names = _names(names, n)
     _check_rows(n_rows, n)
+    if not np.all(np.isfinite(gram)):
+        raise DataError(
+            "the Gram matrix has non-finite entries: the signals are too large for their "
+            "squares to be summed in double precision (beyond about 1e150), or hold NaN. "
+            "Rescale the channels (calibrate them to SI units)"
+        )
     scale = np.sqrt(np.diag(gram)[:n])
     _check_columns(scale, names)
     g = gram[:n, :n] / np.outer(scale, scale)
@@ -168,6 +186,22 @@ def solve_gram(
     sigma2 = rss / max(n_rows - n, 1)
     cov = sigma2 * cov_s / np.outer(scale, scale)
     return LeastSquaresResult(theta_s / scale, cov, rss, n_rows, condition, "gram")
+
+
+def _names(names: object, n: int) -> tuple[str, ...] | None:
+    if names is None:
+        return None
+    listed = as_str_list("names", names)
+    if len(listed) != n:
+        raise DataError(f"names needs one entry per column ({n}), got {len(listed)}")
+    return tuple(listed)
+
+
+def _check_magnitude(phi: NDArray[np.float64], y: NDArray[np.float64]) -> None:
+    # Squares beyond ~1e308 overflow and below ~1e-308 underflow: either turns the column
+    # scaling into inf or 0 and the answer into nonsense (or a LinAlgError).
+    check_magnitude("regressor matrix phi", [phi])
+    check_magnitude("left-hand side y", [y])
 
 
 def _check_rows(n_rows: int, n: int) -> None:

@@ -34,7 +34,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize, stats
 
-from .._errors import ModelError
+from .._checks import as_float, as_instance, as_str
+from .._errors import DataError, ModelError, OptionTypeError
 from ..models import PolynomialModel, StateSpace, TransferFunction
 from ._estimate import Estimate, ParameterRow
 
@@ -95,8 +96,12 @@ def modal_parameters(
     >>> [(r.name, round(r.value, 3)) for r in modal_parameters(est)]
     [('dc_gain', 1.0), ('wn1', 10.0), ('zeta1', 0.2)]
     """
+    as_instance("estimate", estimate, Estimate, "an Estimate (from a fit_* function)")
+    level = as_float("level", level)
     if not 0.0 < level < 1.0:
-        raise ValueError(f"level must lie in (0, 1), got {level}")
+        raise DataError(f"level must lie in (0, 1), e.g. 0.95, got {level}")
+    as_str("output_unit", output_unit, empty=True)
+    as_str("input_unit", input_unit, empty=True)
     theta = np.asarray(estimate.parameters, dtype=float)
     nominal = _poles_and_gain(estimate.model)
     groups = _groups(nominal[0])
@@ -137,7 +142,7 @@ def _transfer(model: object) -> TransferFunction:
                 f"input(s) and {model.n_outputs} output(s). Take one channel with to_tf(i, o)"
             )
         return model.to_tf()
-    raise TypeError(
+    raise OptionTypeError(
         "modal_parameters needs an estimate whose model is a TransferFunction, "
         f"PolynomialModel or StateSpace, got {type(model).__name__}"
     )

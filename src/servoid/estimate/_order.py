@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
+from .._checks import as_int, type_error
 from .._errors import DataError, check_option
 from ..data import Experiment, ExperimentSet
+from ..data._experiment import check_experiment
 from ..validate import fit_percent, simulate_from_data
 from ._arx import ArxOrders, InputRole, fit_arx
 from ._estimate import Estimate
@@ -95,7 +97,10 @@ def select_arx_order(
     check_option("criterion", criterion, ("aic", "fpe", "mdl", "fit"))
     if criterion == "fit" and validation is None:
         raise DataError('criterion="fit" needs validation data: pass validation=<Experiment>')
-    grid = list(itertools.product(list(na), list(nb), list(nk)))
+    if validation is not None:
+        check_experiment(validation, "validation")
+    grid = list(itertools.product(*(_orders(name, value) for name, value in
+                                    (("na", na), ("nb", nb), ("nk", nk)))))
     if not grid:
         raise DataError("the order grid is empty")
     start = max(ArxOrders(a, b, k, 1).max_lag for a, b, k in grid)
@@ -120,6 +125,13 @@ def select_arx_order(
         fits[(a, b, k)] = est
     best = min(candidates, key=lambda c: (c.score(criterion), c.n_parameters))
     return OrderSelection(tuple(candidates), criterion, best, fits[(best.na, best.nb, best.nk)])
+
+
+def _orders(name: str, value: object) -> list[int]:
+    """A grid of orders (a range, a list) as a list of integers."""
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, Iterable):
+        raise type_error(name, value, "an iterable of integers, e.g. range(1, 6) or [2, 3]")
+    return [as_int(f"{name} entry", v, minimum=0) for v in value]
 
 
 def _validation_fit(est: Estimate, validation: Experiment, input: InputRole) -> float:

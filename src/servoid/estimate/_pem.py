@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import linalg
 
-from .._checks import as_float, as_int
+from .._checks import as_array, as_float, as_int
 from .._errors import (
     ConvergenceError,
     DataError,
@@ -57,6 +57,7 @@ from ..data import Experiment, ExperimentSet
 from ..models import PolynomialModel
 from ._arx import _warn_if_unstable
 from ._covariance import COVARIANCES, Covariance, parameter_covariance, resolve
+from ._diagnostics import MAX_STARTS
 from ._estimate import Estimate
 from ._pem_orders import PemOrders, Polys, SignalData, check_record, prepare
 from ._pem_predictor import Problem, initial_sizes
@@ -354,6 +355,8 @@ def _fit(
     check_option("covariance", covariance, COVARIANCES)
     max_iter = as_int("max_iter", max_iter, minimum=0)
     multistart = as_int("multistart", multistart, minimum=0)
+    if multistart > MAX_STARTS:  # each start is a full fit
+        raise DataError(f"multistart must be <= {MAX_STARTS} extra starts, got {multistart}")
     start = as_int("start", start, minimum=0)
     tol = as_float("tol", tol, positive=True)
     if not tol < 1:
@@ -508,7 +511,7 @@ def _user_start(init: Init, orders: PemOrders, names: tuple[str, ...]) -> NDArra
     if isinstance(init, (str, bytes)) or not isinstance(init, (Sequence, np.ndarray)):
         raise OptionTypeError(
             f"init must be a PolynomialModel or a parameter vector, got {type(init).__name__}")
-    theta = np.asarray(init, dtype=float)
+    theta = as_array("init", init, finite=False)
     if theta.shape != (orders.n_parameters,):
         raise DataError(f"init must have {orders.n_parameters} values ({', '.join(names)}), "
                         f"got shape {theta.shape}")

@@ -20,14 +20,10 @@ from .._errors import DataError, check_option
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import PolynomialModel
 from ._arx import _per_input
-from ._channels import check_not_constant, output_name
+from ._channels import LARGEST_VALUE, check_magnitude, check_not_constant, output_name
 from ._pem_kernels import sum_squares
 
 __all__ = ["LARGEST_VALUE", "PemOrders", "Polys", "SignalData", "check_record", "prepare"]
-
-#: Largest signal magnitude accepted: squares and sums of squares of larger
-#: numbers overflow double precision (1e308) on records of up to ~1e8 samples.
-LARGEST_VALUE = 1e150
 
 
 @dataclass(frozen=True, slots=True)
@@ -220,13 +216,9 @@ def prepare(
     us = tuple(tuple(seg[n] for n in inputs) for seg in segments)
     rs = tuple(tuple(seg[n] for n in refs) for seg in segments)
     for label, arrays in (("output", ys), *((f"input {n!r}", [u[i] for u in us])
-                                          for i, n in enumerate(inputs))):
-        peak = max(float(np.max(np.abs(x))) for x in arrays)
-        if peak > LARGEST_VALUE:
-            raise DataError(
-                f"the {label} reaches {peak:.3g}: values beyond {LARGEST_VALUE:g} overflow "
-                "double precision when squared. Rescale the channel (calibrate it to SI units)"
-            )
+                                          for i, n in enumerate(inputs)),
+                          *((f"reference {n!r}", [r[i] for r in rs]) for i, n in enumerate(refs))):
+        check_magnitude(label, arrays)
     for k, name in enumerate(inputs):
         check_not_constant(name, [u[k] for u in us])
     for k, name in enumerate(refs):

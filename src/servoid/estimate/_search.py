@@ -28,7 +28,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from .._checks import as_int
+from .._checks import as_int, as_mapping
 from .._errors import DataError, OptionTypeError, ServoidError, ServoidWarning, check_option
 from ..data import Experiment, ExperimentSet, as_segments
 from ..validate import discrete_model, fit_percent, simulate_model
@@ -76,6 +76,7 @@ class StructureCandidate:
     status: str = "ok"
 
     def __post_init__(self) -> None:
+        as_mapping("orders", self.orders)
         object.__setattr__(self, "orders", MappingProxyType(dict(self.orders)))
 
     @property

@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import optimize
 
+from .._checks import as_array, as_float_list, as_str_list, type_error
 from .._errors import DataError, IdentifiabilityError, ServoidWarning, check_option
 from ._estimate import Estimate
 from ._ls import lstsq
@@ -127,17 +128,20 @@ def fit_separable(
     full Jacobian (module notes), cross-checked by 2σ̂²/RSS″(b̂).
     """
     check_option("method", method, _METHODS)
-    lo, hi = (float(b) for b in bounds)
+    if not callable(build):
+        raise type_error("build", build, "a function beta -> (phi, y)")
+    lo, hi = as_float_list("bounds", bounds, length=2, finite=False)
     if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
         raise DataError(f"bounds must be finite with lower < upper, got {bounds}")
     points = _grid(grid, lo, hi)
     tol = xtol if xtol is not None else 1e-8 * (hi - lo)
     first = _regression(build, points[len(points) // 2])
     n = first[0].shape[1]
-    names_t = tuple(names) if names is not None else tuple(f"theta{k}" for k in range(n))
+    names_t = tuple(as_str_list("names", names)) if names is not None else tuple(
+        f"theta{k}" for k in range(n))
     if len(names_t) != n:
         raise DataError(f"names needs one entry per column of phi ({n}), got {len(names_t)}")
-    units_t = tuple(units) if units is not None else ("",) * n
+    units_t = tuple(as_str_list("units", units)) if units is not None else ("",) * n
     if len(units_t) != n:
         raise DataError(f"units needs one entry per column of phi ({n}), got {len(units_t)}")
 
@@ -216,12 +220,20 @@ def fit_separable(
     )
 
 
+#: Most grid points of the profile search (each one a build() and a least-squares fit).
+_MAX_GRID = 100_000
+
+
 def _grid(grid: int | ArrayLike, lo: float, hi: float) -> NDArray[np.float64]:
     if isinstance(grid, (int, np.integer)) and not isinstance(grid, bool):
         if grid < 3:
             raise DataError(f"grid needs at least 3 points, got {grid}")
+        if grid > _MAX_GRID:
+            # each point is one build() and one least-squares fit: refuse an endless search
+            raise DataError(f"grid must have at most {_MAX_GRID:,} points, got {grid:,}; the "
+                            "golden-section refinement supplies the precision, not the grid")
         return np.linspace(lo, hi, int(grid))
-    pts = np.asarray(grid, dtype=float).ravel()
+    pts = as_array("grid", grid, finite=False).ravel()
     if pts.size < 3 or np.any(np.diff(pts) <= 0) or pts[0] < lo or pts[-1] > hi:
         raise DataError(
             f"grid must be ≥ 3 increasing points inside bounds [{lo}, {hi}], got {pts.size} "
@@ -234,8 +246,8 @@ def _regression(build: Builder, beta: float) -> tuple[NDArray[np.float64], NDArr
     out = build(float(beta))
     if not isinstance(out, tuple) or len(out) != 2:
         raise DataError("build(beta) must return a tuple (phi, y)")
-    phi = np.asarray(out[0], dtype=float)
-    y = np.asarray(out[1], dtype=float)
+    phi = as_array("phi from build(beta)", out[0], finite=False)
+    y = as_array("y from build(beta)", out[1], finite=False)
     if phi.ndim == 1:
         phi = phi[:, None]
     if phi.ndim != 2 or y.ndim != 1 or phi.shape[0] != y.shape[0]:

@@ -102,12 +102,13 @@ from .._errors import (
     IdentifiabilityError,
     ModelError,
     OptionError,
+    OptionTypeError,
     ServoidWarning,
     check_option,
 )
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import TransferFunction
-from ._channels import check_not_constant
+from ._channels import check_magnitude, check_not_constant
 from ._channels import output_name as channel_output
 from ._covariance import (
     COVARIANCES,
@@ -443,6 +444,8 @@ def _setup(
             f"fit_tf with {n} poles and {m} zeros ({n_par} parameters) needs at least {need} "
             f"samples (and 4 per segment), got {n_total}; use a longer record or lower orders"
         )
+    check_magnitude(f"input {input!r}", [p[0] for p in parts])
+    check_magnitude(f"output {output_name!r}", [p[1] for p in parts])
     check_not_constant(input, [p[0] for p in parts])  # type: ignore[arg-type]
     if closed:
         check_not_constant("r", [p[2] for p in parts])  # type: ignore[misc]
@@ -460,7 +463,7 @@ def _setup(
 
 def _check_controller(controller: object, dt: float) -> TransferFunction:
     if not isinstance(controller, TransferFunction):
-        raise TypeError(
+        raise OptionTypeError(
             f"controller must be a discrete TransferFunction, got {type(controller).__name__}"
         )
     if controller.dt is None:
@@ -478,7 +481,8 @@ def _check_controller(controller: object, dt: float) -> TransferFunction:
 
 def _from_init(init: object, n: int, m: int) -> NDArray[np.float64]:
     if not isinstance(init, TransferFunction):
-        raise TypeError(f"init must be a continuous TransferFunction, got {type(init).__name__}")
+        raise OptionTypeError(f"init must be a continuous TransferFunction, "
+                              f"got {type(init).__name__}")
     if init.dt is not None or init.order != n or init.num.size > m + 1:
         raise ModelError(
             f"init must be continuous with {n} poles and at most {m} zeros, got dt = "

@@ -27,7 +27,7 @@ from scipy import linalg
 from scipy import signal as sps
 
 from .._checks import as_int
-from .._errors import ModelError, ServoidWarning, check_option
+from .._errors import ModelError, OptionTypeError, ServoidWarning, check_option
 from ..models import PolynomialModel, StateSpace
 from ._gram import lagged_gram
 
@@ -83,7 +83,7 @@ def to_polynomial(
     """
     check_option("structure", structure, ("oe", "arx"))
     if not isinstance(model, StateSpace):
-        raise TypeError(f"model must be a StateSpace, got {type(model).__name__}")
+        raise OptionTypeError(f"model must be a StateSpace, got {type(model).__name__}")
     if model.dt is None:
         raise ModelError("to_polynomial needs a discrete-time model; use c2d first")
     if model.n_outputs != 1:

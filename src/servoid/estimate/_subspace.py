@@ -13,11 +13,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import linalg
 
-from .._checks import as_bool, as_int
+from .._checks import as_bool, as_int, as_str_list
 from .._errors import DataError, IdentifiabilityError, ServoidWarning, check_option
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import StateSpace
-from ._channels import check_not_constant
+from ._channels import check_magnitude, check_not_constant
 from ._estimate import Estimate
 from ._ss_polynomial import oe_covariance, oe_parameters, oe_statespace
 from ._subspace_choice import (
@@ -259,6 +259,8 @@ def _prepare(segments: tuple[Experiment, ...], input: str, output: str | Sequenc
     outputs = _output_names(first, output)
     m = len(inputs)
     signals = tuple(tuple(seg[name] for name in (*inputs, *outputs)) for seg in segments)
+    for k, name in enumerate((*inputs, *outputs)):
+        check_magnitude(f"{'input' if k < m else 'output'} {name!r}", [z[k] for z in signals])
     for k, name in enumerate(inputs):
         check_not_constant(name, [z[k] for z in signals])
     scale = _rms(signals, (*inputs, *outputs), m)
@@ -402,7 +404,10 @@ def _output_names(exp: Experiment, output: str | Sequence[str] | None) -> tuple[
         if not names:
             exp.signal("y")  # raises a DataError naming what exists
         return names
-    chosen = (output,) if isinstance(output, str) else tuple(output)
+    if isinstance(output, str):
+        chosen: tuple[str, ...] = (output,)
+    else:
+        chosen = tuple(as_str_list("output", output))
     if not chosen:
         raise DataError("output must name at least one channel, got an empty list")
     for name in chosen:

@@ -66,7 +66,9 @@ def default_horizon(n_ref: int | None, m: int, ny: int, lengths: Sequence[int]) 
     """First-pass horizon ``max(2·n_ref, 20)``, shortened to fit the record."""
     wanted = max(2 * (DEFAULT_MAX_ORDER if n_ref is None else n_ref), MIN_HORIZON)
     shortest = 2 if n_ref is None else max(-(-n_ref // ny) + 1, -(-n_ref // (m + ny)), 2)
-    s = wanted
+    # Horizons beyond half the longest segment leave no Hankel column: start the search
+    # there, not at 2·n_ref (an absurd order would count down for ever).
+    s = min(wanted, max(max(lengths) // 2, shortest))
     while s > shortest and not fits(s, s, m, ny, lengths):
         s -= 1
     if not fits(s, s, m, ny, lengths):

@@ -64,6 +64,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import linalg
 
+from .._checks import as_array, as_float
 from .._errors import DataError, check_option
 
 __all__ = ["FilteredSignal", "filter_product", "state_variable_filter"]
@@ -73,6 +74,8 @@ Initial = Literal["rest", "steady"]
 
 _HOLDS = ("cubic", "foh", "zoh", "tustin")
 _INITIALS = ("rest", "steady")
+#: Highest filter order: the derivatives s^k F x of higher orders drown in rounding.
+_MAX_ORDER = 12
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,7 +111,7 @@ class FilteredSignal:
     first_valid: int
 
     def __post_init__(self) -> None:
-        arr = np.array(self.values, dtype=float)
+        arr = np.array(as_array("values", self.values, finite=False), dtype=float)
         arr.setflags(write=False)
         object.__setattr__(self, "values", arr)
 
@@ -209,7 +212,12 @@ def state_variable_filter(
     """
     check_option("hold", hold, _HOLDS)
     check_option("initial", initial, _INITIALS)
-    xs = np.asarray(x, dtype=float)
+    xs = as_array("x", x, finite=False)
+    dt = as_float("dt", dt, finite=False)
+    omega_f = as_float("omega_f", omega_f, finite=False)
+    zeta = as_float("zeta", zeta)
+    if settle is not None:
+        settle = as_float("settle", settle, nonneg=True, unit="s")
     if xs.ndim != 1 or xs.size < 2:
         raise DataError(f"x must be 1-D with at least 2 samples, got shape {xs.shape}")
     if not np.all(np.isfinite(xs)):
@@ -222,6 +230,9 @@ def state_variable_filter(
         )
     if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1:
         raise DataError(f"order must be an integer >= 1, got {order}")
+    if order > _MAX_ORDER:
+        raise DataError(f"order must be at most {_MAX_ORDER} (derivatives up to s^{_MAX_ORDER}), "
+                        f"got {order}; use the highest derivative of the equation")
     order = int(order)
     if not (np.isfinite(zeta) and zeta > 0):
         raise DataError(f"zeta must be > 0, got {zeta}")
@@ -296,7 +307,7 @@ def filter_product(
     """
     if not factors:
         raise DataError("filter_product needs at least one signal")
-    arrays = [np.asarray(f, dtype=float) for f in factors]
+    arrays = [as_array(f"factors[{i}]", f, finite=False) for i, f in enumerate(factors)]
     shapes = {a.shape for a in arrays}
     if len(shapes) != 1:
         raise DataError(f"the factors must have equal 1-D shapes, got {sorted(shapes)}")
@@ -438,14 +449,17 @@ def _first_valid(
     if settle is not None:
         if not (np.isfinite(settle) and settle >= 0):
             raise DataError(f"settle must be >= 0 s, got {settle}")
-        k = math.ceil(settle / dt - 1e-9)  # 1e-9: a settle that is a whole number of periods
+        steps = settle / dt - 1e-9  # 1e-9: a settle that is a whole number of periods
+        k = math.ceil(steps) if steps < n_samples else n_samples
     else:
         poles = np.roots(_denominator(omega_f, order, zeta))
         sigma = float(np.min(-poles.real))
-        k = math.ceil((order + 3) / sigma / dt)
+        # A tiny omega_f gives a decay rate that underflows to 0: an endless transient.
+        steps = (order + 3) / sigma / dt if sigma > 0 else math.inf
+        k = math.ceil(steps) if steps < n_samples else n_samples
     if k >= n_samples:
         raise DataError(
             f"the record ({n_samples} samples) is shorter than the filter's start-up "
-            f"transient ({k} samples); raise omega_f or use a longer record"
+            f"transient ({steps:.6g} samples); raise omega_f or use a longer record"
         )
     return k

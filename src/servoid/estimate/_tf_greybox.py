@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import optimize
 from scipy import signal as sps
 
-from .._checks import as_int
+from .._checks import as_array, as_int, as_str_list, type_error
 from .._errors import (
     ConvergenceError,
     DataError,
@@ -58,7 +58,13 @@ from ._covariance import (
     least_squares_covariance,
     resolve,
 )
-from ._diagnostics import assess, draw_starts, summarise_starts, weakest_parameters
+from ._diagnostics import (
+    MAX_STARTS,
+    assess,
+    draw_starts,
+    summarise_starts,
+    weakest_parameters,
+)
 from ._estimate import Estimate
 
 __all__ = ["fit_tf_greybox"]
@@ -177,16 +183,24 @@ def fit_tf_greybox(
     check_option("solver", solver, ("auto", "lm", "trf"))
     check_option("covariance", covariance, GREYBOX_COVARIANCES)
     multistart = as_int("multistart", multistart, minimum=0)
+    if multistart > MAX_STARTS:  # each start is a full fit
+        raise DataError(f"multistart must be <= {MAX_STARTS} extra starts, got {multistart}")
     n_bootstrap = as_int("n_bootstrap", n_bootstrap, minimum=2)
-    theta0 = np.asarray(theta0, dtype=float).ravel()
+    start = as_int("start", start, minimum=0)
+    if not callable(model_fn):
+        raise type_error("model_fn", model_fn, "a function theta -> TransferFunction")
+    theta0 = as_array("theta0", theta0, finite=False).ravel()
     n = theta0.size
-    names = tuple(names)
+    if n == 0:
+        raise DataError("theta0 must hold at least one parameter, got an empty array")
+    names = tuple(as_str_list("names", names))
     if len(names) != n:
         raise DataError(f"names needs one entry per parameter ({n}), got {len(names)}")
-    units = tuple(units) if units is not None else ("",) * n
+    units = tuple(as_str_list("units", units)) if units is not None else ("",) * n
     if len(units) != n:
         raise DataError(f"units needs one entry per parameter ({n}), got {len(units)}")
-    transform = tuple(transform) if transform is not None else ("none",) * n
+    transform = tuple(as_str_list("transform", transform)) if transform is not None \
+        else ("none",) * n
     if len(transform) != n:
         raise DataError(f"transform needs one entry per parameter ({n}), got {len(transform)}")
     for t in transform:
@@ -364,8 +378,16 @@ def _bounds(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     if bounds is None:
         return np.full(n, -np.inf), np.full(n, np.inf)
-    lo = np.broadcast_to(np.asarray(bounds[0], dtype=float), (n,)).copy()
-    hi = np.broadcast_to(np.asarray(bounds[1], dtype=float), (n,)).copy()
+    if isinstance(bounds, (str, bytes)) or not isinstance(bounds, (tuple, list)) or \
+            len(bounds) != 2:
+        raise type_error("bounds", bounds, "a pair (lower, upper) of numbers or arrays")
+    lo_in = as_array("bounds[0]", bounds[0], finite=False)
+    hi_in = as_array("bounds[1]", bounds[1], finite=False)
+    try:
+        lo = np.broadcast_to(lo_in, (n,)).copy()
+        hi = np.broadcast_to(hi_in, (n,)).copy()
+    except ValueError as exc:  # shapes that do not broadcast to one value per parameter
+        raise DataError(f"bounds must hold a number or {n} values each ({exc})") from None
     if np.any(lo >= hi):
         raise DataError(f"bounds need lower < upper, got {lo.tolist()} and {hi.tolist()}")
     with np.errstate(divide="ignore"):
@@ -385,7 +407,8 @@ def _record(
 
 def _check_model(model: object, dt: float) -> None:
     if not isinstance(model, TransferFunction):
-        raise TypeError(f"model_fn must return a TransferFunction, got {type(model).__name__}")
+        raise OptionTypeError(f"model_fn must return a TransferFunction, "
+                              f"got {type(model).__name__}")
     if model.dt is None or not math.isclose(model.dt, dt, rel_tol=1e-9):
         raise ModelError(
             f"model_fn must return a discrete model at the data's dt = {dt} s, got dt = {model.dt}"

@@ -12,7 +12,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import DataError, ModelError, OptionError, check_option
+from .._checks import as_array
+from .._errors import DataError, ModelError, OptionError, OptionTypeError, check_option
 
 __all__ = [
     "METHODS",
@@ -31,8 +32,10 @@ Method = Literal["zoh", "tustin", "foh"]
 METHODS: tuple[Method, ...] = ("zoh", "tustin", "foh")
 
 
-def readonly(values: ArrayLike, dtype: type = np.float64) -> NDArray:
-    """Return a read-only copy of ``values``."""
+def readonly(values: ArrayLike, dtype: type = np.float64, name: str = "values") -> NDArray:
+    """Return a read-only copy of ``values`` (text or None: an OptionTypeError naming ``name``)."""
+    if dtype is np.float64:
+        values = as_array(name, values, finite=False)
     out = np.array(values, dtype=dtype, copy=True)
     out.setflags(write=False)
     return out
@@ -45,7 +48,8 @@ def check_dt(dt: object, *, owner: str, allow_none: bool = True) -> float | None
             raise ModelError(f"{owner} is discrete-time only: dt must be > 0 s, got None")
         return None
     if isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{owner}: dt must be a float [s] or None for continuous time, got {dt!r}")
+        raise OptionTypeError(f"{owner}: dt must be a float [s] or None for continuous time, "
+                              f"got {dt!r}")
     value = float(dt)
     if not math.isfinite(value) or value <= 0.0:
         raise ModelError(f"{owner}: dt must be > 0 s (None for continuous time), got {dt!r}")
@@ -59,7 +63,7 @@ def check_delay(delay: object, dt: float | None, *, owner: str) -> float:
     (``c2d`` puts them there), so it takes no separate delay.
     """
     if isinstance(delay, bool) or not isinstance(delay, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{owner}: delay must be a float [s], got {delay!r}")
+        raise OptionTypeError(f"{owner}: delay must be a float [s], got {delay!r}")
     value = float(delay)
     if not math.isfinite(value) or value < 0.0:
         raise ModelError(f"{owner}: delay must be finite and >= 0 s, got {delay!r}")
@@ -91,7 +95,7 @@ def check_method(
     if method != "tustin":
         raise OptionError(f"{owner}: prewarp applies only to method='tustin', got {method!r}")
     if isinstance(prewarp, bool) or not isinstance(prewarp, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{owner}: prewarp must be a float [rad/s] or None, got {prewarp!r}")
+        raise OptionTypeError(f"{owner}: prewarp must be a float [rad/s] or None, got {prewarp!r}")
     wp = float(prewarp)
     if not (math.isfinite(wp) and 0.0 < wp < math.pi / dt):
         raise ModelError(
@@ -106,7 +110,7 @@ def as_coefficients(name: str, values: ArrayLike, *, owner: str) -> NDArray[np.f
     try:
         arr = np.array(values, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise TypeError(
+        raise OptionTypeError(
             f"{owner}: {name} must be a 1-D array of real numbers, got {values!r}"
         ) from exc
     if arr.ndim == 0:
@@ -120,7 +124,7 @@ def as_coefficients(name: str, values: ArrayLike, *, owner: str) -> NDArray[np.f
 
 def as_input_matrix(u: ArrayLike, n_inputs: int, *, owner: str) -> NDArray[np.float64]:
     """Return an input signal as an (N, n_inputs) float array, never transposing."""
-    arr = np.asarray(u, dtype=np.float64)
+    arr = as_array("u", u, finite=False, where=f"{owner}:")
     if arr.ndim == 1 and n_inputs == 1:
         arr = arr[:, None]
     if arr.ndim != 2 or arr.shape[1] != n_inputs:

@@ -42,7 +42,7 @@ from typing import overload
 import numpy as np
 import scipy.linalg as la
 
-from .._errors import ModelError, check_option
+from .._errors import ModelError, OptionTypeError, check_option
 from ._common import METHODS, Method, check_dt, check_method
 from ._statespace import StateSpace
 from ._transfer import TransferFunction
@@ -171,7 +171,7 @@ def d2c(model, method=None, prewarp=None):  # type: ignore[no-untyped-def]
 
 def _check_model(model: object) -> None:
     if not isinstance(model, (TransferFunction, StateSpace)):
-        raise TypeError(
+        raise OptionTypeError(
             f"model must be a TransferFunction or StateSpace, got {type(model).__name__}"
         )
 

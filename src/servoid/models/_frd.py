@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import DataError, ModelError
+from .._checks import as_array, as_float
+from .._errors import DataError, ModelError, OptionTypeError
 
 __all__ = ["FrequencyResponseData", "NonlinearDistortion"]
 
@@ -86,7 +87,8 @@ class NonlinearDistortion:
                             f"equal length, got shapes {[a.shape for a in arrays]}")
         for name, arr in zip(("frequency", "power", "noise"), arrays, strict=True):
             object.__setattr__(self, name, arr)
-        if not 0.0 < self.alpha < 1.0:
+        alpha = as_float("alpha", self.alpha, where="NonlinearDistortion:")
+        if not 0.0 < alpha < 1.0:
             raise DataError(f"NonlinearDistortion: alpha must lie in (0, 1), got {self.alpha}")
 
     @property
@@ -183,7 +185,14 @@ class FrequencyResponseData:
                             f"{f.shape}")
         if f[0] < 0 or np.any(np.diff(f) <= 0):
             raise DataError(f"{_OWNER}: frequency must be >= 0 Hz and strictly increasing")
-        g = np.array(self.response, dtype=np.complex128, copy=True)
+        if self.response is None or isinstance(self.response, (str, bytes)):
+            raise OptionTypeError(f"{_OWNER}: response must be an array of complex numbers, got "
+                                  f"{type(self.response).__name__}")
+        try:
+            g = np.array(self.response, dtype=np.complex128, copy=True)
+        except (TypeError, ValueError) as exc:
+            raise OptionTypeError(f"{_OWNER}: response must be an array of complex numbers "
+                                  f"({exc})") from None
         if g.shape != f.shape:
             raise DataError(f"{_OWNER}: response must have the shape of frequency {f.shape}, "
                             f"got {g.shape}")
@@ -218,8 +227,8 @@ class FrequencyResponseData:
                 raise DataError(f"{_OWNER}: the highest line {f[-1]:g} Hz lies above the "
                                 f"Nyquist frequency {0.5 / self.dt:g} Hz of dt = {self.dt} s")
         if self.distortion is not None and not isinstance(self.distortion, NonlinearDistortion):
-            raise TypeError(f"{_OWNER}: distortion must be a NonlinearDistortion or None, got "
-                            f"{type(self.distortion).__name__}")
+            raise OptionTypeError(f"{_OWNER}: distortion must be a NonlinearDistortion or None, "
+                                  f"got {type(self.distortion).__name__}")
 
     # -- views ----------------------------------------------------------------------------------
     @property
@@ -292,7 +301,7 @@ class FrequencyResponseData:
         ModelError
             A frequency lies outside the measured lines.
         """
-        f = np.asarray(omega, dtype=np.float64) / (2.0 * np.pi)
+        f = as_array("omega", omega, finite=False) / (2.0 * np.pi)
         lo, hi = self.frequency[0], self.frequency[-1]
         tol = _LINE_TOL * max(hi, 1.0)
         if np.any(~np.isfinite(f)) or np.any(f < lo - tol) or np.any(f > hi + tol):
@@ -375,10 +384,8 @@ class FrequencyResponseData:
 
 
 def _readonly_real(name: str, values: ArrayLike) -> NDArray[np.float64]:
-    try:
-        arr = np.array(values, dtype=np.float64, copy=True)
-    except (TypeError, ValueError) as exc:
-        raise DataError(f"{_OWNER}: {name} must be an array of real numbers") from exc
+    arr = np.array(as_array(name, values, finite=False, where=f"{_OWNER}:"), dtype=np.float64,
+                   copy=True)
     if arr.ndim == 0:
         arr = arr.reshape(1)
     if not np.all(np.isfinite(arr)):

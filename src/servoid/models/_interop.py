@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from .._errors import ModelError
+from .._errors import ModelError, OptionTypeError
 from ._statespace import StateSpace
 from ._transfer import TransferFunction
 
@@ -33,7 +33,7 @@ def to_scipy(model: TransferFunction | StateSpace) -> signal.TransferFunction | 
         Continuous (lti) for ``dt=None``, else discrete (dlti) with the same dt.
     """
     if not isinstance(model, (TransferFunction, StateSpace)):
-        raise TypeError(
+        raise OptionTypeError(
             f"model must be a TransferFunction or StateSpace, got {type(model).__name__}; "
             "for a PolynomialModel convert model.transfer_function(i) first"
         )
@@ -61,7 +61,8 @@ def from_scipy(obj: signal.lti | signal.dlti) -> TransferFunction | StateSpace:
         With ``dt=None`` for continuous systems.
     """
     if not isinstance(obj, (signal.lti, signal.dlti)):
-        raise TypeError(f"obj must be a scipy.signal lti or dlti system, got {type(obj).__name__}")
+        raise OptionTypeError(f"obj must be a scipy.signal lti or dlti system, "
+                              f"got {type(obj).__name__}")
     dt = getattr(obj, "dt", None)
     if isinstance(obj, signal.StateSpace):
         return StateSpace(obj.A, obj.B, obj.C, obj.D, dt)
@@ -96,7 +97,7 @@ def to_control(model: TransferFunction | StateSpace) -> Any:
         functions have none; use ``control.pade`` for an approximation).
     """
     if not isinstance(model, (TransferFunction, StateSpace)):
-        raise TypeError(
+        raise OptionTypeError(
             f"model must be a TransferFunction or StateSpace, got {type(model).__name__}"
         )
     _refuse_delay(model, "python-control")
@@ -137,7 +138,7 @@ def from_control(obj: Any) -> TransferFunction | StateSpace:
                 f"only SISO transfer functions are supported, got {obj.noutputs}×{obj.ninputs}"
             )
         return TransferFunction(obj.num[0][0], obj.den[0][0], dt)
-    raise TypeError(
+    raise OptionTypeError(
         f"obj must be a control.TransferFunction or control.StateSpace, got {type(obj).__name__}"
     )
 

@@ -12,7 +12,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
-from .._errors import DataError, ModelError, ServoidWarning
+from .._checks import as_array
+from .._errors import DataError, ModelError, OptionTypeError, ServoidWarning
 from ._common import as_coefficients, as_input_matrix, check_dt, readonly
 
 if TYPE_CHECKING:
@@ -83,14 +84,14 @@ class PolynomialModel:
         c = _monic("c", self.c)
         d = _monic("d", self.d)
         if isinstance(self.b, np.ndarray) or not isinstance(self.b, Sequence) or not self.b:
-            raise TypeError(
+            raise OptionTypeError(
                 f"{_OWNER}: b must be a non-empty sequence of 1-D arrays, one per input "
                 f"(for one input pass (b,) or use PolynomialModel.arx), got {self.b!r}"
             )
         b = tuple(as_coefficients(f"b[{i}]", bi, owner=_OWNER) for i, bi in enumerate(self.b))
         m = len(b)
         if any(np.ndim(bi) == 0 for bi in self.b):
-            raise TypeError(f"{_OWNER}: each b[i] must be a 1-D array, got {self.b!r}")
+            raise OptionTypeError(f"{_OWNER}: each b[i] must be a 1-D array, got {self.b!r}")
         nk = self.nk
         if isinstance(nk, (int, np.integer)) and not isinstance(nk, bool):
             nk = (int(nk),) * m if m == 1 else nk
@@ -105,7 +106,7 @@ class PolynomialModel:
         f = tuple(_monic(f"f[{i}]", fi) for i, fi in enumerate(f))
         var = self.noise_variance
         if isinstance(var, bool) or not isinstance(var, (int, float, np.integer, np.floating)):
-            raise TypeError(f"{_OWNER}: noise_variance must be a float, got {var!r}")
+            raise OptionTypeError(f"{_OWNER}: noise_variance must be a float, got {var!r}")
         if not (math.isfinite(var) and var >= 0.0):
             raise ModelError(f"{_OWNER}: noise_variance must be finite and >= 0, got {var!r}")
         names = self.input_names
@@ -116,7 +117,8 @@ class PolynomialModel:
                     f"{_OWNER}: input_names must be {m} string(s), got {self.input_names!r}"
                 )
         if self.output_name is not None and not isinstance(self.output_name, str):
-            raise TypeError(f"{_OWNER}: output_name must be a string, got {self.output_name!r}")
+            raise OptionTypeError(f"{_OWNER}: output_name must be a string, "
+                                  f"got {self.output_name!r}")
         object.__setattr__(self, "dt", dt)
         object.__setattr__(self, "a", readonly(a))
         object.__setattr__(self, "b", tuple(readonly(x) for x in b))
@@ -165,11 +167,14 @@ class PolynomialModel:
         elif isinstance(b, np.ndarray) and b.ndim == 2 or isinstance(b, Sequence):
             bs = tuple(b)
         else:
-            raise TypeError(f"b must be a 1-D array or a sequence of 1-D arrays, got {b!r}")
+            raise OptionTypeError(f"b must be a 1-D array or a sequence of 1-D arrays, got {b!r}")
         if isinstance(nk, (int, np.integer)) and not isinstance(nk, bool):
             nks: tuple[int, ...] | Sequence[int] = (int(nk),) * len(bs)
-        else:
+        elif isinstance(nk, (Sequence, np.ndarray)) and not isinstance(nk, (str, bytes)):
             nks = tuple(nk)
+        else:
+            raise OptionTypeError(f"nk must be an integer delay [samples] or one per input, "
+                                  f"got {nk!r}")
         return cls(a, bs, nks, dt, noise_variance=noise_variance)
 
     # -- orders and structure ---------------------------------------------
@@ -299,7 +304,7 @@ class PolynomialModel:
             The predictions.
         """
         uu = as_input_matrix(u, self.n_inputs, owner=f"{_OWNER}.predict")
-        yy = np.asarray(y, dtype=np.float64)
+        yy = as_array("y", y, finite=False)
         if yy.shape != (uu.shape[0],):
             raise DataError(f"y must have shape ({uu.shape[0]},) like u, got {yy.shape}")
         if not np.all(np.isfinite(yy)):
@@ -343,7 +348,7 @@ class PolynomialModel:
         ndarray, shape (N,)
             The residuals ε(t).
         """
-        return np.asarray(y, dtype=np.float64) - self.predict(y, u, 1)
+        return as_array("y", y, finite=False) - self.predict(y, u, 1)
 
     # -- conversion -------------------------------------------------------
     def transfer_function(self, input: int = 0) -> TransferFunction:

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._checks import as_array
 from .._errors import DataError, ModelError
 from ._common import readonly
 
@@ -32,8 +33,8 @@ class TimeResponse:
     kind: str
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "t", readonly(self.t))
-        object.__setattr__(self, "y", readonly(self.y))
+        object.__setattr__(self, "t", readonly(self.t, name="t"))
+        object.__setattr__(self, "y", readonly(self.y, name="y"))
 
 
 def response_grid(t: int | ArrayLike, dt: float | None) -> tuple[NDArray[np.float64], float]:
@@ -51,7 +52,7 @@ def response_grid(t: int | ArrayLike, dt: float | None) -> tuple[NDArray[np.floa
         if t < 1:
             raise DataError(f"the number of samples must be >= 1, got {t}")
         return np.arange(int(t)) * dt, dt
-    grid = np.asarray(t, dtype=np.float64)
+    grid = as_array("t", t, finite=False)
     if grid.ndim != 1 or grid.size < 2:
         raise DataError(f"t must be a 1-D grid of at least 2 times [s], got shape {grid.shape}")
     step = float(grid[1] - grid[0])

@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize
 
-from .._errors import DataError, ModelError
+from .._errors import DataError, ModelError, OptionTypeError
 from ._frd import FrequencyResponseData
 
 __all__ = ["ResonancePeak", "bandwidth", "phase_lag", "resonance_peak"]
@@ -172,6 +172,13 @@ def phase_lag(model: Any, frequency: float) -> float:
     if isinstance(model, FrequencyResponseData):
         return -_measured_phase(model, f_req)
     resp = _Response(model, None, need_level=False)
+    if resp.dt is not None and f_req > resp.f_hi:
+        raise DataError(f"frequency must lie below the Nyquist frequency {0.5 / resp.dt:g} Hz "
+                        f"of this discrete model, got {f_req:g}")
+    g_req = complex(resp.g(np.array([f_req]))[0])
+    if not (np.isfinite(g_req) and g_req != 0):
+        raise DataError(f"the model's response at frequency = {f_req:g} Hz is {g_req} in double "
+                        "precision, so it has no phase there; choose a lower frequency")
     lo = min(resp.f_lo, f_req * 1e-3)
     grid = resp.refine(np.geomspace(lo, f_req, _points(lo, f_req)))
     phase = np.unwrap(np.angle(resp.g(grid)))
@@ -238,10 +245,11 @@ class _Response:
         self, model: Any, reference_frequency: float | None, need_level: bool = True
     ) -> None:
         if not callable(getattr(model, "freqresp", None)):
-            raise TypeError(f"model must have a freqresp(omega) method or be a "
-                            f"FrequencyResponseData, got {type(model).__name__}")
+            raise OptionTypeError(f"model must have a freqresp(omega) method or be a "
+                                  f"FrequencyResponseData, got {type(model).__name__}")
         self.model = model
         self.dt = getattr(model, "dt", None)
+        _check_stable(model, self.dt)
         lo, hi = _root_band(model, self.dt)
         self.f_hi = 0.5 / self.dt * (1 - 1e-9) if self.dt is not None else hi
         if not need_level:
@@ -287,12 +295,41 @@ class _Response:
         """Insert midpoints (in log f) where the phase jumps between points."""
         for _ in range(_REFINE_ROUNDS):
             step = np.abs(np.angle(self.g(grid[1:]) / self.g(grid[:-1])))
-            fast = np.flatnonzero(~(step < _MAX_PHASE_STEP))
+            # A NaN step (a response that over- or underflows) cannot be refined away.
+            fast = np.flatnonzero(np.isfinite(step) & ~(step < _MAX_PHASE_STEP))
             if fast.size == 0:
                 break
             mids = np.sqrt(grid[fast] * grid[fast + 1])
             grid = np.sort(np.concatenate([grid, mids]))
         return grid
+
+
+def _check_stable(model: Any, dt: float | None) -> None:
+    """Refuse a model with a pole in the right half plane (outside the unit circle)."""
+    poles = getattr(model, "poles", None)
+    if not callable(poles):
+        return
+    try:
+        p = np.asarray(poles(), dtype=np.complex128).ravel()
+    except (TypeError, ValueError, np.linalg.LinAlgError):
+        return
+    if p.size == 0:
+        return
+    # An integrator (a pole at s = 0 or z = 1) is allowed: it has a frequency response.
+    if dt is None:
+        worst = p[np.argmax(p.real)]
+        unstable = worst.real > 1e-9 * max(1.0, float(np.abs(p).max()))
+        where = f"s = {worst:.4g}, in the right half plane"
+    else:
+        worst = p[np.argmax(np.abs(p))]
+        unstable = abs(worst) > 1.0 + 1e-9
+        where = f"z = {worst:.4g}, outside the unit circle"
+    if unstable:
+        raise ModelError(
+            f"the model is unstable (a pole at {where}): it has no steady-state frequency "
+            "response, so no bandwidth, phase lag or resonance peak. Pass a stable model "
+            "(close the loop first, or re-identify)"
+        )
 
 
 def _root_band(model: Any, dt: float | None) -> tuple[float, float]:

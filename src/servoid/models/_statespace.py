@@ -10,7 +10,8 @@ import scipy.linalg as la
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
-from .._errors import DataError, ModelError
+from .._checks import as_array
+from .._errors import DataError, ModelError, OptionTypeError
 from ._common import Method, as_input_matrix, at_sample_time, check_dt, check_method, readonly
 
 if TYPE_CHECKING:
@@ -131,7 +132,7 @@ class StateSpace:
         ndarray of complex
             Shape (N,) for a SISO model, else (N, p, m).
         """
-        w = np.atleast_1d(np.asarray(omega, dtype=np.float64))
+        w = np.atleast_1d(as_array("omega", omega, finite=False))
         if w.ndim != 1:
             raise DataError(f"omega must be 1-D, got shape {w.shape}")
         x = 1j * w if self.dt is None else np.exp(1j * w * self.dt)
@@ -308,7 +309,7 @@ def _matrix(name: str, value: ArrayLike, column: bool = False, row: bool = False
     try:
         m = np.array(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise TypeError(f"{_OWNER}: {name} must be a real matrix, got {value!r}") from exc
+        raise OptionTypeError(f"{_OWNER}: {name} must be a real matrix, got {value!r}") from exc
     if m.ndim == 0:
         m = m.reshape(1, 1)
     elif m.ndim == 1:

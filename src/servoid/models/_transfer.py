@@ -11,7 +11,8 @@ import scipy.linalg as la
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
-from .._errors import ModelError, check_option
+from .._checks import as_array
+from .._errors import ModelError, OptionTypeError, check_option
 from ._common import (
     Method,
     as_coefficients,
@@ -204,7 +205,7 @@ class TransferFunction:
         ndarray of complex
             The response, same shape as `omega`.
         """
-        w = np.asarray(omega, dtype=np.float64)
+        w = as_array("omega", omega, finite=False)
         x = 1j * w if self.dt is None else np.exp(1j * w * self.dt)
         g = np.polyval(self.num, x) / np.polyval(self.den, x)
         if self.delay:
@@ -274,7 +275,7 @@ class TransferFunction:
         if self.dt is None:
             raise ModelError(f"{_OWNER}.predict needs a discrete-time model; use c2d first")
         _check_horizon(horizon)
-        yy = np.asarray(y, dtype=np.float64)
+        yy = as_array("y", y, finite=False)
         yhat = self.simulate(u)
         if yy.shape != yhat.shape:
             raise ModelError(f"y must have shape {yhat.shape} like u, got {yy.shape}")
@@ -402,7 +403,7 @@ class TransferFunction:
         check_option("sign", sign, (-1, 1))
         o = self._coerce(other)
         if o is None:
-            raise TypeError(f"other must be a TransferFunction or a number, got {other!r}")
+            raise OptionTypeError(f"other must be a TransferFunction or a number, got {other!r}")
         dt = common_dt(self.dt, o.dt, what="connect")
         if self.delay or o.delay:
             raise ModelError(

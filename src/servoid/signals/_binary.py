@@ -13,7 +13,7 @@ import math
 import numpy as np
 from scipy.optimize import brentq
 
-from .._errors import DataError
+from .._errors import DataError, OptionTypeError
 from ._checks import (
     MAX_SAMPLES,
     RngLike,
@@ -194,7 +194,7 @@ def random_binary(
     n_bits = -(-n_samples // clock)
     bits = gen.integers(0, 2, size=n_bits)
     levels = np.array([offset - amplitude, offset + amplitude])
-    values = np.repeat(levels[bits], clock)[:n_samples]
+    values = levels[bits][np.arange(n_samples) // clock]  # n_samples values, whatever the clock
     return Excitation(
         values=values,
         dt=dt,
@@ -355,7 +355,7 @@ def prbs_register_for(settling_time: float, clock: int, dt: float, factor: float
 
 def _check_register(n: object) -> int:
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
-        raise TypeError(
+        raise OptionTypeError(
             f"register length n must be an integer in {_N_MIN}..{_N_MAX}, "
             f"got {n!r} ({type(n).__name__})"
         )

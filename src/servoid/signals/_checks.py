@@ -99,7 +99,14 @@ def as_rng(value: object, purpose: str) -> np.random.Generator:
 
 def as_signal(name: str, value: ArrayLike, min_samples: int = 2) -> NDArray[np.float64]:
     """Return a finite 1-D float array with at least ``min_samples`` samples."""
-    arr = np.asarray(value, dtype=np.float64)
+    if value is None or isinstance(value, (str, bytes)):
+        raise OptionTypeError(f"{name} must be an array of real numbers, got {value!r} "
+                              f"({type(value).__name__})")
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise OptionTypeError(f"{name} must be an array of real numbers, got {value!r} "
+                              f"({type(value).__name__}): {exc}") from None
     if arr.ndim != 1:
         raise DataError(f"{name} must be 1-D, got an array of shape {arr.shape}")
     if arr.size < min_samples:

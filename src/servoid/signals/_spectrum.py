@@ -9,7 +9,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal as sps
 
-from .._errors import DataError
+from .._checks import as_array
+from .._errors import DataError, OptionTypeError
 from ._checks import as_dt, as_int, as_signal
 from ._excitation import Excitation
 
@@ -43,7 +44,8 @@ class Spectrum:
 
     def __post_init__(self) -> None:
         for name in ("frequency", "power"):
-            arr = np.array(getattr(self, name), dtype=np.float64, copy=True)
+            arr = np.array(as_array(name, getattr(self, name), finite=False), dtype=np.float64,
+                           copy=True)
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
         if self.frequency.shape != self.power.shape or self.frequency.ndim != 1:
@@ -120,7 +122,7 @@ def power_spectrum(
         if periodic is None:
             periodic = True
     if not isinstance(periodic, bool):
-        raise TypeError(f"periodic must be a bool or None, got {type(periodic).__name__}")
+        raise OptionTypeError(f"periodic must be a bool or None, got {type(periodic).__name__}")
     if periodic:
         return _dft_power(values, dt_, period)
     if nperseg is None:

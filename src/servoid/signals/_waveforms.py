@@ -10,7 +10,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import DataError, ServoidWarning, check_option
+from .._errors import DataError, OptionTypeError, ServoidWarning, check_option
 from ._checks import (
     MAX_SAMPLES,
     RngLike,
@@ -349,7 +349,7 @@ def steps(
     else:
         holds = [as_int("hold_samples", hold_samples)] * level_arr.size
     if not isinstance(mirror, bool):
-        raise TypeError(f"mirror must be a bool, got {type(mirror).__name__}")
+        raise OptionTypeError(f"mirror must be a bool, got {type(mirror).__name__}")
     hold_arr = np.asarray(holds)
     check_samples(int(hold_arr.sum()) * (2 if mirror else 1), "the step sequence", max_samples)
     if mirror and level_arr.size > 1:
@@ -398,4 +398,8 @@ def _select_lines(k_lo: int, k_hi: int, harmonics: str, per_decade: int) -> NDAr
     if harmonics == "odd":
         return np.arange(k_lo + (1 - k_lo % 2), k_hi + 1, 2)
     count = max(2, math.ceil(per_decade * math.log10(k_hi / k_lo)) + 1)
+    if count - 1 > k_hi * math.log(k_hi / k_lo):
+        # Gaps of the geometric grid are below one harmonic everywhere: every harmonic is
+        # chosen, so skip building a grid of `count` points (per_decade may be huge).
+        return np.arange(k_lo, k_hi + 1)
     return np.unique(np.round(np.geomspace(k_lo, k_hi, count)).astype(int))

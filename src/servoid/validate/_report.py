@@ -10,14 +10,16 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal as sps
 
-from .._checks import type_error
+from .._checks import as_bool, as_float, as_int, type_error
 from .._errors import DataError, check_option
 from ..data import Experiment
+from ..data._experiment import check_experiment
 from ._metrics import fit_percent, nrmse, relative_error, rmse, vaf
 from ._residuals import ResidualAnalysis, residual_analysis
 from ._simulate import (
     Initial,
     Intersample,
+    check_signals,
     discrete_model,
     has_noise_model,
     is_arx,
@@ -186,7 +188,14 @@ def validate(
     ValidationReport
         Metrics, residual tests and the signals.
     """
+    check_experiment(experiment, "experiment")
     check_option("input", input, ("u", "r"))
+    # residual_analysis checks these too, but only after the simulation: refuse them first.
+    max_lag = as_int("max_lag", max_lag, minimum=1)
+    confidence = as_float("confidence", confidence)
+    if not 0.0 < confidence < 1.0:
+        raise DataError(f"confidence must lie in (0, 1), e.g. 0.99, got {confidence}")
+    closed_loop = as_bool("closed_loop", closed_loop)
     if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)):
         raise type_error("horizon", horizon, "an integer (samples)")
     if horizon < 1:
@@ -287,7 +296,8 @@ def simulate_from_data(
     first : int
         First simulated sample.
     """
-    u = np.asarray(u, dtype=float).reshape(len(y), -1)
+    y, u = check_signals(y, u)
+    u = u.reshape(len(y), -1)
     if is_arx(model):
         a = np.asarray(model.a)
         v = np.zeros(len(y))

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal as sps
 
-from .._checks import type_error
+from .._checks import as_array, as_float, type_error
 from .._errors import DataError, ModelError, check_option
 
 __all__ = ["INITIALS", "INTERSAMPLES", "Initial", "Intersample", "discrete_model",
@@ -57,6 +57,7 @@ def discrete_model(model: Any, dt: float, intersample: Intersample = "zoh") -> A
     from ..models import PolynomialModel, StateSpace, TransferFunction, c2d
 
     check_option("intersample", intersample, INTERSAMPLES)
+    dt = as_float("dt", dt, positive=True, unit="s")
     if hasattr(model, "model") and hasattr(model, "covariance"):  # an Estimate
         intersample = model.options.get("intersample", intersample)
         model = model.model
@@ -126,6 +127,10 @@ def simulate_model(
     from ._report import simulate_from_data
 
     check_option("initial", initial, INITIALS)
+    if not callable(getattr(model, "simulate", None)) or not hasattr(model, "dt"):
+        raise type_error("model", model, "a discrete PolynomialModel, TransferFunction or "
+                         "StateSpace (see discrete_model)")
+    y, u = check_signals(y, u)
     if isinstance(transient, bool) or not isinstance(transient, (int, np.integer)):
         raise type_error("transient", transient, "an integer number of samples")
     if not 0 <= transient < y.size - 2:
@@ -150,6 +155,16 @@ def simulate_model(
         return forced, int(transient), "estimate"
     x0, *_ = np.linalg.lstsq(free, y - forced, rcond=None)
     return forced + free @ x0, int(transient), "estimate"
+
+
+def check_signals(y: object, u: object) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``y`` (N,) and ``u`` (N,) or (N, n_inputs) as float arrays, shapes checked."""
+    y_arr = as_array("y", y, ndim=1, min_size=2, finite=False)
+    u_arr = as_array("u", u, finite=False)
+    if u_arr.ndim not in (1, 2) or u_arr.shape[0] != y_arr.size:
+        raise DataError(f"u must have shape ({y_arr.size},) or ({y_arr.size}, n_inputs) to match "
+                        f"y, got {u_arr.shape}")
+    return y_arr, u_arr
 
 
 def _free_responses(model: Any, n: int) -> NDArray[np.float64]:
