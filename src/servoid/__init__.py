@@ -14,7 +14,6 @@ from ._errors import (
     ServoidError,
     ServoidWarning,
 )
-from .data import Experiment, ExperimentSet
 
 __version__ = "0.1.0"
 
@@ -35,3 +34,12 @@ __all__ = [
     "ServoidWarning",
     "__version__",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """Load :class:`Experiment` and :class:`ExperimentSet` on first use (a fast ``--version``)."""
+    if name in ("Experiment", "ExperimentSet"):
+        from . import data
+
+        return getattr(data, name)
+    raise AttributeError(f"module 'servoid' has no attribute {name!r}")

@@ -139,3 +139,22 @@ def test_demo_refuses_a_foreign_folder(capsys, tmp_path):
     assert code == 1
     assert "holds no earlier demo" in err and "--overwrite" in err
     assert [p.name for p in tmp_path.iterdir()] == ["mine.txt"]
+
+
+def test_parser_literals_match_the_bench():
+    """The CLI names the bench's fidelities and tests without importing the bench."""
+    from servoid.bench import FIDELITIES, PNEUMATIC_TESTS
+    from servoid.cli._bench import BENCH_FIDELITIES, PNEUMATIC_TEST_NAMES
+
+    assert BENCH_FIDELITIES == tuple(FIDELITIES)
+    assert PNEUMATIC_TEST_NAMES == tuple(PNEUMATIC_TESTS)
+
+
+def test_version_and_help_do_not_import_the_numerics():
+    import subprocess
+    import sys
+
+    code = ("import sys; from servoid.cli import main; main(['--help']); "
+            "print(sorted(m for m in ('numpy', 'scipy', 'numba', 'matplotlib') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "[]"

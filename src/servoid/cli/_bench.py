@@ -13,7 +13,11 @@ from typing import Any
 from .._progress import stage
 from ._flags import at_least, finite, folder_out, in_flags, positive
 
-__all__ = ["add_bench"]
+__all__ = ["BENCH_FIDELITIES", "PNEUMATIC_TEST_NAMES", "add_bench"]
+
+#: servoid.bench.FIDELITIES and the names of servoid.bench.PNEUMATIC_TESTS (a test pins them)
+BENCH_FIDELITIES = ("reduced", "full", "nonlinear")
+PNEUMATIC_TEST_NAMES = ("valve", "thermo", "flow", "friction", "validation")
 
 _SETS = ("B", "C")
 # the bench's parameters → the flags that set them, for its error messages
@@ -30,7 +34,8 @@ _PNEUMATIC_PHRASES = {"shorten the test or lower oversample": "shorten the test 
 
 def add_bench(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> None:
     """Add ``bench ehsa`` and ``bench pneumatic`` to the sub-command set."""
-    from ..bench import FIDELITIES
+    # the bench's names as literals: building the parser must not import the bench (fast --help)
+    FIDELITIES = BENCH_FIDELITIES  # noqa: N806
 
     bench = commands.add_parser(
         "bench", help="rehearse a test on a virtual rig and write its files",
@@ -174,9 +179,7 @@ def _run_ehsa(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 
 def _add_pneumatic(rigs: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> None:
-    from ..bench import PNEUMATIC_TESTS
-
-    names = tuple(PNEUMATIC_TESTS)
+    names = PNEUMATIC_TEST_NAMES
     pn = rigs.add_parser(
         "pneumatic", help="servopneumatic actuator, multi-step campaign (models-spec §2, §3.9)",
         description="Run the test records of the multi-step identification (valve: "

@@ -24,7 +24,7 @@ def new_figure(figsize: tuple[float, float]) -> Figure:
 def plot_validation(
     report: ValidationReport, path: str | os.PathLike[str], unit: str = "", overwrite: bool = False
 ) -> None:
-    """Save measured vs simulated and predicted output, its error and a zoom.
+    """Save measured vs simulated output, its error and a zoom.
 
     The samples before ``report.first`` (measured initial conditions or an
     excluded transient) are shaded; ``unit`` defaults to the report's. The
