@@ -1,7 +1,7 @@
 """Modules loaded on first use, so that ``import servoid…`` and ``servoid --help`` start fast.
 
-``scipy.signal`` and ``scipy.stats`` take most of a second to import and are
-needed only inside functions: modules bind them here by name and the real
+``scipy.signal``, ``scipy.stats``, ``scipy.optimize`` and ``scipy.linalg``
+take most of a second to import and are needed only inside functions: modules bind them here by name and the real
 import happens at the first attribute access::
 
     from .._lazy import signal as sps   # then sps.lfilter(...) as before
@@ -13,7 +13,7 @@ import importlib
 from types import ModuleType
 from typing import Any
 
-__all__ = ["signal", "stats"]
+__all__ = ["fft", "integrate", "interpolate", "linalg", "optimize", "signal", "stats"]
 
 
 class _LazyModule(ModuleType):
@@ -36,5 +36,10 @@ class _LazyModule(ModuleType):
         return dir(self._target)
 
 
+fft: Any = _LazyModule("scipy.fft")
+integrate: Any = _LazyModule("scipy.integrate")
+interpolate: Any = _LazyModule("scipy.interpolate")
+linalg: Any = _LazyModule("scipy.linalg")
+optimize: Any = _LazyModule("scipy.optimize")
 signal: Any = _LazyModule("scipy.signal")
 stats: Any = _LazyModule("scipy.stats")

@@ -31,9 +31,9 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import brentq
 
 from .._errors import ModelError, OptionTypeError, check_option
+from .._lazy import optimize
 from ..models import TransferFunction
 from ._common import check_finite, check_instance
 from ._ehsa_params import EhsaParameters
@@ -346,7 +346,7 @@ def _margins(loop: TransferFunction) -> StabilityMargins:
         def im(x: float) -> float:
             return float(loop.freqresp(x).imag)
 
-        w_pc = brentq(im, w[i], w[i + 1], xtol=1e-12 * w[i])
+        w_pc = optimize.brentq(im, w[i], w[i + 1], xtol=1e-12 * w[i])
         gm = -20.0 * math.log10(abs(loop.freqresp(w_pc)))
     mag = np.log(np.abs(resp))
     sign = np.flatnonzero(np.diff(np.sign(mag)) != 0)
@@ -357,7 +357,7 @@ def _margins(loop: TransferFunction) -> StabilityMargins:
         def logmag(x: float) -> float:
             return float(np.log(np.abs(loop.freqresp(x))))
 
-        w_gc = brentq(logmag, w[i], w[i + 1], xtol=1e-12 * w[i])
+        w_gc = optimize.brentq(logmag, w[i], w[i + 1], xtol=1e-12 * w[i])
         ang = float(np.angle(loop.freqresp(w_gc)))
         # choose the branch of the unwrapped grid phase next to the crossover
         ang += 2.0 * math.pi * round((phase[i] - ang) / (2.0 * math.pi))
@@ -379,4 +379,4 @@ def _bandwidth(cl: TransferFunction) -> float:
     def f(x: float) -> float:
         return float(abs(cl.freqresp(x)) / abs(dc) - 1.0 / math.sqrt(2.0))
 
-    return float(brentq(f, w[i], w[i + 1], xtol=1e-12 * w[i]))
+    return float(optimize.brentq(f, w[i], w[i + 1], xtol=1e-12 * w[i]))

@@ -44,9 +44,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import brentq
 
 from .._errors import DataError, ModelError, OptionTypeError, check_option
+from .._lazy import optimize
 from ._common import (
     check_bool,
     check_finite,
@@ -407,7 +407,7 @@ def _null_pressure(p: PneumaticParameters, ad_in: float, ad_out: float) -> float
         q_out = orifice_mass_flow(ad_out, pc, p.p_R, **kw)
         return float(q_in - q_out)
 
-    return float(brentq(imbalance, p.p_R, p.p_S, xtol=1e-6))
+    return float(optimize.brentq(imbalance, p.p_R, p.p_S, xtol=1e-6))
 
 
 def _check_x0(params: PneumaticParameters, x0: ArrayLike) -> NDArray[np.float64]:

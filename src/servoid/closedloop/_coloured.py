@@ -24,8 +24,8 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal as sps
 
+from .._lazy import signal as sps
 from ..estimate._covariance import filtered_gram, sandwich_covariance
 
 __all__ = ["oe_gradient", "sandwich"]

@@ -32,10 +32,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
 from .._checks import as_float, as_int, type_error
 from .._errors import DataError, IdentifiabilityError, ModelError, ServoidWarning
+from .._lazy import stats
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate
 from ..models import PolynomialModel, TransferFunction

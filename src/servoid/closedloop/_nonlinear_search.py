@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import optimize
 
 from .._errors import ConvergenceError, ServoidWarning
+from .._lazy import optimize
 from ..estimate._covariance import bootstrap_covariance, least_squares_covariance
 from ..estimate._diagnostics import draw_starts, summarise_starts
 from ._nonlinear_model import UNITS, NonlinearEhsa

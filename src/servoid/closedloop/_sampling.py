@@ -41,9 +41,9 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal as sps
 
 from .._errors import ModelError
+from .._lazy import signal as sps
 from ..estimate._hybrid import piece_transition
 from ..models import TransferFunction
 

@@ -25,9 +25,9 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import optimize
-from scipy import signal as sps
 
+from .._lazy import optimize
+from .._lazy import signal as sps
 from ..models import TransferFunction
 from ._loop import FeedbackLoop, tustin, tustin_arrays
 

@@ -8,10 +8,10 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal as sps
 
 from .._checks import as_int
 from .._errors import DataError, ServoidWarning, check_option
+from .._lazy import signal as sps
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import PolynomialModel
 from ._channels import check_magnitude, check_not_constant

@@ -112,8 +112,8 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal as sps
 
+from .._lazy import signal as sps
 from ._gram import _full_sums
 
 if TYPE_CHECKING:

@@ -84,11 +84,11 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal as sps
-from scipy import stats
 
 from .._checks import as_array, as_str_list, type_error
 from .._errors import DataError, ServoidWarning
+from .._lazy import signal as sps
+from .._lazy import stats
 from ._covariance import residual_ar
 
 __all__ = [

@@ -10,10 +10,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
 from .._checks import as_array, as_float, as_mapping, type_error
 from .._errors import ChannelError, DataError, ModelError
+from .._lazy import stats
 
 __all__ = ["Estimate", "ParameterRow"]
 

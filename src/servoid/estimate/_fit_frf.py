@@ -45,7 +45,6 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import optimize
 
 from .._checks import as_float, as_int
 from .._errors import (
@@ -58,6 +57,7 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._lazy import optimize
 from ..models import FrequencyResponseData, TransferFunction
 from ._estimate import Estimate
 

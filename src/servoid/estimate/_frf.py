@@ -52,13 +52,13 @@ from numbers import Integral, Real
 from typing import Any, Literal
 
 import numpy as np
-import scipy.fft as sfft
 from numpy.typing import NDArray
-from scipy import signal as sps
-from scipy import stats
 
 from .._checks import as_float, as_int
 from .._errors import ChannelError, DataError, OptionError, OptionTypeError, check_option
+from .._lazy import fft as sfft
+from .._lazy import signal as sps
+from .._lazy import stats
 from ..data import ROLES, Channel, Experiment
 from ..models import FrequencyResponseData, NonlinearDistortion
 from ._channels import check_magnitude

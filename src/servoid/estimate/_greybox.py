@@ -36,7 +36,6 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import integrate, optimize
 
 from .._checks import as_array, as_float, as_int, as_str, type_error
 from .._errors import (
@@ -47,6 +46,7 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._lazy import integrate, optimize
 from ..data import Experiment
 from ._covariance import (
     GREYBOX_COVARIANCES,

@@ -47,9 +47,9 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import optimize
 
 from .._errors import ChannelError, ConvergenceError, DataError, OptionTypeError, check_option
+from .._lazy import optimize
 from ..actuators import CascadeController, RigidAxis, RigidLoopResponse, simulate_rigid_loop
 from ..data import Channel, Experiment, decimate, lowpass
 from ._estimate import Estimate

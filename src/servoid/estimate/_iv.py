@@ -58,10 +58,10 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal as sps
 
 from .._checks import as_int
 from .._errors import DataError, IdentifiabilityError, OptionError, check_option
+from .._lazy import signal as sps
 from ..data import Experiment, ExperimentSet
 from ..models import PolynomialModel
 from ._arx import ArxOrders, _parameter_names

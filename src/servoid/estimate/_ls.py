@@ -21,10 +21,10 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import linalg
 
 from .._checks import as_array, as_int, as_str_list
 from .._errors import DataError, IdentifiabilityError
+from .._lazy import linalg
 from ._channels import check_magnitude
 
 __all__ = ["GRAM_COND_LIMIT", "LeastSquaresResult", "lstsq", "solve_gram"]

@@ -32,10 +32,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import optimize, stats
 
 from .._checks import as_float, as_instance, as_str
 from .._errors import DataError, ModelError, OptionTypeError
+from .._lazy import optimize, stats
 from ..models import PolynomialModel, StateSpace, TransferFunction
 from ._estimate import Estimate, ParameterRow
 

@@ -41,7 +41,6 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import linalg
 
 from .._checks import as_array, as_float, as_int
 from .._errors import (
@@ -53,6 +52,7 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._lazy import linalg
 from ..data import Experiment, ExperimentSet
 from ..models import PolynomialModel
 from ._arx import _warn_if_unstable

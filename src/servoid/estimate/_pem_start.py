@@ -26,9 +26,9 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal as sps
 
 from .._errors import DataError, IdentifiabilityError
+from .._lazy import signal as sps
 from ._gram import lagged_gram
 from ._iv import ar_fit, arx_ls, iv_core, readonly, solve_normal, split_arx
 from ._pem_kernels import reflect

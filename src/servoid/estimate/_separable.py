@@ -38,10 +38,10 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import optimize
 
 from .._checks import as_array, as_float_list, as_str_list, type_error
 from .._errors import DataError, IdentifiabilityError, ServoidWarning, check_option
+from .._lazy import optimize
 from ._estimate import Estimate
 from ._ls import lstsq
 

@@ -23,11 +23,11 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import linalg
-from scipy import signal as sps
 
 from .._checks import as_int
 from .._errors import ModelError, OptionTypeError, ServoidWarning, check_option
+from .._lazy import linalg
+from .._lazy import signal as sps
 from ..models import PolynomialModel, StateSpace
 from ._gram import lagged_gram
 

@@ -11,10 +11,10 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import linalg
 
 from .._checks import as_bool, as_int, as_str_list
 from .._errors import DataError, IdentifiabilityError, ServoidWarning, check_option
+from .._lazy import linalg
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import StateSpace
 from ._channels import check_magnitude, check_not_constant

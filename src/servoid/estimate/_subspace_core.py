@@ -28,8 +28,8 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import linalg
 
+from .._lazy import linalg
 from ._gram import lagged_gram
 
 __all__ = [

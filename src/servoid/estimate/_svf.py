@@ -62,10 +62,10 @@ from typing import Literal
 import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import linalg
 
 from .._checks import as_array, as_float
 from .._errors import DataError, check_option
+from .._lazy import linalg
 
 __all__ = ["FilteredSignal", "filter_product", "state_variable_filter"]
 

@@ -32,8 +32,6 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import optimize
-from scipy import signal as sps
 
 from .._checks import as_array, as_int, as_str_list, type_error
 from .._errors import (
@@ -46,6 +44,8 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._lazy import optimize
+from .._lazy import signal as sps
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import TransferFunction
 from ._channels import output_name

@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats
+
+from .._lazy import stats
 
 __all__ = ["ControlLimits", "Drift", "control_limits", "drift", "robust_z"]
 

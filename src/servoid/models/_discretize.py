@@ -40,9 +40,9 @@ import math
 from typing import overload
 
 import numpy as np
-import scipy.linalg as la
 
 from .._errors import ModelError, OptionTypeError, check_option
+from .._lazy import linalg as la
 from ._common import METHODS, Method, check_dt, check_method
 from ._statespace import StateSpace
 from ._transfer import TransferFunction

@@ -9,9 +9,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy import signal
 
 from .._errors import ModelError, OptionTypeError
+from .._lazy import signal
 from ._statespace import StateSpace
 from ._transfer import TransferFunction
 

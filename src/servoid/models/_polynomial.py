@@ -10,10 +10,10 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal
 
 from .._checks import as_array
 from .._errors import DataError, ModelError, OptionTypeError, ServoidWarning
+from .._lazy import signal
 from ._common import as_coefficients, as_input_matrix, check_dt, readonly
 
 if TYPE_CHECKING:

@@ -30,9 +30,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import optimize
 
 from .._errors import DataError, ModelError, OptionTypeError
+from .._lazy import optimize
 from ._frd import FrequencyResponseData
 
 __all__ = ["ResonancePeak", "bandwidth", "phase_lag", "resonance_peak"]

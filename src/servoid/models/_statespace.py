@@ -6,12 +6,12 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.linalg as la
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal
 
 from .._checks import as_array
 from .._errors import DataError, ModelError, OptionTypeError
+from .._lazy import linalg as la
+from .._lazy import signal
 from ._common import Method, as_input_matrix, at_sample_time, check_dt, check_method, readonly
 
 if TYPE_CHECKING:

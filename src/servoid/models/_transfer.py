@@ -7,12 +7,12 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-import scipy.linalg as la
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal
 
 from .._checks import as_array
 from .._errors import ModelError, OptionTypeError, check_option
+from .._lazy import linalg as la
+from .._lazy import signal
 from ._common import (
     Method,
     as_coefficients,

@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .._errors import DataError, OptionTypeError
+from .._lazy import optimize
 from ._checks import (
     MAX_SAMPLES,
     RngLike,
@@ -377,4 +377,4 @@ def _hold_half_power(clock: int, dt: float) -> float:
     def gain(x: float) -> float:
         return math.sin(math.pi * x) / (clock * math.sin(math.pi * x / clock)) - _HALF_POWER
 
-    return brentq(gain, 1e-9, 1.0 - 1e-12, xtol=1e-14) / (clock * dt)
+    return optimize.brentq(gain, 1e-9, 1.0 - 1e-12, xtol=1e-14) / (clock * dt)

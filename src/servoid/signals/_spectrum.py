@@ -7,10 +7,10 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal as sps
 
 from .._checks import as_array
 from .._errors import DataError, OptionTypeError
+from .._lazy import signal as sps
 from ._checks import as_dt, as_int, as_signal
 from ._excitation import Excitation
 

@@ -8,10 +8,10 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal as sps
 
 from .._checks import as_bool, as_float, as_int, type_error
 from .._errors import DataError, check_option
+from .._lazy import signal as sps
 from ..data import Experiment
 from ..data._experiment import check_experiment
 from ._metrics import fit_percent, nrmse, relative_error, rmse, vaf

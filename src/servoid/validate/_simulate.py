@@ -22,10 +22,10 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal as sps
 
 from .._checks import as_array, as_float, type_error
 from .._errors import DataError, ModelError, check_option
+from .._lazy import signal as sps
 
 __all__ = ["INITIALS", "INTERSAMPLES", "Initial", "Intersample", "discrete_model",
            "has_noise_model", "is_arx", "simulate_model"]

@@ -10,11 +10,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import signal as sps
 
 from .. import __version__
 from .._checks import as_float, as_float_list, type_error
 from .._errors import DataError, OptionError, ServoidWarning
+from .._lazy import signal as sps
 from ..actuators import SET_B, SET_C
 from ..closedloop import (
     APPROACHES,
