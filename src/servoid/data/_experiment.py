@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import mmap
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import InitVar, dataclass, field, replace
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -25,21 +26,31 @@ _ROLE_WORDS = {"r": "reference", "u": "plant input", "y": "output", "side": "sid
 
 @dataclass(frozen=True, eq=False)
 class Channel:
-    """One sampled signal: name, role, unit and read-only values."""
+    """One sampled signal: name, role, unit and read-only values.
+
+    The values are copied unless they are already immutable (a read-only
+    float array whose memory nothing can write, such as a reader's output or
+    a read-only memory map) or ``copy=False`` asks to wrap the caller's array
+    as a read-only view — then the caller must not change it afterwards.
+    """
 
     name: str
     role: Role
     values: NDArray[np.float64]
     unit: str = ""
+    copy: InitVar[bool] = True
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, copy: bool = True) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise DataError(f"channel name must be a non-empty string, got {self.name!r}")
         check_option("channel role", self.role, ROLES)
         if not isinstance(self.unit, str):
             raise type_error(f"unit of channel {self.name!r}", self.unit, "a string")
-        values = np.array(as_array(f"channel {self.name!r}", self.values, finite=False),
-                          dtype=np.float64, copy=True)
+        values = as_array(f"channel {self.name!r}", self.values, finite=False)
+        if values.dtype != np.float64 or (copy and not _immutable(values)):
+            values = np.array(values, dtype=np.float64, copy=True)
+        elif values.flags.writeable:
+            values = values.view()  # the caller's memory, read-only through this view
         if values.ndim != 1:
             raise DataError(
                 f"channel {self.name!r} must be 1-D, got an array of shape {values.shape}"
@@ -59,6 +70,16 @@ class Channel:
     def with_values(self, values: ArrayLike, unit: str | None = None) -> Channel:
         """Return a copy with new values (and optionally a new unit)."""
         return Channel(self.name, self.role, np.asarray(values), self.unit if unit is None else unit)
+
+
+def _immutable(values: NDArray[np.float64]) -> bool:
+    """True when no one can write the memory behind `values` (a read-only chain of arrays)."""
+    base: object = values
+    while isinstance(base, np.ndarray):
+        if base.flags.writeable:
+            return False
+        base = base.base
+    return base is None or isinstance(base, (bytes, mmap.mmap))
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,6 +161,7 @@ class Experiment:
         time_tolerance: float = 1e-3,
         t0: float = 0.0,
         name: str = "",
+        copy: bool = True,
     ) -> Experiment:
         """Build an experiment from arrays.
 
@@ -165,6 +187,11 @@ class Experiment:
             Time of the first sample [s] when ``time`` is not given.
         name : str
             A label for reports.
+        copy : bool
+            Copy the arrays (default). ``False`` wraps float arrays as
+            read-only views of the caller's memory (no copy, no extra
+            memory for a long record); the caller must then not change
+            them. Arrays that are already immutable are never copied.
         """
         names = dict(as_mapping("names", names) if names is not None else {})
         units = dict(as_mapping("units", units) if units is not None else {})
@@ -177,12 +204,13 @@ class Experiment:
             arr = _as_samples(data, role)
             role_names = _role_names(role, arr.shape[1], names.get(role))
             for k, ch_name in enumerate(role_names):
-                channels.append(Channel(ch_name, role, arr[:, k], units.get(ch_name, "")))
+                channels.append(Channel(ch_name, role, arr[:, k], units.get(ch_name, ""),
+                                        copy=copy))
         for ch_name, data in side.items():
             arr = as_array(f"side channel {ch_name!r}", data, finite=False)
             if arr.ndim != 1:
                 raise DataError(f"side channel {ch_name!r} must be 1-D, got shape {arr.shape}")
-            channels.append(Channel(ch_name, "side", arr, units.get(ch_name, "")))
+            channels.append(Channel(ch_name, "side", arr, units.get(ch_name, ""), copy=copy))
         if time is not None:
             n = channels[0].values.size if channels else 0
             dt_t, t0 = _check_time(as_array("time", time, finite=False), n, time_tolerance)
