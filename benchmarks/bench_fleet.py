@@ -17,7 +17,8 @@ Method
 process) and ``workers=2`` (a Dask LocalCluster of 2 single-threaded worker
 processes, BLAS on one thread). Wall time includes cluster start-up and
 writing the table and report. Parallel efficiency = t1 / (2·t2). Peak RSS
-of a worker is read by the worker itself after its last record.
+of a worker (``rss_mb``) is its own resident high-water mark after its last
+record (for workers=1, this process's, including the table and report).
 """
 
 from __future__ import annotations
@@ -69,12 +70,16 @@ def run(quick: bool) -> list[Result]:
             times[workers] = time.perf_counter() - t0
             assert result.count("ok") == records, result
             per = 1e3 * times[workers] / records
+            peak = result.peak_rss_mb
             results.append(Result(
                 suite="fleet", case=f"{records} records × {2 ** register * 10 // 1000}k samples",
                 n=records, method=f"run_fleet workers={workers}", median_ms=1e3 * times[workers],
                 best_ms=1e3 * times[workers], repeats=1,
-                note=f"{per:.0f} ms per record; building the records took {build:.0f} s",
-                extra={"seconds": times[workers], "ms_per_record": per}))
+                rss_mb=peak,
+                note=f"{per:.0f} ms per record; worker peak RSS {peak:.0f} MB; building the "
+                     f"records took {build:.0f} s",
+                extra={"seconds": times[workers], "ms_per_record": per,
+                       "worker_peak_rss_mb": peak}))
         efficiency = times[1] / (2 * times[2])
         results[-1].extra["parallel_efficiency"] = efficiency
         results[-1].note += f"; parallel efficiency {efficiency:.2f}"

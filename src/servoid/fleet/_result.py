@@ -89,6 +89,12 @@ class FleetResult:
         """Serials of identified records that fail an acceptance limit."""
         return tuple(r["serial"] for r in self.rows if r["status"] == "ok" and not r["pass"])
 
+    @property
+    def peak_rss_mb(self) -> float | None:
+        """Largest memory high-water mark of a process that identified a record [MB]."""
+        peaks = [r["peak_rss_mb"] for r in self.rows if r.get("peak_rss_mb") is not None]
+        return max(peaks) if peaks else None
+
     def column(self, name: str) -> np.ndarray:
         """One column as a float array (NaN where empty)."""
         return np.array([_float(r.get(name)) for r in self.rows])
@@ -104,6 +110,7 @@ class FleetResult:
             "records": len(self.rows), "identified": self.count("ok"),
             "failed": self.count("failed"), "not_run": self.count("not run"),
             "interrupted": self.interrupted,
+            "worker_peak_rss_mb": self.peak_rss_mb,
             "passed": sum(bool(r["pass"]) for r in self.rows),
             "failing_units": list(self.failing_units),
             "failed_records": [{"record": r["record"], "error": r["error"]}
@@ -202,7 +209,8 @@ def _row(row: dict[str, Any], outcome: Mapping[str, Any] | None, names: Mapping[
                    **{f"pass_{lim.parameter}": None for lim in spec.limits}, **{"pass": False})
         return row
     row.update(status=outcome["status"], error=outcome.get("error", ""),
-               method=outcome.get("method"), seconds=_float(outcome.get("seconds")))
+               method=outcome.get("method"), seconds=_float(outcome.get("seconds")),
+               peak_rss_mb=outcome.get("peak_rss_mb"))
     summary = outcome.get("summary")
     if not summary:
         row.update({f"pass_{lim.parameter}": None for lim in spec.limits}, **{"pass": False})

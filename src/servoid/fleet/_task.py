@@ -67,8 +67,9 @@ def identify_record(path: str, identify: Mapping[str, Any] | None) -> dict[str, 
     -------
     dict
         ``status`` ("ok" or "failed"), ``summary`` (a :class:`RecordSummary`
-        as a dict) or ``error`` (the message), ``warnings`` (their texts)
-        and ``seconds``.
+        as a dict) or ``error`` (the message), ``warnings`` (their texts),
+        ``seconds`` and ``peak_rss_mb`` (the worker's memory high-water mark
+        after this record).
     """
     from ..data import load_experiment_spec
     from ..workflows import identify as run
@@ -93,4 +94,14 @@ def identify_record(path: str, identify: Mapping[str, Any] | None) -> dict[str, 
             out["error"] = f"internal error ({type(exc).__name__}: {exc}); please report it"
     out["warnings"] = sorted({str(w.message) for w in caught})
     out["seconds"] = time.perf_counter() - start
+    out["peak_rss_mb"] = _peak_rss_mb()
     return out
+
+
+def _peak_rss_mb() -> float | None:
+    """The process's resident-set high-water mark so far [MB] (None off Unix)."""
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - Windows
+        return None
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
