@@ -4,7 +4,7 @@ The update, per sample t with regressor φ and forgetting factor λ ≤ 1::
 
     L = P φ / (λ + φᵀ P φ)
     θ ← θ + L (y − φᵀ θ)
-    P ← (P − L φᵀ P) / λ,   then symmetrised
+    P ← (P − L φᵀ P) / λ,   symmetric by construction
 
 With λ = 1 and P₀ = p₀·I the final θ is the batch estimate regularised by
 I/p₀: θ_N = (ΦᵀΦ + I/p₀)⁻¹ Φᵀy (from θ₀ = 0). It is the same estimator as
@@ -26,36 +26,53 @@ direction, P grows like λ^{−k} in that direction until the next burst of
 excitation produces a huge gain. The guard caps trace(P) (default: its
 initial value p₀·n in scaled units): ``"bound"`` rescales P onto the cap,
 ``"reset"`` restarts P at P₀; both count their interventions, and a
-warning reports them. P is symmetrised after every update.
+warning reports them. P stays exactly symmetric: each pair (i, j) is
+updated once.
 
 **Covariance of θ̂.** For white equation error of variance σ² the
 exponentially weighted estimate has cov θ̂ = σ² H⁻¹ G H⁻¹ with
-H = Σ λ^{N−t} φφᵀ and G = Σ λ^{2(N−t)} φφᵀ (for λ = 1: σ²(ΦᵀΦ)⁻¹, the batch
-covariance). σ̂² = Σ w_t (y_t − φ_tᵀθ̂)² / (Σ w_t − n) with w_t = λ^{N−t}, the
-residuals of the final estimate over its memory; for λ = 1 that is the
-batch RSS/(N − n).
+H = Σ λ^{N−1−t} φφᵀ and G = Σ λ^{2(N−1−t)} φφᵀ (for λ = 1: σ²(ΦᵀΦ)⁻¹, the
+batch covariance). σ̂² = Σ w_t (y_t − φ_tᵀθ̂)² / (Σ w_t − n) with
+w_t = λ^{N−1−t}, the residuals of the final estimate over its memory; for
+λ = 1 that is the batch RSS/(N − n).
+
+**Cost.** Two passes over the record and nothing of its size allocated
+(:mod:`._rls_kernel`): one sums the n×n Gram matrix ΦᵀΦ (and, for λ < 1, H
+and G) — the column norms, the rank test (its eigenvalues, as the batch
+Gram route does) and the covariance come from it, never from a QR of Φ —
+and one runs the recursion, compiled, in the units of θ (the normalisation
+enters as P₀ = p₀·diag(1/‖φ_i‖²), so Φ is never scaled or copied). The
+weighted residual sum of squares is the recursion's own cost
+J_N = λJ_{N−1} + α_N·e_N (a priori times a posteriori error, a sum of
+non-negative terms) minus the prior's share λ^N (θ̂ − θ₀)ᵀP₀⁻¹(θ̂ − θ₀); after
+a guard event, which breaks that identity, a third pass sums it directly.
+The parameter history is stored only with ``history=True`` and the residual
+series only with ``residuals=True``; otherwise the first access of
+``prior_residuals`` or ``posterior_residuals`` runs the recursion again.
 """
 
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Literal
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Literal, NamedTuple
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import linalg
 
 from .._errors import DataError, ServoidWarning, check_option
 from ._estimate import Estimate
-from ._ls import RANK_COND_LIMIT, _check_columns, _check_rows, _rank_error, _triangular_condition
+from ._ls import RANK_COND_LIMIT, _check_columns, _check_rows, _rank_error
+from ._rls_kernel import GUARD_CODES, RlsPass, gram_pass, rls_pass, weighted_rss
 
 __all__ = ["RecursiveLeastSquaresResult", "fit_rls"]
 
 Guard = Literal["bound", "reset", "none"]
 _GUARDS = ("bound", "reset", "none")
+
+ResidualPair = tuple[NDArray[np.float64], NDArray[np.float64]]
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,10 +83,6 @@ class RecursiveLeastSquaresResult:
     ----------
     estimate : Estimate
         Final θ̂ with covariance (module notes), method ``"rls"``.
-    prior_residuals : ndarray, shape (N,)
-        A priori errors y_t − φ_tᵀθ_{t−1} (the innovations).
-    posterior_residuals : ndarray, shape (N,)
-        A posteriori errors y_t − φ_tᵀθ_t.
     history : ndarray, shape (N, n), or None
         θ_t after each sample, when asked for.
     trace_history : ndarray, shape (N,), or None
@@ -78,15 +91,17 @@ class RecursiveLeastSquaresResult:
         P_N mapped back to the units of θ (≈ (ΦᵀΦ)⁻¹ for λ = 1).
     guard_events : int
         How often the covariance guard acted.
+    residual_function : callable
+        ``() -> (prior, posterior)`` residual series; called once, on first
+        access of :attr:`prior_residuals` or :attr:`posterior_residuals`.
     """
 
     estimate: Estimate
-    prior_residuals: NDArray[np.float64]
-    posterior_residuals: NDArray[np.float64]
     history: NDArray[np.float64] | None
     trace_history: NDArray[np.float64] | None
     final_p: NDArray[np.float64]
     guard_events: int
+    residual_function: Callable[[], ResidualPair] = field(repr=False)
 
     @property
     def theta(self) -> NDArray[np.float64]:
@@ -98,6 +113,20 @@ class RecursiveLeastSquaresResult:
         """Covariance of the final θ̂."""
         return self.estimate.covariance
 
+    @property
+    def prior_residuals(self) -> NDArray[np.float64]:
+        """A priori errors y_t − φ_tᵀθ_{t−1} (the innovations), shape (N,)."""
+        return self._residuals[0]
+
+    @property
+    def posterior_residuals(self) -> NDArray[np.float64]:
+        """A posteriori errors y_t − φ_tᵀθ_t, shape (N,)."""
+        return self._residuals[1]
+
+    @cached_property
+    def _residuals(self) -> ResidualPair:
+        return self.residual_function()
+
 
 def fit_rls(
     phi: ArrayLike,
@@ -108,6 +137,7 @@ def fit_rls(
     theta0: ArrayLike | None = None,
     normalise: bool = True,
     history: bool = False,
+    residuals: bool = False,
     guard: Guard = "bound",
     max_trace: float | None = None,
     names: Sequence[str] | None = None,
@@ -132,7 +162,12 @@ def fit_rls(
     normalise : bool
         Scale the columns of Φ to unit norm, as the batch core does.
     history : bool
-        Keep θ_t and trace(P_t) for every sample.
+        Keep θ_t and trace(P_t) for every sample (N·(n + 1) values).
+    residuals : bool
+        Store the a priori and a posteriori errors during the pass (2·N
+        values). Otherwise they are not kept, and the first access of
+        ``prior_residuals`` or ``posterior_residuals`` runs the recursion
+        again to produce them (the same numbers).
     guard : {"bound", "reset", "none"}
         Covariance-windup guard when trace(P) exceeds ``max_trace``.
     max_trace : float, optional
@@ -159,13 +194,25 @@ def fit_rls(
     ServoidWarning
         When the guard acted (poor excitation under forgetting), or when
         the final memory window does not excite every parameter.
+
+    Notes
+    -----
+    Time is linear in N: about 20 ms for N = 10⁶ and n = 4 on one core of
+    the reference machine, 2–3 ms of it the Gram pass
+    (``benchmarks/bench_scaling.py``). Peak memory
+    beyond the inputs is O(n²) — nothing of the record's size — plus
+    8·N·(n + 1) bytes with ``history`` and 16·N bytes with ``residuals``
+    (and a float64 copy of ``phi`` or ``y`` if they are not float64
+    arrays already). ``estimate.residuals`` (y − Φθ̂, computed on first
+    access) costs 8·N bytes more.
     """
     check_option("guard", guard, _GUARDS)
     phi_a = np.asarray(phi, dtype=float)
     y_a = np.asarray(y, dtype=float)
     if phi_a.ndim != 2 or y_a.ndim != 1 or phi_a.shape[0] != y_a.shape[0]:
         raise DataError(f"need phi (N, n) and y (N,), got {phi_a.shape} and {y_a.shape}")
-    if not (np.all(np.isfinite(phi_a)) and np.all(np.isfinite(y_a))):
+    # a NaN or inf makes the sum non-finite (so does overflow, beyond ~1e300): only then look
+    if not np.isfinite(np.add.reduce(y_a)) and not np.all(np.isfinite(y_a)):
         raise DataError("phi and y must be finite; cut or fill the gaps first")
     n_rows, n = phi_a.shape
     names_t = tuple(names) if names is not None else tuple(f"theta{k}" for k in range(n))
@@ -180,14 +227,15 @@ def fit_rls(
     if not (np.isfinite(p0) and p0 > 0):
         raise DataError(f"p0 must be > 0, got {p0}")
     _check_rows(n_rows, n)
-    norms = np.sqrt(np.einsum("ij,ij->j", phi_a, phi_a))
+    gram, h_weighted, g_weighted = gram_pass(phi_a, lam)
+    norms = _column_norms(gram, phi_a)
     _check_columns(norms, names_t)
-    scale = norms if normalise else np.ones(n)
-    phi_s = np.ascontiguousarray(phi_a / scale)
     # the batch core's rank test on the whole record: a direction never excited cannot be
-    # estimated recursively either
-    r = linalg.qr(phi_a / norms, mode="r", check_finite=False)[0][:n, :n]
-    condition = _triangular_condition(r)
+    # estimated recursively either (eigenvalues of the unit-diagonal Gram matrix, as
+    # solve_gram; it resolves cond(Φ) up to ~1e7, below the 6.7e7 limit only roughly)
+    unit_gram = gram / np.outer(norms, norms)
+    eig, vec = np.linalg.eigh(unit_gram)
+    condition = float(np.sqrt(eig[-1] / eig[0])) if eig[0] > 0 else np.inf
     if condition > RANK_COND_LIMIT:
         raise _rank_error(condition, names_t)
     if theta0 is None:
@@ -200,15 +248,33 @@ def fit_rls(
     if not (np.isfinite(cap) and cap > 0):
         raise DataError(f"max_trace must be > 0, got {max_trace}")
 
-    theta_s, p_s, prior, post, hist, traces, events = _rls_loop(
-        phi_s, y_a, th0 * scale, p0, lam, cap, _GUARDS.index(guard), history
-    )
-    theta = theta_s / scale
-    weights = lam ** np.arange(n_rows - 1, -1, -1, dtype=float)
-    resid = y_a - phi_a @ theta
-    n_eff = float(weights.sum())
-    sigma2 = float(weights @ resid**2) / max(n_eff - n, 1.0)
-    cov = _sandwich(phi_s, weights, sigma2, names_t) / np.outer(scale, scale)
+    # P₀ = p₀·I on the unit-norm columns is P₀ = p₀·diag(1/‖φ_i‖²) on the raw ones
+    scale2 = norms**2 if normalise else np.ones(n)
+    p0_diag = p0 / scale2
+    settings = (th0, p0_diag, scale2, lam, cap, GUARD_CODES[guard])
+
+    def run(keep_residuals: bool, keep_history: bool) -> tuple[RlsPass, _Series]:
+        series = _Series(
+            np.empty(n_rows if keep_residuals else 0),
+            np.empty(n_rows if keep_residuals else 0),
+            np.empty((n_rows if keep_history else 0, n)),
+            np.empty(n_rows if keep_history else 0),
+        )
+        return rls_pass(phi_a, y_a, *settings, *series), series
+
+    result, series = run(residuals, history)
+    theta, events = result.theta, result.events
+    n_eff = float(n_rows) if lam == 1.0 else -np.expm1(n_rows * np.log(lam)) / (1.0 - lam)
+    if events == 0:
+        prior_share = lam**n_rows * float(scale2 @ (theta - th0) ** 2) / p0
+        rss = max(result.cost - prior_share, 0.0)
+    else:  # a guard event breaks J_N's identity: sum the weighted residuals directly
+        rss = weighted_rss(phi_a, y_a, theta, lam)
+    sigma2 = rss / max(n_eff - n, 1.0)
+    if h_weighted is None:
+        cov = sigma2 * (vec / eig) @ vec.T / np.outer(norms, norms)
+    else:
+        cov = sigma2 * _sandwich(h_weighted, g_weighted, np.sqrt(scale2), names_t)
     if events:
         warnings.warn(
             f"rls: the covariance guard ({guard!r}) acted {events} times: trace(P) exceeded "
@@ -237,94 +303,75 @@ def fit_rls(
             "condition": condition,
         },
         units=units_t,
-        residual_function=lambda: resid,
+        residual_function=lambda: y_a - phi_a @ theta,
     )
+    if residuals:
+        stored = (series.prior, series.post)
+
+        def residual_function() -> ResidualPair:
+            return stored
+
+    else:
+
+        def residual_function() -> ResidualPair:
+            again = run(True, False)[1]  # the same recursion, this time keeping them
+            return again.prior, again.post
+
     return RecursiveLeastSquaresResult(
         estimate=estimate,
-        prior_residuals=prior,
-        posterior_residuals=post,
-        history=hist / scale if history else None,
-        trace_history=traces if history else None,
-        final_p=p_s / np.outer(scale, scale),
+        history=series.hist if history else None,
+        trace_history=series.traces if history else None,
+        final_p=result.p,
         guard_events=int(events),
+        residual_function=residual_function,
     )
+
+
+class _Series(NamedTuple):
+    """Per-sample outputs of a pass (length 0 when not kept)."""
+
+    prior: NDArray[np.float64]
+    post: NDArray[np.float64]
+    hist: NDArray[np.float64]
+    traces: NDArray[np.float64]
+
+
+def _column_norms(gram: NDArray[np.float64], phi: NDArray[np.float64]) -> NDArray[np.float64]:
+    """‖φ_i‖ from the Gram diagonal, which is not finite when Φ is not (or too large)."""
+    diag = np.diag(gram)
+    if not np.all(np.isfinite(diag)):
+        if not np.all(np.isfinite(phi)):
+            raise DataError("phi and y must be finite; cut or fill the gaps first")
+        raise DataError(
+            f"phi reaches {float(np.max(np.abs(phi))):.3g}: its squares overflow double "
+            "precision; rescale the regressors"
+        )
+    return np.sqrt(diag)
 
 
 def _sandwich(
-    phi_s: NDArray[np.float64], w: NDArray[np.float64], sigma2: float, names: tuple[str, ...]
+    h: NDArray[np.float64],
+    g: NDArray[np.float64],
+    scale: NDArray[np.float64],
+    names: tuple[str, ...],
 ) -> NDArray[np.float64]:
-    # H = Σ w φφᵀ = RᵀR from the QR of √w·Φ (squares nothing), H⁻¹ = R⁻¹R⁻ᵀ
-    sw = np.sqrt(w)
-    r = linalg.qr(phi_s * sw[:, None], mode="r", check_finite=False)[0][: phi_s.shape[1]]
-    r = np.triu(r)
-    s = np.linalg.svd(r, compute_uv=False)
-    if s[-1] <= s[0] / RANK_COND_LIMIT:
+    """H⁻¹ G H⁻¹ (times σ² by the caller), from the weighted Gram matrices of the pass."""
+    # excitation of the final window, judged in the record's scaled units as before
+    s2 = np.linalg.eigvalsh(h / np.outer(scale, scale))
+    if not s2[0] > s2[-1] / RANK_COND_LIMIT**2:
         warnings.warn(
             "rls: the final memory window (~1/(1 − forgetting) samples) does not excite every "
             f"parameter ({', '.join(names)}); the covariance is unreliable",
             ServoidWarning,
             stacklevel=3,
         )
-    rinv = linalg.solve_triangular(r, np.eye(r.shape[0]))
-    hinv = rinv @ rinv.T
-    if np.all(w == 1.0):
-        return sigma2 * hinv
-    g = (phi_s * w[:, None]).T @ (phi_s * w[:, None])
-    return sigma2 * (hinv @ g @ hinv)
-
-
-@numba.njit(cache=True, nogil=True)
-def _rls_loop(phi, y, theta0, p0, lam, cap, guard, keep):  # type: ignore[no-untyped-def]  # pragma: no cover
-    n_rows, n = phi.shape
-    theta = theta0.copy()
-    p = np.eye(n) * p0
-    prior = np.empty(n_rows)
-    post = np.empty(n_rows)
-    hist = np.empty((n_rows if keep else 0, n))
-    traces = np.empty(n_rows if keep else 0)
-    pphi = np.empty(n)
-    gain = np.empty(n)
-    events = 0
-    for t in range(n_rows):
-        f = phi[t]
-        denom = lam
-        for i in range(n):
-            acc = 0.0
-            for j in range(n):
-                acc += p[i, j] * f[j]
-            pphi[i] = acc
-            denom += f[i] * acc
-        err = y[t]
-        for i in range(n):
-            err -= f[i] * theta[i]
-        prior[t] = err
-        for i in range(n):
-            gain[i] = pphi[i] / denom
-            theta[i] += gain[i] * err
-        # P ← (P − L (Pφ)ᵀ)/λ, symmetrised: φᵀP = (Pφ)ᵀ for symmetric P
-        tr = 0.0
-        for i in range(n):
-            for j in range(i, n):
-                v = 0.5 * ((p[i, j] - gain[i] * pphi[j]) + (p[j, i] - gain[j] * pphi[i])) / lam
-                p[i, j] = v
-                p[j, i] = v
-            tr += p[i, i]
-        if guard != 2 and tr > cap:
-            events += 1
-            if guard == 0:
-                p *= cap / tr
-            else:
-                p[:, :] = 0.0
-                for i in range(n):
-                    p[i, i] = p0
-            tr = 0.0
-            for i in range(n):
-                tr += p[i, i]
-        e2 = y[t]
-        for i in range(n):
-            e2 -= f[i] * theta[i]
-        post[t] = e2
-        if keep:
-            hist[t] = theta
-            traces[t] = tr
-    return theta, p, prior, post, hist, traces, events
+    # invert on the window's own unit diagonal: a column the window barely sees (weights
+    # λ^k of samples long gone) then costs no precision in the others
+    d = np.sqrt(np.diag(h))
+    if not np.all(d > 0):
+        return np.full(h.shape, np.inf)
+    w, v = np.linalg.eigh(h / np.outer(d, d))
+    if not w[0] > 0:
+        return np.full(h.shape, np.inf)
+    hinv = (v / w) @ v.T
+    return hinv @ (g / np.outer(d, d)) @ hinv / np.outer(d, d)
