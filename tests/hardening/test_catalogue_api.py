@@ -480,9 +480,7 @@ CASES = [
     case("write-csv-path-none", data.write_csv, EXP, None,
          error=OptionTypeError, match=r"path must be a file path"),
     case("write-csv-missing-folder", data.write_csv, EXP, Tmp("no/such/run.csv"),
-         error=MissingFileError, match=r"folder .* does not exist; create it first",
-         xfail="src/servoid/_atomic.py (atomic_path) raises a plain FileNotFoundError for a "
-               "missing output folder; it belongs to no owner of this change"),
+         error=MissingFileError, match=r"folder .* does not exist; create it first"),
     case("write-tdms-group-empty", data.write_tdms, EXP, Tmp("x.tdms"), group="",
          error=DataError, match=r"group must be a non-empty string"),
     case("write-spec-not-mapping", data.write_experiment_spec, 3, Tmp("x.toml"),
@@ -913,9 +911,7 @@ CASES = [
     case("simulate-model-transient", validate.simulate_model, TF_D, Y, U, transient=400,
          error=DataError, match=r"transient must lie in \[0, 397\]"),
     case("residual-analysis-text", validate.residual_analysis, "e",
-         error=OptionTypeError, match=r"residuals must be an array of real numbers",
-         xfail="src/servoid/validate/_residuals.py (being rewritten): np.asarray(residuals, "
-               "float) raises a plain ValueError for text"),
+         error=OptionTypeError, match=r"residuals must be an array of real numbers"),
     case("residual-analysis-max-lag", validate.residual_analysis, Y, max_lag=0,
          error=DataError, match=r"max_lag must lie in \[1, 199\] for 400 residuals, got 0"),
     # bench ------------------------------------------------------------------------------------
@@ -1026,13 +1022,9 @@ CASES = [
     case("closedloop-feedback-test-max-lag", closedloop.feedback_test, EXP_R, max_lag=0,
          error=DataError, match=r"max_lag must be >= 1, got 0"),
     case("closedloop-reduced-plant-text", closedloop.reduced_plant, "abc",
-         error=OptionTypeError, match=r"theta must be an array of real numbers",
-         xfail="src/servoid/closedloop (reduced_plant): np.asarray(theta, float) raises a plain "
-               "ValueError for text; check theta with servoid._checks.as_array"),
+         error=OptionTypeError, match=r"theta must be an array of real numbers"),
     case("multistep-valve-none", multistep.identify_valve, None,
-         error=OptionTypeError, match=r"record must be an Experiment",
-         xfail="src/servoid/multistep/_common.py raises a plain TypeError ('the record must be "
-               "an Experiment'); raise servoid.OptionTypeError instead"),
+         error=OptionTypeError, match=r"record must be an Experiment"),
     case("multistep-zero-phase-dt", multistep.zero_phase_derivatives, U, 0.0, 10.0,
          error=DataError, match=r"dt must be > 0 s, got 0\.0"),
     case("workflows-method-unknown", wf.get_method, "magic",
@@ -1040,9 +1032,7 @@ CASES = [
     case("workflows-identify-missing", wf.identify, Tmp("nothing.toml"),
          error=MissingFileError, match=r"nothing\.toml: no such file"),
     case("workflows-loop-not-table", wf.loop_from_table, None,
-         error=OptionTypeError, match=r"table must be a table",
-         xfail="src/servoid/workflows/_closedloop.py (loop_from_table) iterates None: a plain "
-               "TypeError; check the table with servoid._checks.as_mapping"),
+         error=OptionTypeError, match=r"table must be a table"),
 ]
 
 
@@ -1126,62 +1116,7 @@ GENERIC_BAD: dict[str, Any] = {"None": None, "text": "abc", "empty": np.array([]
 
 #: Callables of packages owned elsewhere that still leak a built-in error for one of the
 #: generic bad values, with where the fix belongs (kept strict: a fix turns them green).
-_PLAIN = "raises a plain TypeError; raise servoid.OptionTypeError (servoid._checks.type_error)"
 WALK_XFAIL: dict[str, str] = {
-    "servoid.estimate.fit_rls": "src/servoid/estimate/_rls.py (being rewritten): "
-                                "np.asarray(phi, float) raises a plain ValueError for text",
-    "servoid.validate.residual_analysis": "src/servoid/validate/_residuals.py (being "
-                                          "rewritten): np.asarray on text",
-    "servoid.closedloop.FeedbackLoop": f"src/servoid/closedloop/_loop.py:54 (c) {_PLAIN}",
-    "servoid.closedloop.NonlinearEhsa": f"src/servoid/closedloop/_nonlinear_model.py:127 "
-                                        f"(params) {_PLAIN}",
-    "servoid.closedloop.compare_structures": f"src/servoid/closedloop/_structure_test.py:464 "
-                                             f"and :492 (results) {_PLAIN}",
-    "servoid.closedloop.fit_indirect": f"src/servoid/closedloop/_onestep.py:739 (loop) {_PLAIN}",
-    "servoid.closedloop.fit_one_step": f"src/servoid/closedloop/_onestep.py:739 (loop) {_PLAIN}",
-    "servoid.closedloop.identify_closed_loop": f"src/servoid/closedloop/_onestep.py:739 (loop) "
-                                               f"{_PLAIN}",
-    "servoid.closedloop.reduced_plant": "src/servoid/closedloop/_loop.py:221 unpacks theta: "
-                                        "plain TypeError/ValueError; check it with as_array",
-    "servoid.closedloop.refine_after_linear": f"src/servoid/closedloop/_nonlinear_check.py:249 "
-                                              f"(result) {_PLAIN}",
-    "servoid.closedloop.refine_nonlinear_ehsa": f"src/servoid/closedloop/_nonlinear.py:474 "
-                                                f"(loop) {_PLAIN}",
-    "servoid.closedloop.validate_nonlinear_ehsa": "src/servoid/closedloop/_nonlinear_check.py"
-                                                  f":162 (model) {_PLAIN}",
-    "servoid.multistep.KnownConstants": f"src/servoid/multistep/_common.py:122 {_PLAIN}",
-    "servoid.multistep.compare_record": "src/servoid/multistep/_refine.py:244 reads "
-                                        "record.names: AttributeError; check the record first",
-    "servoid.multistep.estimate_controller": f"src/servoid/multistep/_common.py:344 (record) "
-                                             f"{_PLAIN}",
-    "servoid.multistep.identify_critical_pressure": f"src/servoid/multistep/_common.py:408 "
-                                                    f"(known) {_PLAIN}",
-    "servoid.multistep.identify_critical_velocity": f"src/servoid/multistep/_common.py:408 "
-                                                    f"(known) {_PLAIN}",
-    "servoid.multistep.identify_flow": f"src/servoid/multistep/_common.py:408 (known) {_PLAIN}",
-    "servoid.multistep.identify_low_speed_friction": f"src/servoid/multistep/_common.py:408 "
-                                                     f"(known) {_PLAIN}",
-    "servoid.multistep.identify_multistep": f"src/servoid/multistep/_pipeline.py:263 (known) "
-                                            f"{_PLAIN}",
-    "servoid.multistep.identify_sliding_friction": f"src/servoid/multistep/_common.py:408 "
-                                                   f"(known) {_PLAIN}",
-    "servoid.multistep.identify_thermodynamics": f"src/servoid/multistep/_common.py:408 "
-                                                 f"(known) {_PLAIN}",
-    "servoid.multistep.identify_valve": f"src/servoid/multistep/_common.py:344 (record) {_PLAIN}",
-    "servoid.multistep.refine_parameters": f"src/servoid/multistep/_refine.py:344 (params) "
-                                           f"{_PLAIN}",
-    "servoid.multistep.simulate_record": f"src/servoid/multistep/_common.py:344 (record) "
-                                         f"{_PLAIN}",
-    "servoid.workflows.Method": "src/servoid/workflows/_registry.py:115 iterates options: "
-                                "plain TypeError/AttributeError; check them first",
-    "servoid.workflows.controller_from_table": "src/servoid/workflows/_inverse.py:220 and :227 "
-                                               "(table): plain TypeError/AttributeError; check "
-                                               "it with as_mapping",
-    "servoid.workflows.loop_from_table": "src/servoid/workflows/_closedloop.py:183 (table): "
-                                         "plain TypeError; check it with as_mapping",
-    "servoid.workflows.write_results": "src/servoid/workflows/_run.py:150-151 (folder, "
-                                       "result): plain TypeError/AttributeError; check them "
-                                       "with as_path / as_instance",
 }
 
 

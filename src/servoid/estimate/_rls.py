@@ -62,6 +62,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._checks import as_array
 from .._errors import DataError, ServoidWarning, check_option
 from ._estimate import Estimate
 from ._ls import RANK_COND_LIMIT, _check_columns, _check_rows, _rank_error
@@ -207,8 +208,8 @@ def fit_rls(
     access) costs 8·N bytes more.
     """
     check_option("guard", guard, _GUARDS)
-    phi_a = np.asarray(phi, dtype=float)
-    y_a = np.asarray(y, dtype=float)
+    phi_a = as_array("phi", phi, finite=False)
+    y_a = as_array("y", y, finite=False)
     if phi_a.ndim != 2 or y_a.ndim != 1 or phi_a.shape[0] != y_a.shape[0]:
         raise DataError(f"need phi (N, n) and y (N,), got {phi_a.shape} and {y_a.shape}")
     # a NaN or inf makes the sum non-finite (so does overflow, beyond ~1e300): only then look

@@ -20,9 +20,10 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats
 
+from .._checks import as_array
 from .._errors import DataError
+from .._lazy import stats
 
 __all__ = ["BLOCK", "ResidualAnalysis", "residual_analysis"]
 
@@ -136,7 +137,7 @@ def residual_analysis(
     (``benchmarks/bench_scaling.py``); coloured residuals add the input's
     lagged products up to 6M for the null covariance (about twice that).
     """
-    e_raw = np.asarray(residuals, dtype=float).ravel()
+    e_raw = as_array("residuals", residuals, finite=False).ravel()
     n = e_raw.size
     e_mean = _mean(e_raw)
     if not np.isfinite(e_mean):
@@ -144,7 +145,11 @@ def residual_analysis(
             f"residuals have {int(np.sum(~np.isfinite(e_raw)))} non-finite value(s) of {n}: the "
             "model's prediction diverged or the data hold NaN; a whiteness test would be meaningless"
         )
-    uu = None if u is None else np.asarray(u, dtype=float).reshape(n, -1)
+    uu = None if u is None else as_array("u", u, finite=False)
+    if uu is not None and uu.size % max(n, 1):
+        raise DataError(f"u must have {n} samples per input (one per residual), got shape "
+                        f"{uu.shape}")
+    uu = None if uu is None else uu.reshape(n, -1)
     u_means = [] if uu is None else [_mean(col) for col in uu.T]
     if not np.all(np.isfinite(u_means)):
         raise DataError("the input for the cross-correlation test has non-finite values")
