@@ -8,7 +8,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from ._errors import OutputExistsError
+from ._errors import MissingFileError, OutputExistsError
 
 __all__ = ["atomic_path", "check_writable"]
 
@@ -38,7 +38,7 @@ def atomic_path(path: str | os.PathLike[str], overwrite: bool = False) -> Iterat
     """
     target = check_writable(path, overwrite)
     if not target.parent.is_dir():
-        raise FileNotFoundError(
+        raise MissingFileError(
             f"cannot write {target}: the folder {target.parent} does not exist; create it first"
         )
     tmp = target.parent / f".{target.name}.{secrets.token_hex(6)}.tmp"

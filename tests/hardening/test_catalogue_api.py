@@ -1120,6 +1120,11 @@ WALK_XFAIL: dict[str, str] = {
 }
 
 
+#: Callables whose required argument is an output folder: text is a valid value there (they
+#: would run a whole simulation campaign into it), so the walk does not pass them text.
+TEXT_IS_VALID = {"servoid.bench.write_pneumatic_campaign", "servoid.bench.write_virtual_fleet"}
+
+
 def _walk_targets() -> list[Any]:
     out = []
     seen: set[int] = set()
@@ -1142,7 +1147,7 @@ def _walk_targets() -> list[Any]:
             label = f"{package}.{name}"
             marks = ([pytest.mark.xfail(strict=True, reason=WALK_XFAIL[label])]
                      if label in WALK_XFAIL else [])
-            out.append(pytest.param(obj, needed, id=label, marks=marks))
+            out.append(pytest.param(obj, needed, label in TEXT_IS_VALID, id=label, marks=marks))
     return out
 
 
@@ -1154,13 +1159,16 @@ def _alarm(signum: int, frame: Any) -> None:
     raise _Timeout
 
 
-@pytest.mark.parametrize(("func", "needed"), _walk_targets())
-def test_public_callables_raise_only_servoid_errors(func, needed, tmp_path, monkeypatch):
+@pytest.mark.parametrize(("func", "needed", "text_is_valid"), _walk_targets())
+def test_public_callables_raise_only_servoid_errors(func, needed, text_is_valid, tmp_path,
+                                                    monkeypatch):
     monkeypatch.chdir(tmp_path)  # a callable that writes gets an empty folder
     leaks = []
     previous = signal.signal(signal.SIGALRM, _alarm)
     try:
         for label, bad in GENERIC_BAD.items():
+            if text_is_valid and label == "text":
+                continue
             args = [bad for p in needed if p.kind is not p.KEYWORD_ONLY]
             kwargs = {p.name: bad for p in needed if p.kind is p.KEYWORD_ONLY}
             signal.alarm(5)  # a bad argument must be refused, not computed with

@@ -352,26 +352,6 @@ def case(id: str, argv: str | Sequence[str], fragment: str, *edits: Edit,
 
 ID = "identify {toml} --out {out}"
 
-# -- known defects outside the command line's packages (strict xfail: they flip when fixed) ---
-BENCH_RATE = ("bench/_run.py _noise_gain allocates _NOISE_GAIN_SPAN·f_acq × m·q floats: at "
-              "--fs 1e12 a 291 TiB array, MemoryError; EhsaBench (bench/_config.py) needs an "
-              "upper bound on f_acq/f_s or a sample budget")
-PREPROCESS_KEY = ("data/_spec.py ExperimentSpec.load calls lowpass()/decimate() without naming "
-                  "[preprocess] lowpass/decimate: the message says 'cutoff ...' or 'decimation "
-                  "by N ...'")
-SPLIT_KEY = ("data/_spec.py ExperimentSpec.split_data passes [split] index/period/skip_periods "
-             "to split() without naming the key: 'split at sample ...', 'slice 300:None ...'")
-SHORT_RECORD = ("data/_spec.py split_data: a 2-sample record fails as 'split at sample 1 of 2 "
-                "leaves a part with fewer than 2 samples', naming neither the file nor the fix")
-CSV_UNIT = ("data/_csv.py write_csv writes the header cell 'r []]' for unit ']', which "
-            "read_csv reads back as a channel named 'r []]' without a unit: the writer must "
-            "refuse a name or unit it cannot round-trip ('[' or ']' in the unit)")
-READER_WORDS = ("data/_spec.py ExperimentSpec.load passes the reader's advice through: 'no "
-                "sample period: it has no column 't'; pass dt [s] or time=<column name>' speaks "
-                "Python, where the fix is [data] time (or [data] dt)")
-SHORT_VALIDATION = ("validate/_report.py validate() keeps max_lag = 25 on a 5-sample validation "
-                    "part: 'max_lag must lie in [1, 1] for 5 residuals' names a parameter the "
-                    "experiment file cannot set (_residuals.py:125)")
 t_arx, u_arx, y_arx = arx_record()
 t15, u15, y15 = arx_record(15)
 
@@ -467,7 +447,7 @@ EXCITE_CASES = [
            out="{in}"),
     excite("prbs-channel-empty", "prbs -n 7 --channel=", "--channel must be a non-empty string"),
     excite("prbs-channel-time", "prbs -n 7 --channel time", "choose another --channel"),
-    excite("prbs-unit-bracket", "prbs -n 7 --unit ]", "--unit", xfail=CSV_UNIT),
+    excite("prbs-unit-bracket", "prbs -n 7 --unit ]", "--unit"),
     excite("chirp-duration-1e9", "chirp --duration 1e9 --f0 1 --f1 10", "raise --max-samples"),
     excite("chirp-duration-0", "chirp --duration 0 --f0 1 --f1 10", "--duration must be > 0"),
     excite("chirp-duration-negative", "chirp --duration -1 --f0 1 --f1 10",
@@ -509,7 +489,7 @@ BENCH_CASES = [
     case("bench-fs-negative", BENCH + " --fs -1000", "--fs must be a finite number > 0", base=None),
     case("bench-fs-nan", BENCH + " --fs nan", "--fs must be a finite number > 0", base=None),
     case("bench-fs-inf", BENCH + " --fs inf", "--fs must be a finite number > 0", base=None),
-    case("bench-fs-huge", BENCH + " --fs 1e12", "--fs", base=None, xfail=BENCH_RATE),
+    case("bench-fs-huge", BENCH + " --fs 1e12", "--fs", base=None),
     case("bench-facq-not-multiple", BENCH + " --facq 5500",
          "--facq = 5500 Hz must be an integer multiple of f_s (--fs)", base=None),
     case("bench-facq-below-fs", BENCH + " --facq 500",
@@ -630,8 +610,7 @@ TOML_CASES = [
     case("data-dt-disagrees", ID, "dt = 0.02 s disagrees with the time stamps", set_("data", "dt",
                                                                                      "0.02")),
     case("data-time-int", ID, "[data] time must be a non-empty string", set_("data", "time", "5")),
-    case("data-time-missing", ID, "[data] time", set_("data", "time", '"t"'),
-         xfail=READER_WORDS),
+    case("data-time-missing", ID, "[data] time", set_("data", "time", '"t"')),
     case("data-unknown-key", ID, "unknown key(s) in [data]: 'delimiter'",
          set_("data", "delimiter", '";"')),
     # -- [channels] --------------------------------------------------------------------------
@@ -672,8 +651,7 @@ TOML_CASES = [
     case("channel-two-outputs", ID, "[identify] output",
          add("channels.y2", 'source = "y"\nrole = "y"')),
     # -- [preprocess] ------------------------------------------------------------------------
-    case("lowpass-1e-6", ID, "[preprocess] lowpass", set_("preprocess", "lowpass", "1e-6"),
-         xfail=PREPROCESS_KEY),
+    case("lowpass-1e-6", ID, "[preprocess] lowpass", set_("preprocess", "lowpass", "1e-6")),
     case("lowpass-zero", ID, "[preprocess] lowpass must be > 0",
          set_("preprocess", "lowpass", "0")),
     case("lowpass-negative", ID, "[preprocess] lowpass must be > 0",
@@ -681,9 +659,8 @@ TOML_CASES = [
     case("lowpass-text", ID, "[preprocess] lowpass must be a finite number",
          set_("preprocess", "lowpass", '"fast"')),
     case("lowpass-above-nyquist", ID, "[preprocess] lowpass",
-         set_("preprocess", "lowpass", "60.0"), xfail=PREPROCESS_KEY),
-    case("lowpass-at-nyquist", ID, "[preprocess] lowpass", set_("preprocess", "lowpass", "50.0"),
-         xfail=PREPROCESS_KEY),
+         set_("preprocess", "lowpass", "60.0")),
+    case("lowpass-at-nyquist", ID, "[preprocess] lowpass", set_("preprocess", "lowpass", "50.0")),
     case("decimate-zero", ID, "[preprocess] decimate must be an integer >= 1",
          set_("preprocess", "decimate", "0")),
     case("decimate-float", ID, "[preprocess] decimate must be an integer >= 1",
@@ -691,7 +668,7 @@ TOML_CASES = [
     case("decimate-text", ID, "[preprocess] decimate must be an integer >= 1",
          set_("preprocess", "decimate", '"2"')),
     case("decimate-beyond-record", ID, "[preprocess] decimate",
-         set_("preprocess", "decimate", "1000"), xfail=PREPROCESS_KEY),
+         set_("preprocess", "decimate", "1000")),
     case("detrend-bad", ID, "[preprocess] detrend must be one of",
          set_("preprocess", "detrend", '"quadratic"')),
     case("preprocess-unknown-key", ID, "unknown key(s) in [preprocess]: 'filter'",
@@ -711,18 +688,16 @@ TOML_CASES = [
          set_("split", "fraction", "0.5"), set_("split", "index", "100")),
     case("split-index-1", ID, "[split] index must be an integer >= 2",
          set_("split", "index", "1")),
-    case("split-index-beyond-record", ID, "[split] index", set_("split", "index", "1000000000"),
-         xfail=SPLIT_KEY),
+    case("split-index-beyond-record", ID, "[split] index", set_("split", "index", "1000000000")),
     case("split-period-1", ID, "[split] period must be an integer >= 2",
          set_("split", "period", "1")),
-    case("split-period-beyond-record", ID, "[split] period", set_("split", "period", "100000"),
-         xfail=SPLIT_KEY),
+    case("split-period-beyond-record", ID, "[split] period", set_("split", "period", "100000")),
     case("split-skip-without-period", ID, "[split]: skip_periods needs period",
          set_("split", "skip_periods", "1")),
     case("split-skip-negative", ID, "[split] skip_periods must be an integer >= 0",
          set_("split", "skip_periods", "-1")),
     case("split-skip-all", ID, "[split] skip_periods", set_("split", "period", "50"),
-         set_("split", "skip_periods", "6"), xfail=SPLIT_KEY),
+         set_("split", "skip_periods", "6")),
     case("split-unknown-key", ID, "unknown key(s) in [split]: 'ratio'",
          set_("split", "ratio", "0.5")),
     # -- [validation] ------------------------------------------------------------------------
@@ -852,9 +827,7 @@ TOML_CASES = [
     case("max-bytes-small", ID + " --max-bytes 100", "--max-bytes"),
     case("max-bytes-zero", ID + " --max-bytes 0", "--max-bytes must be an integer >= 1"),
     case("max-bytes-negative", ID + " --max-bytes -5", "--max-bytes must be an integer >= 1"),
-    case("max-bytes-toml", ID, "over the budget", set_("data", "max_bytes", "100"),
-         xfail="[data] max_bytes is refused as an unknown key: data/_spec.py _DATA_KEYS and "
-         "ExperimentSpec._reader_options do not carry a reader size budget"),
+    case("max-bytes-toml", ID, "over the budget", set_("data", "max_bytes", "100")),
     # -- rig files ---------------------------------------------------------------------------
     case("csv-missing", ID, "data.csv: no such file", rm("data.csv")),
     case("csv-empty", ID, "empty CSV file", write("data.csv", "")),
@@ -873,9 +846,8 @@ TOML_CASES = [
     case("csv-channel-names", ID, "channel 'u' (servoid channel 'u') is not in",
          data(lambda ls: ["time [s],in [V],out [m]", *ls[1:]])),
     case("csv-one-sample", ID, "1 sample(s), need >= 2", record(t_arx[:1], u_arx[:1], y_arx[:1])),
-    case("csv-two-samples", ID, "data.csv", record(t_arx[:2], u_arx[:2], y_arx[:2]),
-         xfail=SHORT_RECORD),
-    case("csv-15-samples", ID, "validation", record(t15, u15, y15), xfail=SHORT_VALIDATION),
+    case("csv-two-samples", ID, "data.csv", record(t_arx[:2], u_arx[:2], y_arx[:2])),
+    case("csv-15-samples", ID, "validation", record(t15, u15, y15)),
     case("csv-constant-input", ID, "persistently exciting",
          record(t_arx, np.ones(N_ARX), y_arx)),
     case("csv-zero-input", ID, "persistently exciting", record(t_arx, np.zeros(N_ARX), y_arx)),
@@ -912,8 +884,7 @@ TOML_CASES = [
          base="tdms"),
     case("tdms-channel-absent", ID, "channel 'AI9' (servoid channel 'y_pos') is not in",
          set_("channels.y_pos", "source", '"AI9"'), base="tdms"),
-    *(case(f"corrupt-{path.stem}", ID, path.name, *corrupt_edits(path),
-           xfail=SHORT_RECORD if "unused" in path.stem else None)
+    *(case(f"corrupt-{path.stem}", ID, path.name, *corrupt_edits(path))
       for path in sorted(CORRUPT.glob("*.mat")) + sorted(CORRUPT.glob("*.tdms"))),
 ]
 

@@ -36,6 +36,12 @@ _AA_ORDERS = (1, 10)
 _COMMAND_RANGE = 0.023  # [m] ±23 mm command [S1] (printed)
 _P_FULL_SCALE = 35e6  # [Pa] pressure transducers 0–35 MPa → 0–10 V
 _T_SENSITIVITY = 0.1  # [V/°C] 10 V at 100 °C
+#: Record [s] of the impulse responses that size the noise budget (bench._run).
+NOISE_GAIN_SPAN = 0.1
+#: Largest array the noise budget may build [bytes]: its impulse responses, m·q of them
+#: over NOISE_GAIN_SPAN at the analog rate, grow as f_acq·(f_acq/f_s); filtering and
+#: decimating them takes about three times this.
+MAX_NOISE_GAIN_BYTES = 2**29
 
 
 @dataclass(frozen=True)
@@ -64,6 +70,9 @@ class EhsaBench:
         law, saturations, friction, dead time ``params.T_d``).
     f_acq : float
         Acquisition rate of the DAQ [Hz], an integer multiple of `f_s`.
+        Sizing the noise takes about ``0.1·f_acq·oversample²·(f_acq/f_s)``
+        doubles, which must fit in 512 MiB: up to about 8 MHz at the
+        default ratio 5 and oversample 4.
     f_s : float
         Identification rate [Hz]: the excitation is designed at it and the
         experiment file decimates to it.
@@ -193,6 +202,31 @@ class EhsaBench:
         if not math.isfinite(temp):
             raise DataError(f"oil_temperature must be finite [°C], got {temp}")
         _set(self, "oil_temperature", temp)
+        self._check_rates()
+
+    def _check_rates(self) -> None:
+        """Refuse rates whose noise budget would not fit in memory."""
+        q, m = self.decimation, self.oversample
+        n, columns = noise_gain_shape(self.f_acq, q, m)
+        need = 8.0 * n * columns
+        if need <= MAX_NOISE_GAIN_BYTES:
+            return
+        # n·columns ≈ NOISE_GAIN_SPAN·f_acq·m²·q floats: what fits at this ratio, at this f_acq
+        floats = MAX_NOISE_GAIN_BYTES / (8.0 * NOISE_GAIN_SPAN * m * m)
+        fits = []
+        if floats / q >= q:  # f_s >= 1 Hz
+            fits.append(f"f_acq <= {0.99 * floats / q:.3g} Hz at f_acq/f_s = {q}")
+        if floats / self.f_acq >= 1:
+            fits.append(f"f_acq/f_s <= {math.floor(floats / self.f_acq)} at f_acq = "
+                        f"{self.f_acq:g} Hz")
+        advice = "rates that fit: " + ", or ".join(fits) if fits else "lower f_acq"
+        raise DataError(
+            f"f_s = {self.f_s:g} Hz with f_acq = {self.f_acq:g} Hz is beyond what the virtual "
+            f"rig can simulate: sizing its noise takes {m * q:,} impulse responses of {n:,} "
+            f"samples at oversample·f_acq ({_gib(need)} GiB), over the "
+            f"{_gib(MAX_NOISE_GAIN_BYTES)} GiB budget; {advice} (a servo rig samples at kHz to "
+            "a few hundred kHz)"
+        )
 
     @property
     def decimation(self) -> int:
@@ -261,7 +295,21 @@ class EhsaBench:
         return butterworth(self.aa_order, self.aa_cutoff)
 
 
+def noise_gain_shape(f_acq: float, q: int, m: int) -> tuple[int, int]:
+    """Shape of the impulse array of the noise budget: (samples, impulses).
+
+    ``m·q`` impulses at consecutive positions of a record of
+    :data:`NOISE_GAIN_SPAN` at the analog rate ``m·f_acq``, a whole
+    number of decimated samples long.
+    """
+    return m * q * math.ceil(NOISE_GAIN_SPAN * f_acq / q), m * q
+
+
 # -- private helpers ---------------------------------------------------------
+
+
+def _gib(n: float) -> str:
+    return f"{n / 2**30:.3g}"
 
 
 def _round_up(value: float) -> float:

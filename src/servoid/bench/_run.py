@@ -49,7 +49,7 @@ from ..data import Channel, Experiment, decimate
 from ..models import StateSpace, TransferFunction
 from ..signals import Excitation
 from ._analog import Hold, discrete_sos, discretise, realise
-from ._config import EhsaBench, Fidelity
+from ._config import EhsaBench, Fidelity, noise_gain_shape
 from ._daq import note_warning, quantise, resolve_rng
 
 __all__ = ["CHANNELS", "BenchRun", "EhsaTruth", "digitize", "run"]
@@ -69,7 +69,11 @@ _P_NOISE = 35e3  # [Pa] std, white at the analog rate
 _RIPPLE = (0.1e6, 225.0)  # [Pa], [Hz]
 _T_NOISE = 0.02  # [°C] std
 _T_DRIFT = 0.5 / 60.0  # [°C/s]
-_NOISE_GAIN_SPAN = 0.1  # [s] record for the impulse responses of the noise budget
+
+#: Longest analog record a run simulates [samples at oversample·f_acq]: the chain holds
+#: about 14 doubles per analog sample (actuator, transducers, noise, filter outputs), so
+#: this is about 3.5 GiB of working memory.
+_MAX_ANALOG_SAMPLES = 2**25
 
 # Anti-alias filter at the analog rate: sections (first-order hold, many channels at
 # once) or a discrete state space (zero-order hold, one channel).
@@ -244,8 +248,9 @@ def run(
     Raises
     ------
     DataError
-        The excitation is not sampled at ``f_s`` or its peak exceeds the
-        stroke, the command range or the DAC range.
+        The excitation is not sampled at ``f_s``, its peak exceeds the
+        stroke, the command range or the DAC range, or at the analog rate
+        it is longer than 2**25 samples (3.5 GiB of working memory).
 
     Warns
     -----
@@ -462,7 +467,7 @@ def _noise_gain(bench: EhsaBench, sos: _Filter | None, m: int) -> float:
     squared responses to ``m·q`` impulses at consecutive positions.
     """
     q = bench.decimation
-    n = m * q * math.ceil(_NOISE_GAIN_SPAN * bench.f_acq / q)
+    n, _ = noise_gain_shape(bench.f_acq, q, m)  # bounded by EhsaBench
     x = np.zeros((n, m * q))
     x[n // 2 + np.arange(m * q), np.arange(m * q)] = 1.0
     y = _sample(sos, x, m) if sos is not None else x[::m]
@@ -493,6 +498,15 @@ def _check_excitation(bench: EhsaBench, ex: object) -> None:
         )
     if ex.clock is not None and ex.clock < 1:
         raise DataError(f"the excitation clock must be >= 1 sample per bit, got {ex.clock}")
+    n_analog = ex.n_samples * bench.decimation * bench.oversample
+    if n_analog > _MAX_ANALOG_SAMPLES:
+        raise DataError(
+            f"the excitation of {ex.n_samples:,} samples at f_s = {bench.f_s:g} Hz is "
+            f"simulated at oversample·f_acq = {bench.oversample * bench.f_acq:g} Hz: "
+            f"{n_analog:,} analog samples, over the budget of {_MAX_ANALOG_SAMPLES:,} (about "
+            f"{14 * 8 * _MAX_ANALOG_SAMPLES / 2**30:.2g} GiB of working memory); shorten the "
+            "excitation (a shorter register, fewer periods or fewer samples per bit) or lower f_acq"
+        )
     peak = float(np.max(np.abs(ex.values)))
     p = bench.params
     assert bench.command_sensitivity is not None

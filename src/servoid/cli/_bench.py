@@ -25,7 +25,9 @@ _EHSA_WORDS = {"f_acq": "--facq", "f_s": "--fs", "rng seed": "--seed", "snr_db":
                "register length n": "--register/-n", "amplitude": "--amplitude",
                "bits": "--bits", "periods": "--periods", "clock": "--clock"}
 _EHSA_PHRASES = {"lower the amplitude (or the offset)": "lower the amplitude (--amplitude)",
-                 "raise max_samples (--max-samples)": "raise --max-samples"}
+                 "raise max_samples (--max-samples)": "raise --max-samples",
+                 "(a shorter register, fewer periods or fewer samples per bit)":
+                 "(a shorter --register/-n, fewer --periods or a lower --clock)"}
 _PNEUMATIC_WORDS = {"f_acq": "--facq", "snr_db": "--snr", "test": "--tests",
                     "duration": "--duration", "seed": "--seed"}
 _PNEUMATIC_PHRASES = {"shorten the test or lower oversample": "shorten the test (--duration) "

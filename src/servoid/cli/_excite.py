@@ -22,7 +22,9 @@ _PHRASES = {"raise max_samples (--max-samples)": "raise --max-samples",
             "lengthen the period or widen the band": "lengthen --period or widen the band "
             "--f-min..--f-max",
             "rename it or pass time=False": "it is the CSV file's time column: choose another "
-            "--channel"}
+            "--channel",
+            "choose another unit,": "choose another --unit,",
+            "or write TDMS": "or write TDMS (--out <file>.tdms)"}
 
 
 def add_excite(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> None:

@@ -9,7 +9,8 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import DataError, ModelError, OptionError
+from .._checks import as_array, as_float, as_instance, type_error
+from .._errors import DataError, ModelError, OptionError, OptionTypeError, check_option
 from ..data import Experiment, ExperimentSet
 from ..models import TransferFunction, c2d
 from ._loop import FeedbackLoop, reduced_plant
@@ -56,9 +57,7 @@ def identify_closed_loop(
     OptionError
         An unknown approach or an option the approach does not take.
     """
-    if approach not in APPROACHES:
-        listed = ", ".join(repr(a) for a in APPROACHES)
-        raise OptionError(f"approach must be one of {listed}; got {approach!r}")
+    check_option("approach", approach, APPROACHES)
     if loop is None and approach != "direct":
         raise ModelError(
             f"the {approach} approach needs the known loop: pass loop=FeedbackLoop(c, F)"
@@ -106,6 +105,11 @@ def simulate_closed_loop(
     >>> round(float(y[-1]), 3)
     1.0
     """
+    if loop is not None:
+        loop = as_instance("loop", loop, FeedbackLoop, "a FeedbackLoop(c, F) or None")
+    if dt is not None:
+        dt = as_float("dt", dt, positive=True, unit="s")
+    r = as_array("r", r).ravel()
     if isinstance(model, ClosedLoopResult):
         if dt is not None and not math.isclose(dt, model.dt, rel_tol=1e-9):
             raise DataError(f"dt = {dt} s differs from the result's dt = {model.dt} s")
@@ -113,7 +117,7 @@ def simulate_closed_loop(
             return loop.close(model.plant).simulate(r)
         if model.closed_loop is None:
             raise ModelError("this result has no loop: pass loop=FeedbackLoop(c, F)")
-        rr = np.asarray(r, dtype=float).ravel()
+        rr = r
         lead = model.advance
         if not lead:
             return model.closed_loop.simulate(rr)
@@ -122,7 +126,11 @@ def simulate_closed_loop(
         return model.closed_loop.simulate(extended)[lead:]
     if loop is None or dt is None:
         raise ModelError("simulating from θ = (K, omega_hp, delta_hp) needs dt and loop")
-    theta = np.asarray(model, dtype=float).ravel()
+    try:
+        theta = as_array("model", model).ravel()
+    except OptionTypeError:
+        raise type_error("model", model, "a ClosedLoopResult or θ = (K, omega_hp, delta_hp)"
+                         ) from None
     if theta.size != 3:
         raise DataError(f"θ must be (K, omega_hp, delta_hp), got {theta.tolist()}")
     h: TransferFunction = loop.close(c2d(reduced_plant(theta), dt, "tustin"))

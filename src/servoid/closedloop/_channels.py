@@ -7,18 +7,27 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from .._checks import type_error
 from .._errors import DataError, IdentifiabilityError
 from ..data import Experiment, ExperimentSet, as_segments
 
 __all__ = [
     "aic_order",
     "check_excites",
+    "check_name",
     "lag_matrix",
     "ls_fit",
     "output_name",
     "reference_name",
     "single_name",
 ]
+
+
+def check_name(argument: str, name: object) -> str | None:
+    """Return a channel-name argument if it is a string or None."""
+    if name is not None and not isinstance(name, str):
+        raise type_error(argument, name, "a channel name (a string) or None")
+    return name
 
 
 def single_name(seg: Experiment, role: str, name: str | None, what: str) -> str:
@@ -40,7 +49,7 @@ def single_name(seg: Experiment, role: str, name: str | None, what: str) -> str:
 def output_name(seg: Experiment, output: str | None) -> str:
     """Return the output channel name (``output`` or the only role-y channel)."""
     if output is not None:
-        seg.channel(output)
+        seg.channel(check_name("output", output))  # type: ignore[arg-type]
         return output
     return single_name(seg, "y", None, "output (pass output=<name>)")
 

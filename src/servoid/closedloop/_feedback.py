@@ -39,7 +39,14 @@ from .._lazy import stats
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate
 from ..models import PolynomialModel, TransferFunction
-from ._channels import aic_order, check_excites, lag_matrix, output_name, single_name
+from ._channels import (
+    aic_order,
+    check_excites,
+    check_name,
+    lag_matrix,
+    output_name,
+    single_name,
+)
 
 __all__ = ["FeedbackTest", "feedback_test", "warn_if_feedback"]
 
@@ -221,7 +228,7 @@ def feedback_test(
         raise DataError(f"confidence must lie in (0, 1), got {confidence!r}")
     segments = as_segments(data)
     first = segments[0]
-    u_name = single_name(first, "u", input, "plant input")
+    u_name = single_name(first, "u", check_name("input", input), "plant input")
     y_name = output_name(first, output)
     us = [np.asarray(seg[u_name], dtype=float) for seg in segments]
     check_excites(u_name, us, "u")

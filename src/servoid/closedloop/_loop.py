@@ -10,9 +10,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal as sps
 
+from .._checks import as_array, type_error
 from .._errors import DataError, ModelError
+from .._lazy import signal as sps
 from ..models import TransferFunction, c2d
 
 __all__ = ["FeedbackLoop", "reduced_plant"]
@@ -51,7 +52,8 @@ class FeedbackLoop:
     def __post_init__(self) -> None:
         c = self.c
         if isinstance(c, bool) or not isinstance(c, (int, float, np.integer, np.floating)):
-            raise TypeError(f"c must be a number (forward gain), got {c!r}")
+            raise type_error("c", c, "a number (the forward gain), e.g. FeedbackLoop(c=0.01, "
+                             "F=0.01)")
         if not math.isfinite(float(c)) or float(c) == 0.0:
             raise ModelError(
                 f"c must be a finite, non-zero forward gain, got c = {c!r}; with c = 0 the "
@@ -63,7 +65,8 @@ class FeedbackLoop:
             gain = f.dc_gain()
             label = f"F with static gain {gain:.6g}"
         elif isinstance(f, bool) or not isinstance(f, (int, float, np.integer, np.floating)):
-            raise TypeError(f"F must be a number or a TransferFunction, got {f!r}")
+            raise type_error("F", f, "a number or a TransferFunction (the feedback), e.g. "
+                             "FeedbackLoop(c=0.01, F=0.01)")
         else:
             gain = float(f)
             object.__setattr__(self, "F", gain)
@@ -218,6 +221,15 @@ def reduced_plant(theta: Sequence[float] | NDArray[np.float64]) -> TransferFunct
     >>> round(float(g.num[-1] / g.den[-2]), 1)
     3451.7
     """
+    arr = as_array("theta", theta, ndim=1)
+    if arr.size != 3:
+        raise DataError(f"theta must hold 3 values (K [1/s], omega_hp [rad/s], delta_hp [-]), "
+                        f"got {arr.size}: {arr.tolist()!r}")
+    return plant_of_theta(arr)
+
+
+def plant_of_theta(theta: Sequence[float] | NDArray[np.float64]) -> TransferFunction:
+    """:func:`reduced_plant` without the argument checks, for the fits' inner loops."""
     k, w, d = (float(x) for x in theta)
     return TransferFunction([k * w * w], [1.0, 2.0 * d * w, w * w, 0.0])
 

@@ -69,7 +69,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from .._checks import as_int
+from .._checks import as_instance, as_int, as_mapping, type_error
 from .._errors import (
     ConvergenceError,
     DataError,
@@ -285,8 +285,11 @@ def refine_nonlinear_ehsa(
     kind = resolve(covariance, noise_model=False)
     generator = _generator(rng) if multistart or kind == "bootstrap" else None
     free = _check_names(parameters)
-    if not isinstance(nominal, EhsaParameters):
-        raise TypeError(f"nominal must be EhsaParameters, got {type(nominal).__name__}")
+    bounds = {} if bounds is None else dict(as_mapping("bounds", bounds))
+    if max_nfev is not None:
+        max_nfev = as_int("max_nfev", max_nfev, minimum=1)
+    as_instance("nominal", nominal, EhsaParameters,
+                "an EhsaParameters (e.g. servoid.actuators.SET_B)")
     c, f = _loop_gains(loop)
     segments = as_segments(data)
     dt = segments[0].dt
@@ -308,7 +311,7 @@ def refine_nonlinear_ehsa(
         start_params = physical_parameters(base, _start_values(start))
     except ModelError as exc:
         raise ModelError(f"the start values give no physical EHSA: {exc}") from None
-    coords = _coordinates(free, start_params, dict(bounds or {}), dt)
+    coords = _coordinates(free, start_params, bounds, dt)
     template = NonlinearEhsa.for_parameters(start_params, dt, intersample=hold,
                                             output_filter=output_filter,
                                             omega_max=_omega_max(start_params, coords))
@@ -470,8 +473,8 @@ def _check_names(parameters: Sequence[str]) -> list[str]:
 
 
 def _loop_gains(loop: object) -> tuple[float, float]:
-    if not isinstance(loop, FeedbackLoop):
-        raise TypeError(f"loop must be a FeedbackLoop, got {type(loop).__name__}")
+    as_instance("loop", loop, FeedbackLoop, "a FeedbackLoop(c, F), e.g. FeedbackLoop(c=0.01, "
+                "F=0.01)")
     if not loop.is_static:
         raise ModelError("the nonlinear EHSA closes its loop with the feedback spring: F must be "
                          "a gain (K_fb [m/m]), not a transfer function")
@@ -511,8 +514,8 @@ def _start_values(start: object) -> dict[str, float]:
             raise DataError(f"start as a sequence must be (K, omega_hp, delta_hp), got "
                             f"{len(vals)} values")
         return dict(zip(_LINEAR, vals, strict=True))
-    raise TypeError(f"start must be a ClosedLoopResult, Estimate, mapping or (K, omega_hp, "
-                    f"delta_hp), got {type(start).__name__}")
+    raise type_error("start", start, "a ClosedLoopResult, an Estimate, a mapping {name: value} "
+                     "or (K, omega_hp, delta_hp)")
 
 
 def _hold(intersample: str, r: NDArray[np.float64]) -> tuple[Intersample, str]:
@@ -526,7 +529,7 @@ def _hold(intersample: str, r: NDArray[np.float64]) -> tuple[Intersample, str]:
 
 def _finite(name: str, value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a number, got {value!r}")
+        raise type_error(name, value, "a number")
     v = float(value)
     if not math.isfinite(v):
         raise DataError(f"{name} must be finite, got {v}")

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from .._checks import as_float, as_instance, as_int, type_error
 from .._errors import DataError, ServoidWarning
 from ..actuators import SET_B, EhsaParameters
 from ..data import Experiment, ExperimentSet
@@ -154,21 +155,26 @@ def validate_nonlinear_ehsa(
         A record at another sample period, no reference, or a transient
         that leaves too few samples.
     """
+    expected = "a NonlinearEhsa or its Estimate (from refine_nonlinear_ehsa)"
     if isinstance(model, Estimate):
+        if not isinstance(model.model, NonlinearEhsa):
+            raise type_error("model", model.model, expected)
+        as_instance("experiment", experiment, Experiment,
+                    "an Experiment (servoid.Experiment.from_arrays)")
         if reference is None and model.options.get("reference") in experiment.names:
             reference = model.options["reference"]
         model = model.model
-    if not isinstance(model, NonlinearEhsa):
-        raise TypeError(f"model must be a NonlinearEhsa or its Estimate, got "
-                        f"{type(model).__name__}")
-    if not isinstance(experiment, Experiment):
-        raise TypeError(f"experiment must be an Experiment, got {type(experiment).__name__}")
+    as_instance("model", model, NonlinearEhsa, expected)
+    as_instance("experiment", experiment, Experiment,
+                "an Experiment (servoid.Experiment.from_arrays)")
     if not np.isclose(experiment.dt, model.dt, rtol=1e-9, atol=0.0):
         raise DataError(f"the model has dt = {model.dt} s but the record {experiment.dt} s")
-    if isinstance(transient, bool) or not isinstance(transient, (int, np.integer)) or not (
-            0 <= transient < experiment.n_samples - 2):
-        raise DataError(f"transient must be an integer in [0, {experiment.n_samples - 3}] "
-                        f"samples, got {transient!r}")
+    transient = as_int("transient", transient, minimum=0,
+                       maximum=max(experiment.n_samples - 3, 0))
+    max_lag = as_int("max_lag", max_lag, minimum=1)
+    confidence = as_float("confidence", confidence)
+    if not 0.0 < confidence < 1.0:
+        raise DataError(f"confidence must lie in (0, 1), got {confidence:g}")
     ref = reference_name(experiment, "validate_nonlinear_ehsa") if reference is None else \
         experiment.channel(reference).name
     out = output_name(experiment, output)
@@ -177,7 +183,8 @@ def validate_nonlinear_ehsa(
         y_sim = model.simulate(r, y0=float(y[0]))
     else:
         if not isinstance(preceding, Experiment):
-            raise TypeError(f"preceding must be an Experiment, got {type(preceding).__name__}")
+            raise type_error("preceding", preceding, "an Experiment (the record just before) "
+                             "or None")
         if not np.isclose(preceding.dt, experiment.dt, rtol=1e-9, atol=0.0):
             raise DataError(f"preceding has dt = {preceding.dt} s, the record {experiment.dt} s")
         r_prev, y_prev = preceding[ref], preceding[out]
@@ -245,8 +252,10 @@ def refine_after_linear(
         What :func:`refine_nonlinear_ehsa` flags, and a refined model that
         validates no better than the linear one.
     """
-    if not isinstance(result, ClosedLoopResult):
-        raise TypeError(f"result must be a ClosedLoopResult, got {type(result).__name__}")
+    as_instance("result", result, ClosedLoopResult,
+                "a ClosedLoopResult (from identify_closed_loop, fit_one_step, ...)")
+    as_instance("validation", validation, Experiment,
+                "an Experiment (the held-back record)")
     if result.closed_loop is None:
         raise DataError(f"the {result.approach} result has no closed loop to start from; "
                         "refine a one-step or two-step result")

@@ -50,9 +50,10 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal as sps
 
+from .._checks import as_array, as_float, as_instance, type_error
 from .._errors import DataError, ModelError, check_option
+from .._lazy import signal as sps
 from ..actuators import EhsaParameters, simulate_ehsa
 from ..models import TransferFunction
 
@@ -123,11 +124,12 @@ class NonlinearEhsa:
     dt_int: float = 1e-5
 
     def __post_init__(self) -> None:
-        if not isinstance(self.params, EhsaParameters):
-            raise TypeError(f"params must be EhsaParameters, got {type(self.params).__name__}")
+        as_instance("params", self.params, EhsaParameters,
+                    "an EhsaParameters (e.g. servoid.actuators.SET_B)")
         check_option("intersample", self.intersample, INTERSAMPLES)
-        if not (isinstance(self.dt, (int, float)) and math.isfinite(self.dt) and self.dt > 0):
-            raise DataError(f"dt must be > 0 s, got {self.dt!r}")
+        object.__setattr__(self, "dt", as_float("dt", self.dt, positive=True, unit="s"))
+        object.__setattr__(self, "dt_int", as_float("dt_int", self.dt_int, positive=True,
+                                                    unit="s"))
         n = round(self.dt / self.dt_int)
         if n < 1 or abs(n * self.dt_int - self.dt) > 1e-9 * self.dt:
             raise DataError(f"dt/dt_int must be a whole number, got dt = {self.dt:g} s, "
@@ -210,9 +212,8 @@ class NonlinearEhsa:
         ModelError
             The simulation left the finite numbers.
         """
-        ref = np.asarray(r, dtype=np.float64)
-        if ref.ndim != 1 or ref.size < 2 or not np.all(np.isfinite(ref)):
-            raise DataError(f"r must be a finite 1-D array of >= 2 samples, got shape {ref.shape}")
+        ref = as_array("r", r, ndim=1, min_size=2)
+        y0 = as_float("y0", y0, unit="m")
         p = self.params
         n_steps = round(self.dt / self.dt_int)
         cells = _cells_per_sample(n_steps, ref.size)
@@ -247,7 +248,8 @@ class NonlinearEhsa:
             ``y``, ``y_dot``, ``P_L``, ``x_s``, ``x_f`` (before any output
             filter), for physical checks of what the record excites.
         """
-        ref = np.asarray(r, dtype=np.float64)
+        ref = as_array("r", r, ndim=1, min_size=2)
+        y0 = as_float("y0", y0, unit="m")
         p = self.params
         n_steps = round(self.dt / self.dt_int)
         cells = _cells_per_sample(n_steps, ref.size)
@@ -347,8 +349,7 @@ def check_output_filter(g: object) -> None:
     if g is None:
         return
     if not isinstance(g, TransferFunction):
-        raise TypeError(f"output_filter must be a TransferFunction or None, got "
-                        f"{type(g).__name__}")
+        raise type_error("output_filter", g, "a continuous TransferFunction or None")
     if g.dt is not None:
         raise ModelError(f"output_filter must be continuous (the analog filter of the "
                          f"transducer chain), got a discrete one with dt = {g.dt} s")

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from .._checks import type_error
 from .._errors import ChannelError, DataError, ServoidWarning
 from ..data import Experiment
 
@@ -160,6 +161,8 @@ def operating_point(
                 f"{(p_s - p_t) / 1e6:.4g} MPa, so the flow gain (∝ √(P_s − P_T)) is an average",
                 ServoidWarning, stacklevel=3)
     temp = spread_t = None
+    if oil_temperature is not None and not isinstance(oil_temperature, str):
+        raise type_error("oil_temperature", oil_temperature, "a channel name or None")
     if oil_temperature is not None:
         series = _series(segments, oil_temperature, "oil_temperature", _TEMPERATURE_UNITS,
                          "°C or K")
@@ -185,7 +188,7 @@ def _pressure(segments: Sequence[Experiment], spec: str | float | None, what: st
         series = _series(segments, spec, what, _PRESSURE_UNITS, "Pa, kPa, MPa or bar")
         return float(np.median(series)), spec, series
     if isinstance(spec, bool) or not isinstance(spec, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{what} must be a channel name, a pressure [Pa] or None, got {spec!r}")
+        raise type_error(what, spec, "a channel name, a pressure [Pa] or None")
     value = float(spec)
     if not (math.isfinite(value) and value >= 0.0):
         raise DataError(f"{what} must be a finite pressure >= 0 Pa, got {value}")

@@ -30,10 +30,8 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import optimize
-from scipy import signal as sps
 
-from .._checks import as_int
+from .._checks import as_array, as_float, as_instance, as_int, type_error
 from .._errors import (
     ConvergenceError,
     DataError,
@@ -42,9 +40,12 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._lazy import optimize
+from .._lazy import signal as sps
 from ..data import Experiment, ExperimentSet, as_segments, detect_intersample
 from ..estimate import Estimate, fit_tf_greybox
 from ..models import TransferFunction, c2d
+from ._channels import check_name
 from ._loop import FeedbackLoop, tustin, tustin_arrays
 from ._physical import anchors_of, delta_method, pole_report, warn_flagged
 from ._result import ClosedLoopResult
@@ -181,7 +182,7 @@ def fit_one_step(
     >>> loop = FeedbackLoop(0.01, 0.01)
     >>> r = prbs(9, clock=10, amplitude=1e-3, dt=1e-3).values
     >>> y = simulate_closed_loop((3451.7, 163.3, 0.249), r, 1e-3, loop)
-    >>> fit = fit_one_step(Experiment.from_arrays(1e-3, r=r, y=y), loop)
+    >>> fit = fit_one_step(Experiment.from_arrays(1e-3, r=r, y=y), loop, discretization="tustin")
     >>> [round(float(v), 3) for v in fit.estimate.parameters]
     [3451.7, 163.3, 0.249]
     """
@@ -191,10 +192,15 @@ def fit_one_step(
     _require_reference(data, "one-step")
     plant_structure = _structure(structure)
     n_starts = as_int("n_starts", n_starts, minimum=1)
+    integrator_tol = as_float("integrator_tol", integrator_tol, nonneg=True)
+    output = check_name("output", output)
+    if max_nfev is not None:
+        max_nfev = as_int("max_nfev", max_nfev, minimum=1)
     decimation = as_int("decimation", decimation, minimum=1)
     if anti_alias is not None and (not isinstance(anti_alias, TransferFunction)
                                    or anti_alias.dt is not None):
-        raise TypeError(f"anti_alias must be a continuous TransferFunction, got {anti_alias!r}")
+        raise type_error("anti_alias", anti_alias, "a continuous TransferFunction (the analog "
+                         "anti-alias filter) or None")
     segments = as_segments(data)
     dt = segments[0].dt
     start = as_int("start", start, minimum=0)
@@ -706,7 +712,8 @@ def _structure(structure: PlantStructure | str) -> PlantStructure:
     if isinstance(structure, PlantStructure):
         return structure
     if not isinstance(structure, str):
-        raise TypeError(f"structure must be a PlantStructure or its name, got {structure!r}")
+        raise type_error("structure", structure, "a PlantStructure or its name (one of "
+                         f"{', '.join(repr(s) for s in STRUCTURES)})")
     check_option("structure", structure, tuple(STRUCTURES))
     return STRUCTURES[structure]
 
@@ -721,7 +728,7 @@ def _output(seg: Experiment, output: str | None) -> str:
 def _check_theta0(theta0: ArrayLike,
                   plant_structure: PlantStructure | None = None) -> NDArray[np.float64]:
     ps = plant_structure if plant_structure is not None else STRUCTURES["reduced"]
-    theta = np.asarray(theta0, dtype=float).ravel()
+    theta = as_array("theta0", theta0, finite=False).ravel()
     names = ", ".join(ps.names)
     if theta.size != ps.n_parameters or not np.all(np.isfinite(theta)):
         raise DataError(f"theta0 must be {ps.n_parameters} finite numbers ({names}), "
@@ -735,8 +742,8 @@ def _check_theta0(theta0: ArrayLike,
 
 
 def _check_loop(loop: object) -> None:
-    if not isinstance(loop, FeedbackLoop):
-        raise TypeError(f"loop must be a FeedbackLoop(c, F), got {type(loop).__name__}")
+    as_instance("loop", loop, FeedbackLoop, "a FeedbackLoop(c, F), e.g. FeedbackLoop(c=0.01, "
+                "F=0.01)")
 
 
 def _require_reference(data: Experiment | ExperimentSet, approach: str) -> None:

@@ -109,7 +109,7 @@ def _realise(num: NDArray[np.float64], den: NDArray[np.float64],
              unit: float) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                    NDArray[np.float64], float]:
     """Companion form of num/den in time measured in `unit` seconds: (A, b, c, d)."""
-    den, num = np.trim_zeros(_finite(den), "f"), np.trim_zeros(_finite(num), "f")
+    den, num = _leading(_finite(den)), _leading(_finite(num))
     n = den.size - 1
     if n < 1:
         raise ModelError("the closed loop has no dynamics (a static gain): nothing to sample")
@@ -130,6 +130,15 @@ def _realise(num: NDArray[np.float64], den: NDArray[np.float64],
     return a, b, c, d
 
 
+def _check_transition(phi: NDArray[np.float64], g: NDArray[np.float64]) -> None:
+    """A ModelError when one sample period of the model overflows (a fast unstable pole)."""
+    if not (np.all(np.isfinite(phi)) and np.all(np.isfinite(g))):
+        raise ModelError("the sampled closed loop is not finite over one sample period: the "
+                         "parameters left the range where the plant structure can be sampled "
+                         "(an anti_alias filter that does not match the data, or a poor theta0, "
+                         "can drive them there)")
+
+
 def _finite(poly: NDArray[np.float64]) -> NDArray[np.float64]:
     """`poly` as floats, or a ModelError when a coefficient is not finite or all vanish."""
     poly = np.asarray(poly, dtype=float)
@@ -137,6 +146,11 @@ def _finite(poly: NDArray[np.float64]) -> NDArray[np.float64]:
         raise ModelError("the closed-loop model has non-finite or vanishing coefficients: the "
                          "parameters left the range where the plant structure is defined")
     return poly
+
+
+def _leading(poly: NDArray[np.float64]) -> NDArray[np.float64]:
+    """`poly` without its leading zeros (numpy's trim_zeros is slow on small arrays)."""
+    return poly[np.flatnonzero(poly)[0]:]
 
 
 def _polynomial_hold(num: NDArray[np.float64], den: NDArray[np.float64], dt: float,
@@ -147,6 +161,7 @@ def _polynomial_hold(num: NDArray[np.float64], den: NDArray[np.float64], dt: flo
     behind = (degree - 1) // 2 if degree > 1 else 0
     nodes = np.arange(-behind, degree + 1 - behind, dtype=float)  # period [k, k+1] uses these
     phi, g = piece_transition(a, b, 1.0, 1.0, degree)
+    _check_transition(phi, g)
     # coefficients (ascending in σ ∈ [0, 1]) from the samples, then derivatives j!·c_j at σ = 0
     coef = np.linalg.inv(np.vander(nodes, degree + 1, increasing=True))
     factorial = np.array([math.factorial(j) for j in range(degree + 1)], dtype=float)
@@ -176,6 +191,7 @@ def _chain(num: NDArray[np.float64], den: NDArray[np.float64], dt: float,
     a, b, c, d = _realise(num, den, tau)
     n = a.shape[0]
     phi, g = piece_transition(a, b, 1.0, 1.0, 0)
+    _check_transition(phi, g)
     gamma = g[:, 0]
     taps = decimation_taps(q) if q > 1 else np.ones(1)
     half = (taps.size - 1) // 2

@@ -65,10 +65,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
-from .._checks import as_float, as_int
-from .._errors import DataError, OptionError, ServoidWarning
+from .._checks import as_float, as_int, as_mapping, type_error
+from .._errors import ChannelError, DataError, OptionError, ServoidWarning
+from .._lazy import stats
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate
 from ..validate import residual_analysis
@@ -262,7 +262,8 @@ class StructureTest:
         for f in self.fits:
             if f.name == name:
                 return f
-        raise KeyError(f"no structure {name!r}; compared: {', '.join(f.name for f in self.fits)}")
+        raise ChannelError(f"no structure {name!r}; compared: "
+                           f"{', '.join(f.name for f in self.fits)}")
 
     @property
     def verdict(self) -> str:
@@ -387,7 +388,11 @@ def compare_structures(
     if not 0.0 < level < 1.0:
         raise OptionError(f"level must lie in (0, 1), got {level}")
     max_lag = as_int("max_lag", max_lag, minimum=1)
-    catalogue = {**STRUCTURES, **(dict(structures) if structures is not None else {})}
+    extra = {} if structures is None else as_mapping("structures", structures)
+    for name, structure in extra.items():
+        if not isinstance(structure, PlantStructure):
+            raise type_error(f"structures[{name!r}]", structure, "a PlantStructure")
+    catalogue = {**STRUCTURES, **extra}
     fits = _resolve(results, catalogue)
     base = _base(fits, catalogue)
     segments = as_segments(data)
@@ -461,8 +466,8 @@ def _resolve(
                 )
             items.append((name, r))
     else:
-        raise TypeError(f"results must be a mapping {{structure: result}} or a sequence, got "
-                        f"{type(results).__name__}")
+        raise type_error("results", results, "a mapping {structure name: result} or a "
+                         "sequence of ClosedLoopResult/Estimate")
     if not items:
         raise DataError("results is empty: give at least the reduced model's fit")
     out: dict[str, tuple[Result, Estimate]] = {}
@@ -489,8 +494,8 @@ def _source(r: object) -> Estimate:
         return r.source
     if isinstance(r, Estimate):
         return r
-    raise TypeError(f"each result must be a ClosedLoopResult or an Estimate, got "
-                    f"{type(r).__name__}")
+    raise type_error("each result", r, "a ClosedLoopResult or an Estimate (one fit per "
+                     "structure)")
 
 
 def _chain(name: str, catalogue: Mapping[str, PlantStructure]) -> list[str]:

@@ -57,9 +57,10 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from .._checks import as_instance
 from ..actuators import SET_B, EhsaParameters
 from ..models import TransferFunction
-from ._loop import PARAMETER_NAMES, PARAMETER_UNITS, reduced_plant
+from ._loop import PARAMETER_NAMES, PARAMETER_UNITS, plant_of_theta
 
 __all__ = ["STRUCTURES", "PlantStructure", "full_order_structure"]
 
@@ -193,9 +194,8 @@ def full_order_structure(params: EhsaParameters = SET_B) -> PlantStructure:
     >>> round(s.fixed["tau_nom"] * 1e3, 3)
     1.504
     """
-    if not isinstance(params, EhsaParameters):
-        raise TypeError(f"params must be EhsaParameters, got {type(params).__name__}")
-    p = params
+    p = as_instance("params", params, EhsaParameters,
+                    "an EhsaParameters (e.g. servoid.actuators.SET_B)")
     valve = np.polymul(
         np.polymul([1.0 / p.omega_f**2, 2.0 * p.delta_f / p.omega_f, 1.0], [1.0 / p.omega_s1, 1.0]),
         [1.0 / p.omega_sp**2, 2.0 * p.delta_sp / p.omega_sp, 1.0],
@@ -266,7 +266,7 @@ def _reduced_of(theta: NDArray[np.float64]) -> tuple[float, float, float]:
 def _lag_plant(theta: NDArray[np.float64]) -> TransferFunction:
     k, w, d, tau = (float(x) for x in theta)
     if tau == 0.0:
-        return reduced_plant((k, w, d))
+        return plant_of_theta((k, w, d))
     floor = _LAG_FLOOR / w
     if tau >= floor:
         return TransferFunction([k * w * w], np.polymul([tau, 1.0], _hydraulic_den(w, d)))
@@ -284,7 +284,7 @@ REDUCED = PlantStructure(
     names=PARAMETER_NAMES,
     units=PARAMETER_UNITS,
     transforms=("log", "log", "none"),
-    plant=reduced_plant,
+    plant=plant_of_theta,
     start=_reduced_start,
     reduced=_reduced_of,
     description="reduced plant K/(s(s^2/omega_hp^2 + 2 delta_hp s/omega_hp + 1)) (spec Eq. 6)",

@@ -8,14 +8,15 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal as sps
 
 from .._checks import as_float
 from .._errors import DataError, OptionError, ServoidWarning, check_option
+from .._lazy import signal as sps
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import fit_arx, fit_tf_greybox
 from ..models import TransferFunction
-from ._loop import PARAMETER_NAMES, PARAMETER_UNITS, FeedbackLoop, reduced_plant, tustin
+from ._channels import check_name
+from ._loop import PARAMETER_NAMES, PARAMETER_UNITS, FeedbackLoop, plant_of_theta, tustin
 from ._onestep import _check_loop, _check_theta0, _require_reference, greybox_result
 from ._physical import anchors_of, to_continuous, two_step_result, values_of
 from ._result import ClosedLoopResult
@@ -85,6 +86,9 @@ def fit_indirect(
     _check_loop(loop)
     _require_reference(data, "indirect")
     _check_positive("step", step)
+    integrator_tol = as_float("integrator_tol", integrator_tol, nonneg=True)
+    if cancel_tol is not None:
+        cancel_tol = as_float("cancel_tol", cancel_tol, nonneg=True)
     dt = as_segments(data)[0].dt
     if prefilter is not None:
         data = _lowpass(data, prefilter, output)
@@ -161,6 +165,8 @@ def fit_direct(
     if loop is not None:
         _check_loop(loop)
     _check_positive("step", step)
+    integrator_tol = as_float("integrator_tol", integrator_tol, nonneg=True)
+    output = check_name("output", output)
     plant_data = _plant_data(data, loop, input_source, output)
     dt = as_segments(data)[0].dt
     with warnings.catch_warnings():
@@ -191,7 +197,7 @@ def fit_direct(
     theta = _check_theta0(theta0)
 
     def model_fn(t: NDArray[np.float64]) -> TransferFunction:
-        return tustin(reduced_plant(t), dt)
+        return tustin(plant_of_theta(t), dt)
 
     est = fit_tf_greybox(
         plant_data, model_fn, theta, PARAMETER_NAMES, PARAMETER_UNITS, input="u", output=output,

@@ -17,15 +17,20 @@ from .._errors import (
     DataError,
     FileFormatError,
     MissingFileError,
+    OptionError,
     ServoidError,
     check_option,
 )
 from ._experiment import ROLES, Channel, Experiment, _check_time
 
-__all__ = ["RolesArg", "build_experiment", "check_reader_options", "existing_file",
-           "library_errors"]
+__all__ = ["DEFAULT_MAX_BYTES", "RolesArg", "build_experiment", "check_file_size",
+           "check_max_bytes", "check_reader_options", "existing_file", "library_errors"]
 
 RolesArg = Mapping[str, str | Sequence[str]] | None
+
+#: Default memory budget of the readers [bytes]: 2 GiB, 2.7e8 doubles (a MAT variable, a
+#: TDMS channel, a CSV file's text).
+DEFAULT_MAX_BYTES = 2**31
 
 #: Relative deviation of a time step from the mean step accepted in a time column;
 #: the same default as :meth:`Experiment.from_arrays`.
@@ -73,6 +78,23 @@ def check_reader_options(
         if value is not None:
             as_str(key, value)
     return out
+
+
+def check_max_bytes(max_bytes: object) -> int:
+    """Return a reader's memory budget ``max_bytes``, or raise :class:`OptionError`."""
+    if isinstance(max_bytes, bool) or not isinstance(max_bytes, int) or max_bytes <= 0:
+        raise OptionError(f"max_bytes must be a positive whole number of bytes, got {max_bytes!r}")
+    return max_bytes
+
+
+def check_file_size(path: Path, max_bytes: int) -> None:
+    """Refuse a file larger than the reader's budget before reading it."""
+    size = path.stat().st_size
+    if size > max_bytes:
+        raise DataError(
+            f"{path} has {size:,} bytes, over the budget of {max_bytes:,} bytes; if the file is "
+            "what you meant to read, pass max_bytes= a larger budget"
+        )
 
 
 @contextmanager

@@ -37,7 +37,15 @@ from numpy.typing import NDArray
 from .._atomic import atomic_path
 from .._checks import as_bool, as_path, as_str
 from .._errors import DataError, FileFormatError
-from ._columns import RolesArg, build_experiment, check_reader_options, existing_file
+from ._columns import (
+    DEFAULT_MAX_BYTES,
+    RolesArg,
+    build_experiment,
+    check_file_size,
+    check_max_bytes,
+    check_reader_options,
+    existing_file,
+)
 from ._experiment import Experiment, check_experiment
 
 __all__ = ["read_csv", "write_csv"]
@@ -60,6 +68,7 @@ def read_csv(
     time: str | None = "time",
     roles: RolesArg = None,
     delimiter: str = ",",
+    max_bytes: int = DEFAULT_MAX_BYTES,
 ) -> Experiment:
     """Read a CSV file with a header row into an Experiment.
 
@@ -79,6 +88,9 @@ def read_csv(
         mapped become side channels.
     delimiter : str
         Field separator.
+    max_bytes : int
+        Memory budget [bytes]: a larger file is refused before it is read
+        (its text is held while parsing); default 2 GiB.
 
     Returns
     -------
@@ -89,6 +101,8 @@ def read_csv(
     ------
     FileFormatError
         Empty file, ragged rows or non-numeric cells (with line and column).
+    DataError
+        The file is larger than `max_bytes`.
     ChannelError
         A column named in ``roles`` is not in the file.
     """
@@ -97,6 +111,7 @@ def read_csv(
     as_str("delimiter", delimiter)
     if len(delimiter) != 1:
         raise DataError(f"delimiter must be one character (',' or ';' or '\\t'), got {delimiter!r}")
+    check_file_size(path, check_max_bytes(max_bytes))
     try:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -170,6 +185,7 @@ def write_csv(
         cols.insert(0, exp.time)
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerow(header)
+    _check_header(buf.getvalue(), exp)
     # repr() is the shortest string that parses back to the same double.
     buf.writelines(",".join(map(repr, row)) + "\n" for row in np.column_stack(cols).tolist())
     with atomic_path(path, overwrite) as tmp:
@@ -179,6 +195,61 @@ def write_csv(
 
 def _header_cell(name: str, unit: str) -> str:
     return f"{name} [{unit}]" if unit else name
+
+
+def _check_header(text: str, exp: Experiment) -> None:
+    """Refuse a header row that :func:`read_csv` would read back differently.
+
+    A header cell is ``name [unit]``: a unit holding ``]``, a name ending
+    in ``[...]`` without a unit, a name that is a number or a line break
+    in either would come back as another name or unit, or not at all.
+    (Spaces around a unit are dropped on reading, as typed by hand.)
+    """
+    for ch in exp.channels:
+        cell = _header_cell(ch.name, ch.unit)
+        got = _read_back(cell)
+        if got == (ch.name, ch.unit.strip()) and not _is_number(ch.name):
+            continue
+        if ch.unit and _read_back(_header_cell(ch.name, "V")) == (ch.name, "V") \
+                and not _is_number(ch.name):
+            back = "holds a line break" if got is None else \
+                f"would read back as channel {got[0]!r} with unit {got[1]!r}"
+            raise DataError(
+                f"unit = {ch.unit!r} of channel {ch.name!r} cannot be written to a CSV file: "
+                f"its header cell {cell!r} {back}; a CSV header cell is 'name [unit]', so the "
+                "unit must not contain ']' or a line break: choose another unit, or write TDMS"
+            )
+        back = ("is read as a number" if _is_number(ch.name) else
+                "holds a line break" if got is None else
+                f"would read back as channel {got[0]!r} with unit {got[1]!r}")
+        raise DataError(
+            f"channel name {ch.name!r} cannot be written to a CSV file: its header cell "
+            f"{cell!r} {back}; a CSV header cell is 'name [unit]': choose a name that is not a "
+            "number, has no line break or surrounding spaces and does not end in '[...]', or "
+            "write TDMS"
+        )
+    if text.lstrip().startswith("#"):
+        raise DataError(
+            f"channel name {exp.channels[0].name!r} cannot head the first column of a CSV "
+            "file: a header row starting with '#' is read as a comment; write the time column "
+            "(time=True) or choose a name that does not start with '#'"
+        )
+
+
+def _read_back(cell: str) -> tuple[str, str] | None:
+    """(name, unit) as :func:`_parse_header` reads ``cell``; None: not one line."""
+    if "\n" in cell or "\r" in cell:
+        return None
+    match = _HEADER_CELL.match(cell)
+    return (match.group("name"), (match.group("unit") or "").strip()) if match else None
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _parse_header(

@@ -26,10 +26,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import as_str_list
-from .._errors import ChannelError, DataError, FileFormatError, OptionError
+from .._errors import ChannelError, DataError, FileFormatError
 from ._columns import (
+    DEFAULT_MAX_BYTES,
     RolesArg,
     build_experiment,
+    check_max_bytes,
     check_reader_options,
     existing_file,
     library_errors,
@@ -39,8 +41,6 @@ from ._mat_check import MatEntry, check_mat, format_bytes
 
 __all__ = ["DEFAULT_MAX_BYTES", "read_mat"]
 
-#: Default memory budget of one variable [bytes]: 2 GiB, 2.7e8 doubles.
-DEFAULT_MAX_BYTES = 2**31
 
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 # HDF5 looks for its signature at 0, 512, 1024, 2048, ...; MATLAB uses a 512-byte userblock.
@@ -98,8 +98,7 @@ def read_mat(
     dt = check_reader_options(dt=dt, roles=roles, names={"time": time})
     if variables is not None:
         variables = as_str_list("variables", variables)
-    if isinstance(max_bytes, bool) or not isinstance(max_bytes, int) or max_bytes <= 0:
-        raise OptionError(f"max_bytes must be a positive whole number of bytes, got {max_bytes!r}")
+    max_bytes = check_max_bytes(max_bytes)
     wanted = None if variables is None else {*variables, *([time] if time is not None else [])}
     if _is_hdf5(path):
         raw, listed = _load_v73(path, wanted, max_bytes)

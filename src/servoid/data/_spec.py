@@ -14,6 +14,8 @@ Schema::
     group = "Measurements"    # TDMS group; only for TDMS files
     time = "t"                # time column / channel / variable [s]
     dt = 0.0002               # [s], > 0: when there is no time column or waveform timing
+    max_bytes = 4294967296    # [bytes] the readers' memory budget, default 2 GiB: a larger
+                              # CSV file, TDMS channel or MAT variable is refused
 
     [channels.y_r]            # required, at least one: the servoid channel name
     source = "AI0"            # channel in the file; default the servoid name
@@ -78,7 +80,7 @@ import numpy as np
 
 from .._atomic import atomic_path
 from .._checks import as_bool, as_path, type_error
-from .._errors import ChannelError, FileFormatError, OptionError, check_option
+from .._errors import ChannelError, FileFormatError, OptionError, ServoidError, check_option
 from ._columns import existing_file
 from ._experiment import ROLES, Channel, Experiment, ExperimentSet, Role
 from ._io import FORMATS, Format, format_of, read_experiment
@@ -100,7 +102,7 @@ DetrendSpec = Literal["none", "mean", "linear"]
 _DETRENDS: tuple[DetrendSpec, ...] = ("none", "mean", "linear")
 _TOP_KEYS = ("data", "channels", "preprocess", "split", "validation", "rig", "loop",
              "identify", "report")
-_DATA_KEYS = ("file", "format", "group", "time", "dt")
+_DATA_KEYS = ("file", "format", "group", "time", "dt", "max_bytes")
 _CHANNEL_KEYS = ("source", "role", "gain", "offset", "unit", "limits")
 _VALIDATION_KEYS = ("file", "initial", "transient")
 _INITIALS = ("auto", "estimate", "zero", "measured")
@@ -112,6 +114,21 @@ _RIG_REFERENCES: tuple[RigReference, ...] = ("command", "readback")
 _SPLIT_KEYS = ("fraction", "index", "period", "skip_periods")
 _FREE_KEYS = ("loop", "identify", "report")
 _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+# The readers' advice in Python keywords → the experiment file's keys, for their messages.
+_READER_WORDS = {
+    "pass dt [s] or time=<column name>": "set [data] time = \"<column name>\" (the time "
+    "column), or [data] dt [s] when the file has none",
+    "pass dt [s] or time=<vector name>": "set [data] time = \"<vector name>\" (the time "
+    "vector), or [data] dt [s] when the file has none",
+    "the file has no time information, pass dt [s]": "the file has no time information, set "
+    "[data] dt [s]",
+    "pass group= one of:": "set [data] group to one of:",
+    "pass time= a channel of time stamps": "set [data] time to a channel of time stamps",
+    "pass variables= to choose": "map only vectors of one length in [channels]",
+    "pass max_bytes= a larger budget": "raise [data] max_bytes",
+    "pass max_bytes= to read": "raise [data] max_bytes to read",
+    "pass max_bytes= if it is real": "raise [data] max_bytes if it is real",
+}
 
 
 @dataclass(frozen=True)
@@ -262,6 +279,8 @@ class ExperimentSpec:
         TDMS group; name of the time column.
     dt : float or None
         Sample period [s] when the file has no timing.
+    max_bytes : int or None
+        The readers' memory budget [bytes] (None: their default, 2 GiB).
     preprocess : PreprocessSpec
         Preprocessing steps.
     split : SplitSpec
@@ -292,6 +311,7 @@ class ExperimentSpec:
     validation: ValidationSpec = ValidationSpec()
     rig: RigSpec = RigSpec()
     files: tuple[str, ...] = ()
+    max_bytes: int | None = None
     loop: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     identify: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     report: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
@@ -350,6 +370,8 @@ class ExperimentSpec:
             raise FileFormatError(f"{where}: group applies to TDMS files only, this is {fmt}")
         time = _optional(where, "time", data.get("time"), _string)
         dt = _optional(where, "dt", data.get("dt"), _positive)
+        max_bytes = _optional(where, "max_bytes", data.get("max_bytes"),
+                              lambda w, k, v: _integer(w, k, v, 1))
         channels = _channels(origin, table["channels"])
         validation = _validation(origin, table.get("validation", {}), fmt)
         split_table = table.get("split", {})
@@ -382,6 +404,7 @@ class ExperimentSpec:
             group=group,
             time=time,
             dt=dt,
+            max_bytes=max_bytes,
             preprocess=preprocess,
             split=_split(origin, table.get("split", {})),
             loop=_free(origin, "loop", table.get("loop", {})),
@@ -417,7 +440,7 @@ class ExperimentSpec:
         """The spec as a plain TOML-shaped dictionary (defaults omitted)."""
         data: dict[str, Any] = {"file": self.file if len(self.files) == 1 else list(self.files),
                                 "format": self.format}
-        for key in ("group", "time", "dt"):
+        for key in ("group", "time", "dt", "max_bytes"):
             if getattr(self, key) is not None:
                 data[key] = getattr(self, key)
         channels: dict[str, Any] = {}
@@ -479,7 +502,15 @@ class ExperimentSpec:
             A listed source channel is not in the file.
         """
         path = self.data_path if path is None else Path(path)
-        raw = read_experiment(path, self.format, **self._reader_options())
+        try:
+            raw = read_experiment(path, self.format, **self._reader_options())
+        except ServoidError as exc:  # the readers advise Python keywords: name the TOML keys
+            text = str(exc)
+            for old, new in _READER_WORDS.items():
+                text = text.replace(old, new)
+            if text == str(exc):
+                raise
+            raise _like(exc, text) from None
         channels = []
         for ch in self.channels:
             try:
@@ -502,12 +533,46 @@ class ExperimentSpec:
         exp = Experiment(tuple(channels), raw.dt, t0=raw.t0, name=name, notes=raw.notes)
         pre = self.preprocess
         if pre.lowpass is not None:
+            self._check_lowpass(exp, path)
             exp = lowpass(exp, pre.lowpass, zero_phase=True)
         if pre.decimate > 1:
+            if exp.n_samples <= pre.decimate:
+                raise FileFormatError(
+                    f"{self._origin}: [preprocess] decimate = {pre.decimate} needs at least "
+                    f"{pre.decimate + 1} samples, but {path} has {exp.n_samples}: lower "
+                    "decimate (the decimated record must still hold enough samples to fit and "
+                    "validate), or remove it"
+                )
             exp = self._decimated(exp, path)
         if detrend and pre.detrend != "none":
             exp = _detrend(exp, pre.detrend)
         return exp
+
+    @property
+    def _origin(self) -> str:
+        """The experiment file, as error messages name it."""
+        return os.fspath(self.source) if self.source is not None else "experiment spec"
+
+    def _check_lowpass(self, exp: Experiment, path: Path) -> None:
+        """Refuse a cutoff the record cannot carry, naming ``[preprocess] lowpass``."""
+        cutoff = self.preprocess.lowpass
+        assert cutoff is not None
+        nyquist = 0.5 / exp.dt
+        where = f"{self._origin}: [preprocess] lowpass = {cutoff:g} Hz"
+        if cutoff >= nyquist:
+            raise FileFormatError(
+                f"{where} must lie below the Nyquist frequency {nyquist:g} Hz of {path} "
+                f"(dt = {exp.dt:g} s; the filter runs before decimation): lower lowpass, or "
+                "remove it"
+            )
+        lowest = 1.0 / exp.duration
+        if cutoff < lowest:
+            raise FileFormatError(
+                f"{where} is below 1/(N·dt) = {lowest:.3g} Hz, the lowest frequency the "
+                f"{exp.duration:.3g} s record {path} resolves: the filter would return little "
+                "more than the mean; raise lowpass, or remove it and set [preprocess] detrend "
+                "= \"mean\" or \"linear\" to remove the mean or a trend"
+            )
 
     def _decimated(self, exp: Experiment, path: Path) -> Experiment:
         """Decimate; a logged command (``[rig] reference = "command"``) is subsampled."""
@@ -554,6 +619,7 @@ class ExperimentSpec:
         given = exp is not None
         exp = self.load(detrend=False) if exp is None else exp
         spl = self.split
+        self._check_split(exp, f"the record {exp.name!r}" if given else str(self.data_path))
         if spl.skip_periods and spl.period is not None:
             exp = exp.slice(spl.skip_periods * spl.period)
         at: float | int = spl.index if spl.index is not None else (spl.fraction or 0.5)
@@ -562,6 +628,71 @@ class ExperimentSpec:
             return estimation, validation
         estimation, (validation,) = self._detrended(estimation, (validation,))
         return estimation, validation
+
+    def _check_split(self, exp: Experiment, label: str) -> None:
+        """Refuse a ``[split]`` that leaves a part too short, naming its key and the fix.
+
+        Mirrors :func:`~servoid.data.split`: each part needs 2 samples, or
+        with ``period`` a whole period; ``index`` and ``period`` count samples
+        after decimation, ``index`` also after the skipped periods.
+        """
+        spl = self.split
+        n, q = exp.n_samples, self.preprocess.decimate
+        after = f" (after [preprocess] decimate = {q})" if q > 1 else ""
+        record = f"{label} has {n} samples{after}"
+        where = f"{self._origin}: [split]"
+        longer = ("record a longer test, or name a separate validation record with "
+                  "[validation] file" + (" (and remove [split])" if spl != SplitSpec() else ""))
+        period = spl.period
+        if period is not None:
+            whole = n // period
+            if whole < 2:
+                raise FileFormatError(
+                    f"{where} period = {period} samples: {record}, {whole} whole period(s); the "
+                    "split needs at least 2 (one to estimate, one to validate): check period "
+                    f"(it counts samples{' after decimation' if q > 1 else ''}), or {longer}"
+                )
+            if whole - spl.skip_periods < 2:
+                raise FileFormatError(
+                    f"{where} skip_periods = {spl.skip_periods} drops "
+                    f"{spl.skip_periods * period} samples ({spl.skip_periods} period(s) of "
+                    f"{period}), but {record}, {whole} whole period(s): at least 2 must be "
+                    f"left to split; lower skip_periods to at most {whole - 2}"
+                )
+            n -= spl.skip_periods * period
+            if spl.skip_periods:
+                record = f"{record}, {n} after skip_periods = {spl.skip_periods}"
+            low, high = period, n - period  # the split point keeps a whole period each side
+        else:
+            if n < 4:
+                raise FileFormatError(
+                    f"{self._origin}: {record}: too few to split into estimation and "
+                    f"validation parts of at least 2 samples each; {longer}"
+                )
+            low, high = 2, n - 2
+        if spl.index is not None:
+            index = spl.index
+            if period is not None:
+                index = index // period * period
+            if not low <= index <= high:
+                raise FileFormatError(
+                    f"{where} index = {spl.index} leaves a part with fewer than "
+                    f"{'a whole period' if period is not None else '2 samples'}: {record}; "
+                    f"choose index in {low}..{high} (it counts samples after decimation and "
+                    "skipped periods), or give fraction instead"
+                )
+            return
+        fraction = spl.fraction or 0.5
+        index = round(fraction * n)
+        if period is not None:
+            index = index // period * period
+        if not low <= index <= high:
+            key = "fraction" if spl.fraction is not None else "fraction (default 0.5)"
+            raise FileFormatError(
+                f"{where} {key} splits at sample {index} and leaves a part with fewer than "
+                f"{'a whole period' if period is not None else '2 samples'}: {record}; choose "
+                f"fraction between {low / n:.3g} and {high / n:.3g}"
+            )
 
     def records(self) -> tuple[Experiment | ExperimentSet, tuple[Experiment, ...]]:
         """Estimation data and validation records as the file describes.
@@ -617,6 +748,8 @@ class ExperimentSpec:
             options.update(group=self.group, time=self.time)
         else:
             options.update(time=self.time, variables=sorted({c.source for c in self.channels}))
+        if self.max_bytes is not None:
+            options["max_bytes"] = self.max_bytes
         return options
 
 
@@ -723,6 +856,14 @@ def _check_keys(
 
 def _kind(value: object) -> str:
     return f"{type(value).__name__} {value!r}"
+
+
+def _like(exc: ServoidError, message: str) -> ServoidError:
+    """``exc``'s kind of error with another message."""
+    try:
+        return type(exc)(message)
+    except TypeError:  # an error class with a richer constructor keeps its family
+        return ServoidError(message)
 
 
 def _optional(where: str, key: str, value: Any, check: Any) -> Any:

@@ -32,8 +32,10 @@ from .._atomic import atomic_path
 from .._checks import as_bool, as_path, as_str
 from .._errors import DataError, FileFormatError, OptionError
 from ._columns import (
+    DEFAULT_MAX_BYTES,
     RolesArg,
     build_experiment,
+    check_max_bytes,
     check_reader_options,
     existing_file,
     library_errors,
@@ -54,6 +56,7 @@ def read_tdms(
     roles: RolesArg = None,
     dt: float | None = None,
     time: str | None = None,
+    max_bytes: int = DEFAULT_MAX_BYTES,
 ) -> Experiment:
     """Read one group of a TDMS file into an Experiment.
 
@@ -72,6 +75,9 @@ def read_tdms(
         otherwise it must agree with it.
     time : str, optional
         A channel of time stamps [s] to use instead of waveform properties.
+    max_bytes : int
+        Memory budget of one channel as float64 [bytes]; default 2 GiB. A
+        channel declaring more values is refused before it is read.
 
     Returns
     -------
@@ -84,9 +90,12 @@ def read_tdms(
         Not a TDMS file, truncated, channels of unequal length or period.
     OptionError
         ``group`` missing or not given when the file has several groups.
+    DataError
+        A channel over the memory budget `max_bytes`.
     """
     path = existing_file(path)
     dt = check_reader_options(dt=dt, roles=roles, names={"group": group, "time": time})
+    max_bytes = check_max_bytes(max_bytes)
     with _truncation_watch() as warnings, library_errors(path, "TDMS"), \
             _BoundedReader(io.FileIO(path, "rb")) as file:
         from nptdms import TdmsFile
@@ -105,6 +114,12 @@ def read_tdms(
                 raise FileFormatError(
                     f"{path}: channel {ch.name!r} declares {len(ch)} values but the file has "
                     f"{file.size} bytes: a damaged TDMS file (its segment metadata is wrong)"
+                )
+            if 8 * len(ch) > max_bytes:
+                raise DataError(
+                    f"{path}: channel {ch.name!r} has {len(ch):,} values, "
+                    f"{8 * len(ch):,} bytes as float64, over the budget of {max_bytes:,} bytes; if "
+                    "the file is what you meant to read, pass max_bytes= a larger budget"
                 )
             columns[ch.name] = np.asarray(ch[:], dtype=float)
             props[ch.name] = dict(ch.properties)

@@ -19,6 +19,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from .._checks import as_instance, as_mapping, type_error
 from .._errors import ChannelError, DataError, ModelError, OptionError, check_option
 from ..actuators import PneumaticParameters
 from ..data import Experiment
@@ -119,7 +120,8 @@ class KnownConstants:
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer,
                                                                  np.floating)):
-                raise TypeError(f"KnownConstants.{f.name} must be a real number, got {value!r}")
+                raise type_error(f"KnownConstants.{f.name}", value,
+                                 f"a real number [{_KNOWN_UNITS[f.name]}]")
             value = float(value)
             if not math.isfinite(value):
                 raise DataError(f"KnownConstants.{f.name} must be finite, got {value}")
@@ -154,6 +156,7 @@ class KnownConstants:
         DataError
             A required constant is missing.
         """
+        table = as_mapping("table", table)
         names = [f.name for f in dataclasses.fields(cls)]
         required = [f.name for f in dataclasses.fields(cls)
                     if f.default is dataclasses.MISSING]
@@ -179,8 +182,8 @@ class KnownConstants:
         KnownConstants
             Its geometry, mass, supply and gravity.
         """
-        if not isinstance(params, PneumaticParameters):
-            raise TypeError(f"params must be PneumaticParameters, got {type(params).__name__}")
+        as_instance("params", params, PneumaticParameters,
+                    "a PneumaticParameters (e.g. servoid.actuators.PNEUMATIC_NOMINAL)")
         return cls(A_I=params.A_I, A_II=params.A_II, V_0I=params.V_0I, V_0II=params.V_0II,
                    m_k=params.m_k, p_S=params.p_S, p_R=params.p_R, p_amb=params.p_amb,
                    T_S=params.T_S, g=params.g, stroke=params.stroke, u_max=params.u_max,
@@ -338,10 +341,24 @@ class StepResult:
 # -- helpers shared by the steps --------------------------------------------------------------
 
 
+def check_record(record: object, step: str) -> Experiment:
+    """Check a record argument, naming the step that needs it."""
+    if not isinstance(record, Experiment):
+        raise type_error(f"{step}: the record", record,
+                         "an Experiment (servoid.Experiment.from_arrays or data.read_csv)")
+    return record
+
+
+def check_params(params: object) -> PneumaticParameters:
+    """Check a physical parameter set argument."""
+    return as_instance("params", params, PneumaticParameters,
+                       "a PneumaticParameters (e.g. servoid.actuators.PNEUMATIC_NOMINAL or "
+                       "MultistepResult.parameters)")
+
+
 def channel(record: Experiment, name: str, step: str) -> NDArray[np.float64]:
     """Return a channel, naming the step that needs it when absent."""
-    if not isinstance(record, Experiment):
-        raise TypeError(f"{step}: the record must be an Experiment, got {type(record).__name__}")
+    check_record(record, step)
     try:
         return np.asarray(record[name], dtype=float)
     except ChannelError:
@@ -404,9 +421,8 @@ def check_derivatives(derivatives: str) -> None:
 
 def check_known(known: object) -> KnownConstants:
     """Check the known-constants argument."""
-    if not isinstance(known, KnownConstants):
-        raise TypeError(f"known must be KnownConstants, got {type(known).__name__}")
-    return known
+    return as_instance("known", known, KnownConstants,
+                       "KnownConstants (e.g. KnownConstants.from_mapping({...}))")
 
 
 def physical_estimate(
@@ -470,10 +486,10 @@ def window_all(mask: NDArray[np.bool_], length: int) -> NDArray[np.bool_]:
 def check_positive(name: str, value: object, unit: str) -> float:
     """Check a positive finite number."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a real number, got {value!r}")
+        raise type_error(name, value, "a real number")
     v = float(value)
     if not (math.isfinite(v) and v > 0.0):
-        raise DataError(f"{name} must be > 0 {unit}, got {v:g}".rstrip())
+        raise DataError(f"{name} must be > 0{' ' + unit if unit else ''}, got {v:g}")
     return v
 
 
@@ -481,8 +497,8 @@ def _index(estimate: Estimate, name: str) -> int:
     try:
         return estimate.names.index(name)
     except ValueError:
-        raise KeyError(f"no parameter {name!r}; parameters are "
-                       f"{', '.join(estimate.names)}") from None
+        raise ChannelError(f"no parameter {name!r}; parameters are "
+                           f"{', '.join(estimate.names)}") from None
 
 
 def _is_small(value: object) -> bool:

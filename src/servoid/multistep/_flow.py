@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._checks import as_float, as_float_list, as_int
 from .._errors import DataError, IdentifiabilityError, ServoidWarning
 from ..actuators import psi_ellipse, psi_max
 from ..data import Experiment
@@ -181,10 +182,13 @@ def identify_critical_pressure(
         No edge has enough unsaturated samples, or the profile is flat.
     """
     known = check_known(known)
+    lo, hi = as_float_list("bounds", bounds, length=2)
+    if not 0.0 <= lo < hi <= 1.0:
+        raise DataError(f"bounds must be (low, high) with 0 <= low < high <= 1 (p_krit is a "
+                        f"pressure ratio), got ({lo:g}, {hi:g})")
+    step = check_positive("step", step, "")
     chambers, notes, mask = _chamber_data(record, known, mdot_limit, x_v_min, min_samples,
                                           "S0 (p_krit)")
-    lo, hi = (float(v) for v in bounds)
-    step = check_positive("step", step, "")
     grid = np.arange(lo, hi + 0.5 * step, step)
     grid = grid[grid <= hi + 1e-12]
     kappa, R = 1.4, 287.0  # placeholders: the profile over b does not depend on them
@@ -297,13 +301,14 @@ def identify_flow(
     known = check_known(known)
     kappa = check_positive("kappa", kappa, "")
     R = check_positive("R", R, "J/(kg·K)")
+    p_krit = as_float("p_krit", p_krit)
+    kappa_std = as_float("kappa_std", kappa_std, nonneg=True)
+    R_std = as_float("R_std", R_std, nonneg=True, unit="J/(kg·K)")
     if not 0.0 <= p_krit < 1.0:
         raise DataError(f"p_krit must lie in [0, 1), got {p_krit:g}")
     chambers, notes, mask = _chamber_data(record, known, mdot_limit, x_v_min, min_samples,
                                           "S3 (flow)")
-    p_krit_std = float(p_krit_std)
-    if not (math.isfinite(p_krit_std) and p_krit_std >= 0.0):
-        raise DataError(f"p_krit_std must be finite and >= 0, got {p_krit_std:g}")
+    p_krit_std = as_float("p_krit_std", p_krit_std, nonneg=True)
 
     def fit(b: float) -> list[Any]:
         return [lstsq(c.regressors(b, kappa, R), c.mdot, tuple(f"ad_{e}" for e in c.edges))
@@ -377,6 +382,8 @@ def _chamber_data(
     record: Experiment, known: KnownConstants, mdot_limit: float, x_v_min: float,
     min_samples: int, step: str,
 ) -> tuple[list[_ChamberData], list[str], NDArray[np.bool_]]:
+    x_v_min = as_float("x_v_min", x_v_min, nonneg=True)
+    min_samples = as_int("min_samples", min_samples, minimum=1)
     x_v = channel(record, "x_v", step)
     p_1, p_2 = pressures(record, step)
     flows = {"I": channel(record, "mdot_I", step), "II": channel(record, "mdot_II", step)}

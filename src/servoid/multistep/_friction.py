@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._checks import as_array, as_bool, as_float, as_float_list, as_int, type_error
 from .._errors import DataError, IdentifiabilityError
 from ..data import Experiment
 from ..estimate import Estimate, lstsq
@@ -61,6 +62,7 @@ from ._common import (
     check_derivatives,
     check_known,
     check_positive,
+    check_record,
     hac_covariance,
     ls_estimate,
     newey_west_lags,
@@ -172,13 +174,24 @@ def identify_critical_velocity(
         Too few samples on one side of every candidate threshold.
     """
     known = check_known(known)
+    lo, hi = as_float_list("bounds", bounds, length=2)
+    if not 0.0 <= lo < hi:
+        raise DataError(f"bounds must be (low, high) with 0 <= low < high [m/s], got "
+                        f"({lo:g}, {hi:g})")
+    min_samples = as_int("min_samples", min_samples, minimum=1)
+    n_boot = as_int("n_boot", n_boot, minimum=2)
+    block = check_positive("block", block, "s")
+    if not (rng is None or isinstance(rng, (np.random.Generator, int, np.integer))) or (
+            isinstance(rng, bool)):
+        raise type_error("rng", rng, "a numpy.random.Generator, an integer seed or None")
+    if isinstance(rng, (int, np.integer)) and rng < 0:
+        raise DataError(f"rng as a seed must be >= 0, got {rng}")
     sig = _signals(record, known, derivatives, omega_f, guard, "S0 (ẋ_krit)")
     # with filtered derivatives a window touching a stuck sample smears the static force
     # into the map: keep whole windows of motion only
     use = sig.whole_window(np.abs(sig.v) > sig.floor)
     speed = np.abs(sig.v[use])
     force = -sig.y[use] * np.sign(sig.v[use])  # friction along the motion
-    lo, hi = (float(b) for b in bounds)
     best = _best_split(speed, force, lo, hi, min_samples)
     if best is None:
         s = np.sort(speed)
@@ -191,17 +204,9 @@ def identify_critical_velocity(
     value, gap, rss_best, s, f = best
     # the RSS is a step function of the threshold (no curvature for a variance): moving-block
     # bootstrap over the map's samples in time order, blocks longer than the noise's colour
-    if not (rng is None or isinstance(rng, (np.random.Generator, int, np.integer))) or (
-            isinstance(rng, bool)):
-        raise TypeError(f"rng must be a numpy Generator, an int seed or None, got {rng!r}")
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(
         0 if rng is None else int(rng))
-    if isinstance(n_boot, bool) or not isinstance(n_boot, (int, np.integer)):
-        raise TypeError(f"n_boot must be an int, got {n_boot!r}")
-    n_boot = int(n_boot)
-    if n_boot < 2:
-        raise DataError(f"n_boot must be >= 2, got {n_boot}")
-    width = max(1, min(speed.size, round(check_positive("block", block, "s") / record.dt)))
+    width = max(1, min(speed.size, round(block / record.dt)))
     boot = []
     for _ in range(n_boot):
         starts = gen.integers(0, speed.size - width + 1, math.ceil(speed.size / width))
@@ -361,8 +366,11 @@ def identify_low_speed_friction(
     known = check_known(known)
     v_krit = check_positive("v_krit", v_krit, "m/s")
     v_krit_std = _check_std("v_krit_std", v_krit_std)
-    dc_cov = np.zeros((2, 2)) if sliding_covariance is None else np.asarray(
-        sliding_covariance, dtype=float)
+    d_k = as_float("d_k", d_k, unit="N")
+    c_k = as_float("c_k", c_k, unit="N·s/m")
+    blend = as_bool("blend", blend)
+    dc_cov = np.zeros((2, 2)) if sliding_covariance is None else as_array(
+        "sliding_covariance", sliding_covariance, finite=False)
     if dc_cov.shape != (2, 2) or not np.all(np.isfinite(dc_cov)):
         raise DataError(f"sliding_covariance must be a finite 2×2 covariance of (d_k, c_k), "
                         f"got shape {dc_cov.shape}")
@@ -433,9 +441,9 @@ def _signals(
     guard: float, step: str,
 ) -> _Signals:
     check_derivatives(derivatives)
-    if isinstance(guard, bool) or not isinstance(guard, (int, float)) or not (
-            math.isfinite(guard) and guard >= 0.0):
-        raise DataError(f"guard must be a time >= 0 s, got {guard!r}")
+    check_record(record, step)
+    known = check_known(known)
+    guard = as_float("guard", guard, nonneg=True, unit="s")
     n_guard = math.ceil(guard / record.dt - 1e-9)
     p_1, p_2 = pressures(record, step)
     f_ext = np.asarray(record["f_ext"], dtype=float) if "f_ext" in record.names else 0.0
@@ -526,7 +534,7 @@ def _split_rss(s: NDArray[np.float64], f: NDArray[np.float64]) -> NDArray[np.flo
 
 def _check_std(name: str, value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a real number, got {value!r}")
+        raise type_error(name, value, "a real number")
     v = float(value)
     if not (math.isfinite(v) and v >= 0.0):
         raise DataError(f"{name} must be finite and >= 0, got {v:g}")

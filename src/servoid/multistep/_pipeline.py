@@ -31,12 +31,27 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DataError, IdentifiabilityError, ServoidWarning, check_option
+from .._checks import as_bool, as_float, as_instance, as_int, as_str_list, type_error
+from .._errors import (
+    ChannelError,
+    DataError,
+    IdentifiabilityError,
+    ServoidWarning,
+    check_option,
+)
 from ..actuators import PneumaticParameters, PositionController
 from ..data import Experiment
 from ..estimate._covariance import GREYBOX_COVARIANCES, GreyboxCovariance
 from ..estimate._svf import Hold
-from ._common import MDOT_LIMIT, Derivatives, KnownConstants, StepResult, check_derivatives
+from ._common import (
+    MDOT_LIMIT,
+    Derivatives,
+    KnownConstants,
+    StepResult,
+    check_derivatives,
+    check_known,
+    check_positive,
+)
 from ._flow import identify_critical_pressure, identify_flow
 from ._friction import (
     identify_critical_velocity,
@@ -115,7 +130,8 @@ class MultistepResult:
                 return step.std(name)
         if name in self.given:
             return 0.0
-        raise KeyError(f"no identified parameter {name!r}; they are {', '.join(REFINABLE)}")
+        raise ChannelError(f"no identified parameter {name!r}; they are "
+                           f"{', '.join(REFINABLE)}")
 
     def table(self) -> list[dict[str, Any]]:
         """Per parameter: value, std, 95 % CI, unit, the step and the std's kind.
@@ -259,19 +275,31 @@ def identify_multistep(
     """
     check_derivatives(derivatives)
     check_option("refine_covariance", refine_covariance, GREYBOX_COVARIANCES)
-    if not isinstance(known, KnownConstants):
-        raise TypeError(f"known must be KnownConstants, got {type(known).__name__}")
+    known = check_known(known)
     if not isinstance(records, Mapping):
-        raise TypeError(f"records must be a mapping of test name to Experiment, got "
-                        f"{type(records).__name__}")
+        raise type_error("records", records, "a mapping {test name: Experiment} with the "
+                         f"records {', '.join(RECORDS)}")
     missing = [r for r in RECORDS if r not in records]
     if missing:
         raise DataError(f"the multi-step scheme needs the records {', '.join(RECORDS)}; "
                         f"missing: {', '.join(missing)}")
     for key, rec in records.items():
         if not isinstance(rec, Experiment):
-            raise TypeError(f"records[{key!r}] must be an Experiment, got {type(rec).__name__}")
+            raise type_error(f"records[{key!r}]", rec, "an Experiment")
+    if controller is not None:
+        as_instance("controller", controller, PositionController,
+                    "a PositionController(K_p, K_d) or None")
+    if p_krit is not None:
+        p_krit = as_float("p_krit", p_krit)
+        if not 0.0 <= p_krit < 1.0:  # checked here, not after the first steps in S3
+            raise DataError(f"p_krit must lie in [0, 1) (a pressure ratio), got {p_krit:g}")
+    if v_krit is not None:
+        v_krit = check_positive("v_krit", v_krit, "m/s")
+    blend = as_bool("blend", blend)
+    if refine_max_nfev is not None:
+        refine_max_nfev = as_int("refine_max_nfev", refine_max_nfev, minimum=1)
     if refine is not False and refine is not True:
+        refine = as_str_list("refine", refine, min_length=1)
         check_option("refine_record", refine_record, tuple(k for k in records
                                                            if k != "validation"))
     steps: dict[str, StepResult] = {}

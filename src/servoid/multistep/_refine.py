@@ -38,13 +38,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._checks import as_float, as_float_list, as_instance, as_int, as_mapping, as_str, as_str_list
 from .._errors import DataError, ModelError, OptionError
 from ..actuators import PneumaticParameters, PositionController, simulate_pneumatic
 from ..data import Experiment
 from ..estimate import Estimate, GreyboxParameter, fit_greybox, lstsq
 from ..estimate._covariance import GreyboxCovariance
 from ..validate import fit_percent
-from ._common import MDOT_LIMIT, channel
+from ._common import MDOT_LIMIT, channel, check_params, check_positive, check_record
 
 __all__ = [
     "REFINABLE",
@@ -168,6 +169,8 @@ def estimate_controller(record: Experiment, u_max: float = 10.0) -> PositionCont
     PositionController
         The gains (negative estimates are clipped to 0).
     """
+    check_record(record, "controller reconstruction")
+    u_max = check_positive("u_max", u_max, "V")
     u = channel(record, "u", "controller reconstruction")
     e = channel(record, "x_ref", "controller reconstruction") - channel(
         record, "x_k", "controller reconstruction")
@@ -200,6 +203,9 @@ def simulate_record(
     PneumaticResponse
         The simulated response.
     """
+    params = check_params(params)
+    check_record(record, "S6")
+    controller = _check_controller(controller)
     x0 = _initial_state(params, record)
     f_ext = record["f_ext"] if "f_ext" in record.names else None
     if "x_ref" in record.names:
@@ -240,6 +246,11 @@ def compare_record(
     RecordComparison
         Predicted vs measured channels and fit per channel.
     """
+    params = check_params(params)
+    check_record(record, "S6")
+    controller = _check_controller(controller)
+    mdot_limit = check_positive("mdot_limit", mdot_limit, "kg/s")
+    name = as_str("name", name, empty=True)
     notes = []
     closed = "x_ref" in record.names
     if closed and controller is None:
@@ -340,16 +351,28 @@ def refine_parameters(
         The simulation diverges at the start or at the optimum, or the
         solver fails.
     """
-    if not isinstance(params, PneumaticParameters):
-        raise TypeError(f"params must be PneumaticParameters, got {type(params).__name__}")
+    params = check_params(params)
+    check_record(record, "refinement")
+    controller = _check_controller(controller)
+    name = as_str("name", name, empty=True)
+    outputs = as_str_list("outputs", outputs, min_length=1)
+    if max_nfev is not None:
+        max_nfev = as_int("max_nfev", max_nfev, minimum=1)
+    if diff_step is not None:
+        diff_step = as_float("diff_step", diff_step, positive=True)
+    if noise_std is not None:
+        noise_std = {o: as_float(f"noise_std[{o!r}]", v, positive=True)
+                     for o, v in as_mapping("noise_std", noise_std).items()}
     # ẋ_krit is a switching threshold: the simulated output moves with it only when a sample
     # crosses it, so its finite-difference derivative is zero or a jump — not refinable by NLS
-    free_t = tuple(n for n in REFINABLE if n != "v_krit") if free is None else tuple(free)
+    free_t = (tuple(n for n in REFINABLE if n != "v_krit") if free is None
+              else tuple(as_str_list("free", free)))
     unknown = sorted(set(free_t) - set(REFINABLE))
     if unknown or not free_t:
         raise OptionError(f"free must name parameters among {', '.join(REFINABLE)}; "
                           f"got unknown {', '.join(unknown) or '(none given)'}")
-    bounds = dict(bounds or {})
+    bounds = {k: tuple(as_float_list(f"bounds[{k!r}]", v, length=2))
+              for k, v in as_mapping("bounds", {} if bounds is None else bounds).items()}
     bad = sorted(set(bounds) - set(free_t))
     if bad:
         raise OptionError(f"bounds given for parameters that are not free: {', '.join(bad)}")
@@ -412,3 +435,10 @@ def _noise_level(y: NDArray[np.float64]) -> float:
     sigma = float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / math.sqrt(6.0))
     floor = 1e-4 * float(np.std(y)) or 1e-12
     return max(sigma, floor)
+
+
+def _check_controller(controller: object) -> PositionController | None:
+    if controller is None:
+        return None
+    return as_instance("controller", controller, PositionController,
+                       "a PositionController(K_p, K_d) or None")

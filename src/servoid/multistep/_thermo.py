@@ -31,6 +31,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from .._checks import as_float
 from .._errors import DataError
 from ..data import Experiment
 from ..estimate import fit_rls, lstsq, state_variable_filter
@@ -143,6 +144,9 @@ def identify_thermodynamics(
     known = check_known(known)
     check_derivatives(derivatives)
     omega_f = check_positive("omega_f", omega_f, "rad/s")
+    velocity_omega_f = check_positive("velocity_omega_f", velocity_omega_f, "rad/s")
+    if settle is not None:
+        settle = as_float("settle", settle, nonneg=True, unit="s")
     step = "S2 (thermodynamics)"
     x_k = channel(record, "x_k", step)
     p_1, p_2 = pressures(record, step)

@@ -28,6 +28,13 @@ from ._simulate import (
 
 __all__ = ["ValidationReport", "compare", "simulate_from_data", "validate"]
 
+#: Lags of the residual correlations unless asked: at most a quarter of the residuals
+#: (autocorrelations beyond N/4 lags rest on too few products; Box & Jenkins).
+_DEFAULT_MAX_LAG = 25
+#: Fewest residuals the default tests run on: N/4 >= 5 lags, and the 99 % band
+#: 2.58/sqrt(N) below 0.6; fewer leave a whiteness verdict with nothing to rest on.
+_MIN_RESIDUALS = 20
+
 
 @dataclass(frozen=True, eq=False)
 class ValidationReport:
@@ -140,7 +147,7 @@ def validate(
     input: Literal["u", "r"] = "u",
     output: str | None = None,
     horizon: int = 5,
-    max_lag: int = 25,
+    max_lag: int | None = None,
     confidence: float = 0.99,
     initial: Initial = "auto",
     transient: int = 0,
@@ -164,8 +171,10 @@ def validate(
         several outputs is validated on the matching row.
     horizon : int
         k of the k-step-ahead prediction fit.
-    max_lag : int
-        Largest lag of the residual correlations [samples].
+    max_lag : int, optional
+        Largest lag of the residual correlations [samples].  Default 25,
+        capped at a quarter of the residuals; a record that leaves fewer
+        than 20 residuals is refused unless `max_lag` is given.
     confidence : float
         Level of the correlation bands and verdicts.
     initial : {"auto", "estimate", "zero", "measured"}
@@ -191,7 +200,8 @@ def validate(
     check_experiment(experiment, "experiment")
     check_option("input", input, ("u", "r"))
     # residual_analysis checks these too, but only after the simulation: refuse them first.
-    max_lag = as_int("max_lag", max_lag, minimum=1)
+    if max_lag is not None:
+        max_lag = as_int("max_lag", max_lag, minimum=1)
     confidence = as_float("confidence", confidence)
     if not 0.0 < confidence < 1.0:
         raise DataError(f"confidence must lie in (0, 1), e.g. 0.99, got {confidence}")
@@ -214,6 +224,8 @@ def validate(
         )
     y_sim, first, initial_used = simulate_model(model, y, u, initial=initial,
                                                 transient=transient)
+    if max_lag is None:
+        max_lag = _default_max_lag(y.size, first, experiment.name)
     if has_noise_model(model):
         y_pred = np.asarray(model.predict(y, u, horizon=horizon), dtype=float)
         eps = np.asarray(model.residuals(y, u), dtype=float)
@@ -318,6 +330,23 @@ def simulate_from_data(
             y_sim[m:] = sps.lfilter([1.0], a, v[m:], zi=zi)[0]
         return y_sim, m
     return np.asarray(model.simulate(u if u.shape[1] > 1 else u[:, 0]), dtype=float), 0
+
+
+def _default_max_lag(n: int, first: int, name: str) -> int:
+    """25 lags, or a quarter of the residuals; refuse too few residuals for any test."""
+    residuals = n - first
+    if residuals < _MIN_RESIDUALS:
+        label = f" {name!r}" if name else ""
+        skipped = (f" after the first {first} sample(s), which set the initial conditions or "
+                   "are excluded as a transient" if first else "")
+        raise DataError(
+            f"the {n}-sample validation record{label} leaves {residuals} residual(s){skipped}: "
+            f"too few for the residual tests, which need at least {_MIN_RESIDUALS}; validate "
+            "on a longer record, or pass a small max_lag to test these few (from an experiment "
+            "file: record a longer test, give the validation part more samples with [split] "
+            "fraction or index, or name a [validation] file)"
+        )
+    return min(_DEFAULT_MAX_LAG, residuals // 4)
 
 
 def _one_output(model: Any, experiment: Experiment, output: str) -> Any:

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from .._checks import as_float, as_float_list, type_error
+from .._checks import as_float, as_float_list, as_mapping, type_error
 from .._errors import DataError, OptionError, ServoidWarning
 from .._lazy import signal as sps
 from ..actuators import SET_B, SET_C
@@ -180,6 +180,7 @@ def loop_from_table(table: Mapping[str, Any]) -> FeedbackLoop:
     ``c`` is the forward gain; ``F`` the feedback, a number or a table
     ``{num = [...], den = [...]}`` (continuous, or discrete with ``dt``).
     """
+    table = as_mapping("table", table)  # the [loop] of an experiment file
     unknown = sorted(set(table) - {"c", "F"})
     if unknown:
         raise OptionError(f"unknown key(s) in [loop]: {', '.join(unknown)}; valid keys are c, F")

@@ -217,11 +217,12 @@ def controller_from_table(
     CascadeController
         The known loop.
     """
+    table = as_mapping("table", table)  # the [loop] of an experiment file
+    notes = {} if notes is None else as_mapping("notes", notes)
     unknown = sorted(set(table) - set(_LOOP_KEYS))
     if unknown:
         raise OptionError(f"unknown key(s) in [loop]: {', '.join(unknown)}; valid keys for "
                           f"method = \"inverse-dynamics\" are {', '.join(_LOOP_KEYS)}")
-    notes = notes or {}
     values: dict[str, float] = {"saturation": 10.0}
     for key in _LOOP_KEYS:
         value = table.get(key, notes.get(key, values.get(key)))

@@ -23,6 +23,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Protocol
 
+from .._checks import as_mapping, as_str, as_str_list, type_error
 from .._errors import OptionError
 
 if TYPE_CHECKING:
@@ -57,6 +58,12 @@ class Option:
     default: Any
     check: Check
     help: str
+
+    def __post_init__(self) -> None:
+        as_str("name", self.name)
+        if not callable(self.check):
+            raise type_error("check", self.check, "a callable check(value, where, name)")
+        as_str("help", self.help, empty=True)
 
 
 class Identification(Protocol):
@@ -112,9 +119,18 @@ class Method:
     _index: Mapping[str, Option] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        as_str("name", self.name)
+        as_str("summary", self.summary, empty=True)
+        if isinstance(self.options, (str, bytes)) or not isinstance(self.options, Sequence) \
+                or not all(isinstance(o, Option) for o in self.options):
+            raise type_error("options", self.options, "a tuple of Option")
+        if not callable(self.run):
+            raise type_error("run", self.run, "a callable run(spec, options, truth)")
+        object.__setattr__(self, "options", tuple(self.options))
+        object.__setattr__(self, "tables", tuple(as_str_list("tables", self.tables)))
         index = {o.name: o for o in self.options}
         if len(index) != len(self.options) or "method" in index:
-            raise ValueError(f"method {self.name!r}: option names must be unique, not 'method'")
+            raise OptionError(f"method {self.name!r}: option names must be unique, not 'method'")
         object.__setattr__(self, "_index", MappingProxyType(index))
 
     @property
@@ -130,6 +146,7 @@ class Method:
         OptionError
             An unknown key (the message lists the valid ones).
         """
+        table = as_mapping("table", table, where="[identify]")
         unknown = sorted(set(table) - set(self.keys))
         if unknown:
             raise OptionError(

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import __version__
-from .._checks import read_json
+from .._checks import as_bool, as_mapping, as_path, read_json, type_error
 from .._errors import (
     FileFormatError,
     OptionError,
@@ -111,6 +111,13 @@ def identify(
         The method's result (e.g. :class:`IdentificationResult` for the
         black-box methods), with ``folder`` and ``files`` when written.
     """
+    overwrite = as_bool("overwrite", overwrite)
+    write = as_bool("write", write)
+    allow_outside = as_bool("allow_outside", allow_outside)
+    if out is not None:
+        out = as_path("out", out)
+    if truth is not None:
+        truth = as_mapping("truth", truth)
     if not isinstance(spec, ExperimentSpec):
         spec = load_experiment_spec(spec)
     method = get_method(spec.identify.get("method", "arx"))
@@ -152,7 +159,13 @@ def write_results(result: Identification, folder: str | os.PathLike[str], *,
     Identification
         The same result with ``folder`` and ``files`` set.
     """
-    folder = Path(folder)
+    if not (dataclasses.is_dataclass(result) and not isinstance(result, type)
+            and all(callable(getattr(result, a, None))
+                    for a in ("figures", "inputs", "to_dict", "page"))):
+        raise type_error("result", result, "an identification result (what "
+                         "servoid.workflows.identify(..., write=False) returns)")
+    folder = as_path("folder", folder)
+    overwrite = as_bool("overwrite", overwrite)
     figures = result.figures()
     targets = {name: folder / name for name in ("results.json", "report.html", *figures)}
     manifest = folder / MANIFEST
