@@ -323,10 +323,19 @@ def _truncation_watch() -> Iterator[list[str]]:
             if any(hint in message for hint in _TRUNCATION_HINTS):
                 seen.append(message)
 
-    logger = logging.getLogger("nptdms")
+    # npTDMS gives each module logger its own stderr handler: while reading, ours replaces
+    # them, so a damaged file becomes one FileFormatError and no stray lines on stderr
     handler = _Catch(logging.WARNING)
-    logger.addHandler(handler)
+    names = ["nptdms", *(n for n in list(logging.Logger.manager.loggerDict)
+                         if n.startswith("nptdms."))]
+    loggers = [logging.getLogger(n) for n in names]
+    saved = [(lg, lg.handlers[:], lg.propagate) for lg in loggers]
+    for lg in loggers:
+        lg.handlers = [handler]
+        lg.propagate = False
     try:
         yield seen
     finally:
-        logger.removeHandler(handler)
+        for lg, handlers, propagate in saved:
+            lg.handlers = handlers
+            lg.propagate = propagate
