@@ -340,6 +340,34 @@ class Experiment:
             f"channels: {self._describe()}>"
         )
 
+    def _repr_html_(self) -> str:
+        from .._display import html_block, number
+
+        rows = [(ch.name, _ROLE_WORDS[ch.role], ch.unit, number(float(ch.values.min()), 4),
+                 number(float(ch.values.max()), 4), number(float(ch.values.mean()), 4))
+                for ch in self.channels]
+        return html_block(f"Experiment {self.name}".rstrip(),
+                          [("samples", str(self.n_samples)), ("dt", f"{self.dt:g} s"),
+                           ("duration", f"{self.n_samples * self.dt:g} s")],
+                          ("channel", "role", "unit", "min", "max", "mean"), rows)
+
+    def plot(self) -> Any:
+        """Every channel against time, one axes per channel, as a matplotlib Figure."""
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(8.0, 1.6 + 1.5 * len(self.channels)))
+        axes = fig.subplots(len(self.channels), 1, sharex=True, squeeze=False)[:, 0]
+        t = self.t0 + self.dt * np.arange(self.n_samples)
+        for ax, ch in zip(axes, self.channels, strict=True):
+            ax.plot(t, ch.values, lw=0.8)
+            label = ch.name.replace("$", r"\$") + (f" [{ch.unit}]".replace("$", r"\$")
+                                                   if ch.unit else "")
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3)
+        axes[-1].set_xlabel("time [s]")
+        fig.tight_layout()
+        return fig
+
     # -- channel operations -------------------------------------------------------------------
 
     def replace_channels(self, channels: Iterable[Channel], **changes: Any) -> Experiment:

@@ -179,6 +179,20 @@ class Estimate:
             "options": dict(self.options),
         }
 
+    def __repr__(self) -> str:
+        return (f"<Estimate {self.method}: {len(self.names)} parameters, {self.n_samples} "
+                f"samples, σ̂² = {self.noise_variance:.4g}>")
+
+    def _repr_html_(self) -> str:
+        from .._display import html_block, number
+
+        rows = [(r.name, number(r.value), number(r.std, 3),
+                 f"[{number(r.ci_low)}, {number(r.ci_high)}]", r.unit) for r in self.table()]
+        return html_block(f"{self.method} estimate",
+                          [("samples", str(self.n_samples)),
+                           ("σ̂²", number(self.noise_variance, 4)), ("status", self.status)],
+                          ("parameter", "estimate", "std", "95 % CI", "unit"), rows)
+
     def __str__(self) -> str:
         lines = [f"{self.method} estimate, {self.n_samples} samples, σ̂² = {self.noise_variance:.4g}"]
         width = max(len(n) for n in self.names)

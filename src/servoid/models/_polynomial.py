@@ -178,6 +178,32 @@ class PolynomialModel:
         return cls(a, bs, nks, dt, noise_variance=noise_variance)
 
     # -- orders and structure ---------------------------------------------
+    def __repr__(self) -> str:
+        return (f"<PolynomialModel {self.structure}: na={self.na}, nb={list(self.nb)}, "
+                f"nk={list(self.nk)}, nc={self.nc}, nd={self.nd}, nf={list(self.nf)}, "
+                f"dt={self.dt:g} s>")
+
+    def _repr_html_(self) -> str:
+        from .._display import model_html
+
+        def coeffs(x: NDArray[np.float64]) -> str:
+            return ", ".join(f"{v:.6g}" for v in x)
+
+        rows = [("A", coeffs(self.a))]
+        for k, b in enumerate(self.b):
+            rows.append((f"B{k if self.n_inputs > 1 else ''} (nk = {self.nk[k]})", coeffs(b)))
+        if self.nc:
+            rows.append(("C", coeffs(self.c)))
+        if self.nd:
+            rows.append(("D", coeffs(self.d)))
+        for k, f in enumerate(self.f or ()):
+            if f.size > 1:
+                rows.append((f"F{k if self.n_inputs > 1 else ''}", coeffs(f)))
+        return model_html(f"PolynomialModel ({self.structure})", self.dt,
+                          np.roots(self.a) if self.na else np.array([]),
+                          ("polynomial", "coefficients in q⁻¹"), rows,
+                          [("noise variance", f"{self.noise_variance:.4g}")])
+
     @property
     def n_inputs(self) -> int:
         """Number of inputs."""

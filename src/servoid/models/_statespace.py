@@ -106,6 +106,19 @@ class StateSpace:
         """True for one input and one output."""
         return self.n_inputs == 1 and self.n_outputs == 1
 
+    def __repr__(self) -> str:
+        where = "continuous" if self.dt is None else f"dt={self.dt:g} s"
+        return (f"<StateSpace {where}: {self.A.shape[0]} states, {self.B.shape[1]} inputs, "
+                f"{self.C.shape[0]} outputs>")
+
+    def _repr_html_(self) -> str:
+        from .._display import model_html
+
+        return model_html("StateSpace", self.dt, self.poles(),
+                          extra=[("states", str(self.A.shape[0])),
+                                 ("inputs", str(self.B.shape[1])),
+                                 ("outputs", str(self.C.shape[0]))])
+
     # -- analysis -------------------------------------------------------
     def poles(self) -> NDArray[np.complex128]:
         """Return the poles (eigenvalues of A)."""

@@ -149,6 +149,24 @@ class TransferFunction:
         """Degree of the denominator."""
         return self.den.size - 1
 
+    def __repr__(self) -> str:
+        where = "continuous" if self.dt is None else f"dt={self.dt:g} s"
+        delay = f", delay={self.delay:g} s" if getattr(self, "delay", 0.0) else ""
+        return (f"<TransferFunction {where}{delay}: num={np.round(self.num, 6).tolist()}, "
+                f"den={np.round(self.den, 6).tolist()}>")
+
+    def _repr_html_(self) -> str:
+        from .._display import model_html
+
+        n = max(self.num.size, self.den.size)
+        num = np.concatenate([np.zeros(n - self.num.size), self.num])
+        den = np.concatenate([np.zeros(n - self.den.size), self.den])
+        var = "s" if self.dt is None else "z"
+        rows = [(f"{var}^{n - 1 - k}", f"{num[k]:.6g}", f"{den[k]:.6g}") for k in range(n)]
+        extra = [("delay", f"{self.delay:g} s")] if getattr(self, "delay", 0.0) else []
+        return model_html("TransferFunction", self.dt, self.poles(), ("power", "num", "den"),
+                          rows, extra)
+
     # -- analysis -------------------------------------------------------
     def poles(self) -> NDArray[np.complex128]:
         """Return the poles (roots of den)."""

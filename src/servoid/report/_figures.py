@@ -24,6 +24,11 @@ def new_figure(figsize: tuple[float, float]) -> Figure:
 def plot_validation(
     report: ValidationReport, path: str | os.PathLike[str], unit: str = "", overwrite: bool = False
 ) -> None:
+    """Save :func:`validation_figure` of ``report`` to ``path``."""
+    save_figure(validation_figure(report, unit), path, overwrite)
+
+
+def validation_figure(report: ValidationReport, unit: str = "") -> Figure:
     """Save measured vs simulated output, its error and a zoom.
 
     The samples before ``report.first`` (measured initial conditions or an
@@ -60,7 +65,7 @@ def plot_validation(
     ax_err.grid(alpha=0.3)
     _zoom(ax_zoom, report, label_unit)
     fig.tight_layout()
-    save_figure(fig, path, overwrite)
+    return fig
 
 
 def _zoom(ax: Axes, report: ValidationReport, label_unit: str) -> None:

@@ -128,6 +128,33 @@ class ValidationReport:
             "notes": list(self.notes()),
         }
 
+    def __repr__(self) -> str:
+        return (f"<ValidationReport {self.output!r}: fit {self.fit_percent:.2f} %, residuals "
+                f"{'white' if self.residuals.is_white else 'not white'}>")
+
+    def _repr_html_(self) -> str:
+        from .._display import html_block
+
+        r = self.residuals
+        rows = [("simulation fit", f"{self.fit_percent:.2f} %"),
+                (f"{self.horizon}-step prediction fit", f"{self.prediction_fit_percent:.2f} %"),
+                ("NRMSE", f"{self.nrmse:.4g}"), ("VAF", f"{self.vaf:.2f} %"),
+                ("residual whiteness", f"{'white' if r.is_white else 'NOT white'} "
+                                       f"(p = {r.whiteness_pvalue:.3g})"),
+                ("input–residual independence",
+                 f"{'independent' if r.is_independent else 'CORRELATED'} "
+                 f"(p = {r.independence_pvalue:.3g})")]
+        return html_block(f"validation of {self.output}"
+                          + (f" on {self.experiment}" if self.experiment else ""),
+                          [("samples", str(self.measured.size - self.first))],
+                          ("metric", "value"), rows, note=" ".join(self.notes()))
+
+    def plot(self) -> Any:
+        """The validation figure (measured, simulated, predicted, error, zoom) as a Figure."""
+        from ..report._figures import validation_figure
+
+        return validation_figure(self)
+
     def __str__(self) -> str:
         r = self.residuals
         return (

@@ -55,6 +55,7 @@ from ._common import (
 )
 from ._options import boolean, choice, choices, integer, number, optional
 from ._registry import FigureWriter, Method, Option
+from ._summary import Displayed
 
 __all__ = ["METHOD", "ClosedLoopIdentification", "loop_from_table"]
 
@@ -63,8 +64,8 @@ _F_KEYS = ("num", "den", "dt")
 _LABEL = {"indirect": "two-step", "one-step": "one-step", "direct": "direct"}
 
 
-@dataclass(frozen=True, eq=False)
-class ClosedLoopIdentification:
+@dataclass(frozen=True, eq=False, repr=False)
+class ClosedLoopIdentification(Displayed):
     """Every closed-loop approach asked for, validated."""
 
     spec: ExperimentSpec

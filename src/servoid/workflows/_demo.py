@@ -25,12 +25,13 @@ from ..bench import BenchRun, EhsaBench, run, write_bench_files
 from ..signals import prbs
 from ._closedloop import ClosedLoopIdentification
 from ._run import identify
+from ._summary import Displayed
 
 __all__ = ["DemoResult", "run_demo"]
 
 
-@dataclass(frozen=True, eq=False)
-class DemoResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class DemoResult(Displayed):
     """The demo's bench run and identification."""
 
     bench_run: BenchRun

@@ -22,12 +22,13 @@ from ._common import sha256, spec_inputs
 from ._lti import IdentificationResult, lti_result
 from ._options import choice, integer, number, optional, text
 from ._registry import FigureWriter, Method, Option
+from ._summary import Displayed
 
 __all__ = ["FRF", "FrfIdentification", "spec_numbers"]
 
 
-@dataclass(frozen=True, eq=False)
-class FrfIdentification:
+@dataclass(frozen=True, eq=False, repr=False)
+class FrfIdentification(Displayed):
     """A measured frequency response and the spec numbers read from it.
 
     Attributes

@@ -49,14 +49,15 @@ from ..validate import relative_error, simulate_from_data
 from ._common import parameter_table, report_options, sha256
 from ._options import boolean, choice, choices, integer, number, optional, text
 from ._registry import FigureWriter, Method, Option
+from ._summary import Displayed
 
 __all__ = ["METHOD", "InverseDynamicsIdentification", "controller_from_table"]
 
 _LOOP_KEYS = ("kp", "kv", "gtau", "saturation")
 
 
-@dataclass(frozen=True, eq=False)
-class InverseDynamicsIdentification:
+@dataclass(frozen=True, eq=False, repr=False)
+class InverseDynamicsIdentification(Displayed):
     """IDIM-LS, closed-loop checks and refinement of a rigid axis.
 
     Attributes

@@ -45,6 +45,7 @@ from ._common import (
     validation_section,
 )
 from ._registry import FigureWriter
+from ._summary import Displayed
 
 __all__ = ["IdentificationResult", "OrderRow", "gain_unit", "lti_result", "model_dict",
            "fit_or_search", "n_inputs", "on_edge", "order_grid",
@@ -63,8 +64,8 @@ class OrderRow:
     status: str = "ok"
 
 
-@dataclass(frozen=True, eq=False)
-class IdentificationResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class IdentificationResult(Displayed):
     """A linear model identified from an experiment file, validated.
 
     Attributes

@@ -53,6 +53,7 @@ from ..report._text import plain
 from ._common import read_truth, report_options, sha256
 from ._options import boolean, choice, number, optional, text
 from ._registry import FigureWriter, Method, Option
+from ._summary import Displayed
 
 __all__ = ["METHOD", "PneumaticIdentification"]
 
@@ -63,8 +64,8 @@ _LABELS = {"p_I": ("p_I", "bar", 1e-5), "p_II": ("p_II", "bar", 1e-5),
            "x_k": ("x_k", "mm", 1e3)}
 
 
-@dataclass(frozen=True, eq=False)
-class PneumaticIdentification:
+@dataclass(frozen=True, eq=False, repr=False)
+class PneumaticIdentification(Displayed):
     """A campaign's multi-step result, with the truth if known.
 
     Attributes

@@ -177,3 +177,22 @@ def verdict_section(results: Mapping[str, Any]) -> Section:
         lines.append("Flags: " + "; ".join(s.flags) + ".")
     lines.append(f"Warnings: {s.notes} (see the notes)." if s.notes else "Warnings: none.")
     return Section("Verdict", paragraphs=tuple(lines), box=True)
+
+
+class Displayed:
+    """Short ``repr`` and a notebook view for a workflow result (its verdict and its text)."""
+
+    def __repr__(self) -> str:
+        first = str(self).splitlines()[0] if str(self) else ""
+        return f"<{type(self).__name__}: {first}>"
+
+    def _repr_html_(self) -> str:
+        import html
+
+        try:
+            section = verdict_section(self.to_dict())  # type: ignore[attr-defined]
+            verdict = "".join(f"<div>{html.escape(p)}</div>" for p in section.paragraphs)
+        except Exception:  # noqa: BLE001 - a result without a summary still shows its text
+            verdict = ""
+        return (f'<div style="border:1px solid #aaa;padding:.3em .6em;margin:.3em 0">{verdict}'
+                f"</div><pre>{html.escape(str(self))}</pre>")
