@@ -29,6 +29,7 @@ import csv
 import io
 import os
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,7 @@ from numpy.typing import NDArray
 
 from .._atomic import atomic_path
 from .._checks import as_bool, as_path, as_str
-from .._errors import DataError, FileFormatError
+from .._errors import DataError, FileFormatError, ServoidWarning
 from ._columns import (
     DEFAULT_MAX_BYTES,
     RolesArg,
@@ -58,6 +59,7 @@ _NUMBER_SHAPE = re.compile(
 #: Lines above the last one that its format is compared with (at least, at most):
 #: fewer than 5 say too little about a format to call a value short.
 _FORMAT_MIN, _FORMAT_WINDOW = 5, 1000
+_DECIMAL_COMMA = re.compile(r"[-+]?\d+,\d+")
 _TIME_UNITS = {"": 1.0, "s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
 
 
@@ -68,6 +70,8 @@ def read_csv(
     time: str | None = "time",
     roles: RolesArg = None,
     delimiter: str = ",",
+    decimal: str = ".",
+    time_unit: str | None = None,
     max_bytes: int = DEFAULT_MAX_BYTES,
 ) -> Experiment:
     """Read a CSV file with a header row into an Experiment.
@@ -87,7 +91,16 @@ def read_csv(
         Role to column names, e.g. ``{"r": ["yr"], "y": ["y"]}``. Columns not
         mapped become side channels.
     delimiter : str
-        Field separator.
+        Field separator. A file whose header splits only on ``;`` or a tab
+        is refused with the fix.
+    decimal : {".", ","}
+        Decimal mark; ``","`` (European spreadsheets) needs another
+        delimiter.
+    time_unit : {"s", "ms", "us"}, optional
+        Unit of the time column when its header gives none (a header
+        ``time [ms]`` says it itself). Time stamps that step by 0.1 s or
+        more over hundreds of samples draw a warning that they may be in
+        another unit.
     max_bytes : int
         Memory budget [bytes]: a larger file is refused before it is read
         (its text is held while parsing); default 2 GiB.
@@ -111,6 +124,14 @@ def read_csv(
     as_str("delimiter", delimiter)
     if len(delimiter) != 1:
         raise DataError(f"delimiter must be one character (',' or ';' or '\\t'), got {delimiter!r}")
+    if decimal not in (".", ","):
+        raise DataError(f"decimal must be '.' or ',', got {decimal!r}")
+    if decimal == "," and delimiter == ",":
+        raise DataError("a decimal comma needs another field separator: pass delimiter=';' "
+                        "(or a tab) with decimal=','")
+    if time_unit is not None and time_unit not in _TIME_UNITS:
+        raise DataError(f"time_unit must be one of {', '.join(repr(u) for u in _TIME_UNITS if u)}"
+                        f", got {time_unit!r}")
     check_file_size(path, check_max_bytes(max_bytes))
     try:
         text = path.read_text(encoding="utf-8-sig")
@@ -125,19 +146,24 @@ def read_csv(
     )
     if header_at is None:
         raise FileFormatError(f"{path}: empty CSV file, expected a header row of channel names")
+    _check_separator(path, lines, header_at, delimiter, decimal)
+    if decimal == ",":
+        lines = lines[: header_at + 1] + [line.replace(",", ".") for line in lines[header_at + 1:]]
     names, units = _parse_header(path, lines[header_at], header_at + 1, delimiter)
     unterminated = not text.endswith(("\n", "\r"))
     data = _parse_rows(path, lines, header_at + 1, names, delimiter, unterminated)
     columns = {n: data[:, k] for k, n in enumerate(names)}
     stamps = None
     if time is not None and time in columns:
-        scale = _TIME_UNITS.get(units.get(time, ""))
+        unit = units.get(time, "") or (time_unit or "")
+        scale = _TIME_UNITS.get(unit)
         if scale is None:
             raise FileFormatError(
                 f"{path}: time column {time!r} has unit {units[time]!r}; expected one of "
                 f"{', '.join(repr(u) for u in _TIME_UNITS)}"
             )
         stamps = columns.pop(time) * scale
+        _check_time_unit(path, stamps, time, bool(units.get(time)) or time_unit is not None)
     elif dt is None:
         hint = f"it has no column {time!r}; " if time is not None else ""
         raise DataError(
@@ -145,6 +171,35 @@ def read_csv(
             f"(columns: {', '.join(names)})"
         )
     return build_experiment(path, columns, units, roles=roles, dt=dt, time=stamps)
+
+
+def _check_separator(path: Path, lines: list[str], header_at: int, delimiter: str,
+                     decimal: str) -> None:
+    """Refuse a file whose separator or decimal mark is not the one asked for, naming the fix."""
+    header = lines[header_at]
+    if delimiter not in header:
+        for other, word in ((";", "';'"), ("\t", "'\\t' (a tab)"), (",", "','")):
+            if other != delimiter and other in header:
+                raise FileFormatError(
+                    f"{path}: the header has no {delimiter!r} but is separated by {word}: pass "
+                    f"delimiter={word.split()[0]}")
+    row = next((line for line in lines[header_at + 1:] if line.strip()), "")
+    comma = _DECIMAL_COMMA.search(row)
+    if decimal == "." and delimiter != "," and comma:
+        raise FileFormatError(f"{path}: numbers like {comma.group()} use a decimal comma: pass "
+                              "decimal=','")
+
+
+def _check_time_unit(path: Path, stamps: NDArray[np.float64], name: str, stated: bool) -> None:
+    """Warn when time stamps without a stated unit step like milliseconds read as seconds."""
+    if stated or stamps.size < 200:
+        return
+    step = float(np.median(np.diff(stamps[:1000])))
+    if step >= 0.1:
+        warnings.warn(
+            f"{path}: time column {name!r} has no unit and steps by {step:g} s, a slow rate for "
+            f"a servo test ({1 / step:g} Hz); if it is in milliseconds, say so: time_unit='ms' "
+            f"([data] time_unit = \"ms\" in an experiment file) or a header '{name} [ms]'", ServoidWarning, stacklevel=4)
 
 
 def write_csv(

@@ -16,6 +16,9 @@ Schema::
     dt = 0.0002               # [s], > 0: when there is no time column or waveform timing
     max_bytes = 4294967296    # [bytes] the readers' memory budget, default 2 GiB: a larger
                               # CSV file, TDMS channel or MAT variable is refused
+    delimiter = ";"           # CSV only: field separator, default ","
+    decimal = ","             # CSV only: decimal mark, default "." (needs delimiter != ",")
+    time_unit = "ms"          # CSV only: unit of an unlabelled time column: s | ms | us
 
     [channels.y_r]            # required, at least one: the servoid channel name
     source = "AI0"            # channel in the file; default the servoid name
@@ -102,7 +105,9 @@ DetrendSpec = Literal["none", "mean", "linear"]
 _DETRENDS: tuple[DetrendSpec, ...] = ("none", "mean", "linear")
 _TOP_KEYS = ("data", "channels", "preprocess", "split", "validation", "rig", "loop",
              "identify", "report")
-_DATA_KEYS = ("file", "format", "group", "time", "dt", "max_bytes")
+_DATA_KEYS = ("file", "format", "group", "time", "dt", "max_bytes", "delimiter", "decimal",
+              "time_unit")
+_CSV_KEYS = ("delimiter", "decimal", "time_unit")
 _CHANNEL_KEYS = ("source", "role", "gain", "offset", "unit", "limits")
 _VALIDATION_KEYS = ("file", "initial", "transient")
 _INITIALS = ("auto", "estimate", "zero", "measured")
@@ -128,6 +133,8 @@ _READER_WORDS = {
     "pass max_bytes= a larger budget": "raise [data] max_bytes",
     "pass max_bytes= to read": "raise [data] max_bytes to read",
     "pass max_bytes= if it is real": "raise [data] max_bytes if it is real",
+    "pass delimiter=": "set [data] delimiter = ",
+    "pass decimal=": "set [data] decimal = ",
 }
 
 
@@ -281,6 +288,9 @@ class ExperimentSpec:
         Sample period [s] when the file has no timing.
     max_bytes : int or None
         The readers' memory budget [bytes] (None: their default, 2 GiB).
+    csv : mapping
+        CSV reading options given in ``[data]``: ``delimiter``, ``decimal``,
+        ``time_unit``.
     preprocess : PreprocessSpec
         Preprocessing steps.
     split : SplitSpec
@@ -312,6 +322,7 @@ class ExperimentSpec:
     rig: RigSpec = RigSpec()
     files: tuple[str, ...] = ()
     max_bytes: int | None = None
+    csv: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
     loop: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     identify: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     report: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
@@ -372,6 +383,10 @@ class ExperimentSpec:
         dt = _optional(where, "dt", data.get("dt"), _positive)
         max_bytes = _optional(where, "max_bytes", data.get("max_bytes"),
                               lambda w, k, v: _integer(w, k, v, 1))
+        csv_options = {k: _string(where, k, data[k]) for k in _CSV_KEYS if k in data}
+        if csv_options and fmt != "csv":
+            raise FileFormatError(f"{where}: {', '.join(csv_options)} apply to CSV files only, "
+                                  f"this is {fmt}")
         channels = _channels(origin, table["channels"])
         validation = _validation(origin, table.get("validation", {}), fmt)
         split_table = table.get("split", {})
@@ -405,6 +420,7 @@ class ExperimentSpec:
             time=time,
             dt=dt,
             max_bytes=max_bytes,
+            csv=MappingProxyType(csv_options),
             preprocess=preprocess,
             split=_split(origin, table.get("split", {})),
             loop=_free(origin, "loop", table.get("loop", {})),
@@ -443,6 +459,7 @@ class ExperimentSpec:
         for key in ("group", "time", "dt", "max_bytes"):
             if getattr(self, key) is not None:
                 data[key] = getattr(self, key)
+        data.update(self.csv)
         channels: dict[str, Any] = {}
         for ch in self.channels:
             entry: dict[str, Any] = {"source": ch.source, "role": ch.role}
@@ -744,6 +761,7 @@ class ExperimentSpec:
         options: dict[str, Any] = {"dt": self.dt}
         if self.format == "csv":
             options["time"] = self.time if self.time is not None else "time"
+            options.update(self.csv)
         elif self.format == "tdms":
             options.update(group=self.group, time=self.time)
         else:

@@ -1,0 +1,62 @@
+"""CSV files as rigs write them: semicolons, decimal commas, time in milliseconds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from servoid import FileFormatError, ServoidWarning
+from servoid.data import load_experiment_spec, read_csv
+
+N = 400
+
+
+def _write(path, sep=",", comma=False, header="time"):
+    t = np.arange(N) * 1.0  # 1 ms steps written as plain numbers
+    rows = [f"{a}{sep}{np.sin(a / 9)}{sep}{np.cos(a / 7)}" for a in t]
+    if comma:
+        rows = [r.replace(".", ",") for r in rows]
+    path.write_text(f"{header}{sep}u{sep}y\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    return path
+
+
+def test_semicolon_file_names_the_delimiter(tmp_path):
+    path = _write(tmp_path / "a.csv", sep=";")
+    with pytest.raises(FileFormatError, match="separated by ';': pass delimiter=';'"):
+        read_csv(path)
+    with pytest.warns(ServoidWarning):
+        assert read_csv(path, delimiter=";").n_samples == N
+
+
+def test_decimal_comma_is_detected_and_read(tmp_path):
+    path = _write(tmp_path / "a.csv", sep=";", comma=True)
+    with pytest.raises(FileFormatError, match="decimal comma: pass decimal=','"):
+        read_csv(path, delimiter=";")
+    exp = read_csv(path, delimiter=";", decimal=",", time_unit="ms")
+    np.testing.assert_allclose(exp.channel("u").values, np.sin(np.arange(N) / 9), rtol=1e-12)
+    with pytest.raises(Exception, match="decimal comma needs another field separator"):
+        read_csv(path, decimal=",")
+
+
+def test_millisecond_time_column_warns_and_time_unit_fixes_it(tmp_path):
+    path = _write(tmp_path / "a.csv")
+    with pytest.warns(ServoidWarning, match="time_unit='ms'"):
+        assert read_csv(path).dt == 1.0
+    assert read_csv(path, time_unit="ms").dt == pytest.approx(1e-3)
+    labelled = _write(tmp_path / "b.csv", header="time [ms]")
+    assert read_csv(labelled).dt == pytest.approx(1e-3)  # the header says it; no warning
+
+
+def test_experiment_file_keys(tmp_path):
+    _write(tmp_path / "a.csv", sep=";", comma=True)
+    toml = tmp_path / "e.toml"
+    base = '[data]\nfile = "a.csv"\n{extra}\n[channels.u]\nrole = "u"\n[channels.y]\nrole = "y"\n'
+    toml.write_text(base.format(extra='delimiter = ";"\ndecimal = ","\ntime_unit = "ms"'),
+                    encoding="utf-8")
+    spec = load_experiment_spec(toml)
+    exp = spec.load()
+    assert exp.dt == pytest.approx(1e-3) and exp.n_samples == N
+    assert spec.to_dict()["data"]["decimal"] == ","
+    toml.write_text(base.format(extra=""), encoding="utf-8")
+    with pytest.raises(FileFormatError, match=r"set \[data\] delimiter = ';'"):
+        load_experiment_spec(toml).load()
