@@ -60,3 +60,11 @@ def test_experiment_file_keys(tmp_path):
     toml.write_text(base.format(extra=""), encoding="utf-8")
     with pytest.raises(FileFormatError, match=r"set \[data\] delimiter = ';'"):
         load_experiment_spec(toml).load()
+
+
+def test_csv_keys_are_refused_for_other_formats(tmp_path):
+    toml = tmp_path / "e.toml"
+    toml.write_text('[data]\nfile = "a.tdms"\ndelimiter = ";"\n[channels.y]\nrole = "y"\n',
+                    encoding="utf-8")
+    with pytest.raises(FileFormatError, match="delimiter apply to CSV files only"):
+        load_experiment_spec(toml)
