@@ -144,9 +144,13 @@ def _dask(spec: FleetSpec, todo: Sequence[int], scheduler: str | None,
                               "local cluster") from None
     else:
         n = workers or os.cpu_count() or 1
-        cluster = LocalCluster(n_workers=min(n, len(todo)), threads_per_worker=1,
-                               processes=True, dashboard_address=None,
-                               silence_logs=logging.ERROR, env=_WORKER_ENV)
+        try:
+            cluster = LocalCluster(n_workers=min(n, len(todo)), threads_per_worker=1,
+                                   processes=True, dashboard_address=None,
+                                   silence_logs=logging.ERROR, env=_WORKER_ENV)
+        except (RuntimeError, OSError) as exc:
+            raise OptionError(f"could not start a local Dask cluster ({exc}); run the records "
+                              "in this process with --workers 1 (workers=1)") from None
         client = Client(cluster)
     try:
         futures = {client.submit(identify_record, str(spec.records[i].path), spec.identify,
