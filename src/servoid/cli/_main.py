@@ -147,11 +147,13 @@ def _parser() -> argparse.ArgumentParser:
 
     from ._bench import add_bench
     from ._excite import add_excite
+    from ._export import add_export
     from ._fleet import add_fleet
 
     add_excite(commands, _json_flag)
     add_bench(commands, _json_flag)
     add_fleet(commands, _json_flag)
+    add_export(commands, _json_flag)
     return parser
 
 

@@ -4,13 +4,15 @@ Continuous models have ``dt=None``; discrete ones have ``dt`` [s] and
 remember how they were discretised (``method``, ``prewarp``).  :func:`c2d`
 and :func:`d2c` convert both ways (ZOH, FOH, Tustin); :func:`to_scipy`,
 :func:`from_scipy`, :func:`to_control` and :func:`from_control` talk to
-scipy.signal and python-control.  :class:`FrequencyResponseData` is a
+scipy.signal and python-control; :func:`save_model` and :func:`load_model`
+keep a model in a JSON file, :func:`export_mat` hands it to MATLAB.  :class:`FrequencyResponseData` is a
 measured (nonparametric) frequency response; :func:`bandwidth`,
 :func:`phase_lag` and :func:`resonance_peak` give the spec numbers of it
 or of any model.
 """
 
 from ._discretize import c2d, d2c
+from ._file import export_mat, load_model, save_model
 from ._frd import FrequencyResponseData, NonlinearDistortion
 from ._interop import from_control, from_scipy, to_control, to_scipy
 from ._polynomial import PolynomialModel
@@ -30,10 +32,13 @@ __all__ = [
     "bandwidth",
     "c2d",
     "d2c",
+    "export_mat",
     "from_control",
     "from_scipy",
+    "load_model",
     "phase_lag",
     "resonance_peak",
+    "save_model",
     "to_control",
     "to_scipy",
 ]

@@ -1,7 +1,10 @@
 """Conversion to and from scipy.signal and python-control objects.
 
 python-control is optional (``pip install servoid[control]``) and is
-imported only when one of its converters is called.
+imported only when one of its converters is called.  A
+:class:`PolynomialModel` travels as its transfer function from the input
+(``model.transfer_function(0)``); its noise model stays behind, since
+neither target has a place for it.
 """
 
 from __future__ import annotations
@@ -12,32 +15,39 @@ import numpy as np
 
 from .._errors import ModelError, OptionTypeError
 from .._lazy import signal
+from ._polynomial import PolynomialModel
 from ._statespace import StateSpace
 from ._transfer import TransferFunction
 
 __all__ = ["from_control", "from_scipy", "to_control", "to_scipy"]
 
+Model = TransferFunction | StateSpace | PolynomialModel
 
-def to_scipy(model: TransferFunction | StateSpace) -> signal.TransferFunction | signal.StateSpace:
+
+def to_scipy(model: Model) -> signal.TransferFunction | signal.StateSpace:
     """Return the equivalent scipy.signal system.
 
     Parameters
     ----------
-    model : TransferFunction or StateSpace
-        The model; the discretisation method is not carried over, and a
-        transfer function with a delay is refused (scipy has none).
+    model : TransferFunction, StateSpace or PolynomialModel
+        The model; the discretisation method is not carried over.  A
+        single-input PolynomialModel becomes its transfer function from
+        the input, ``model.transfer_function(input=0)``: its noise model
+        C/(A·D) is dropped.
 
     Returns
     -------
     scipy.signal.TransferFunction or scipy.signal.StateSpace
         Continuous (lti) for ``dt=None``, else discrete (dlti) with the same dt.
+
+    Raises
+    ------
+    ModelError
+        For a transfer function with a delay (scipy has none; discretise
+        it with ``c2d`` first) or a PolynomialModel with several inputs
+        (convert ``model.transfer_function(input=i)`` instead).
     """
-    if not isinstance(model, (TransferFunction, StateSpace)):
-        raise OptionTypeError(
-            f"model must be a TransferFunction or StateSpace, got {type(model).__name__}; "
-            "for a PolynomialModel convert model.transfer_function(i) first"
-        )
-    _refuse_delay(model, "scipy.signal")
+    model = _plain(model, "scipy.signal", "to_scipy")
     kw = {} if model.dt is None else {"dt": model.dt}
     if isinstance(model, TransferFunction):
         return signal.TransferFunction(np.array(model.num), np.array(model.den), **kw)
@@ -77,13 +87,15 @@ def from_scipy(obj: signal.lti | signal.dlti) -> TransferFunction | StateSpace:
     return TransferFunction(num, tf.den, dt)
 
 
-def to_control(model: TransferFunction | StateSpace) -> Any:
+def to_control(model: Model) -> Any:
     """Return the equivalent python-control system.
 
     Parameters
     ----------
-    model : TransferFunction or StateSpace
-        The model.
+    model : TransferFunction, StateSpace or PolynomialModel
+        The model.  A single-input PolynomialModel becomes its transfer
+        function from the input, ``model.transfer_function(input=0)``:
+        its noise model C/(A·D) is dropped.
 
     Returns
     -------
@@ -94,13 +106,11 @@ def to_control(model: TransferFunction | StateSpace) -> Any:
     ------
     ModelError
         For a transfer function with a delay (python-control's transfer
-        functions have none; use ``control.pade`` for an approximation).
+        functions have none; discretise it with ``c2d`` first, or use
+        ``control.pade`` for an approximation), or a PolynomialModel with
+        several inputs (convert ``model.transfer_function(input=i)``).
     """
-    if not isinstance(model, (TransferFunction, StateSpace)):
-        raise OptionTypeError(
-            f"model must be a TransferFunction or StateSpace, got {type(model).__name__}"
-        )
-    _refuse_delay(model, "python-control")
+    model = _plain(model, "python-control", "to_control")
     control = _import_control()
     dt = 0 if model.dt is None else model.dt
     if isinstance(model, TransferFunction):
@@ -141,6 +151,26 @@ def from_control(obj: Any) -> TransferFunction | StateSpace:
     raise OptionTypeError(
         f"obj must be a control.TransferFunction or control.StateSpace, got {type(obj).__name__}"
     )
+
+
+def _plain(model: object, target: str, caller: str) -> TransferFunction | StateSpace:
+    """The TransferFunction or StateSpace ``target`` receives, or a servoid error."""
+    if isinstance(model, PolynomialModel):
+        if model.n_inputs != 1:
+            raise ModelError(
+                f"{target} receives one transfer function and this PolynomialModel has "
+                f"{model.n_inputs} inputs; convert one at a time: "
+                f"{caller}(model.transfer_function(input=i)) for i in 0..{model.n_inputs - 1}"
+            )
+        return model.transfer_function(input=0)
+    if not isinstance(model, (TransferFunction, StateSpace)):
+        raise OptionTypeError(
+            f"model must be a TransferFunction, StateSpace or PolynomialModel, got "
+            f"{type(model).__name__}; build one of them first (a PolynomialModel converts "
+            "through model.transfer_function(input=i))"
+        )
+    _refuse_delay(model, target)
+    return model
 
 
 def _refuse_delay(model: TransferFunction | StateSpace, target: str) -> None:

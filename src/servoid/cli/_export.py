@@ -1,0 +1,178 @@
+"""``servoid export``: the model(s) of a ``results.json`` as ``.mat``, model JSON or Python."""
+
+from __future__ import annotations
+
+import argparse
+import re
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_export"]
+
+_SUFFIX = {"mat": ".mat", "json": ".json", "python": ".py"}
+_FIX = "write it again with servoid identify"
+
+
+def add_export(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> None:
+    """Add ``servoid export``."""
+    export = commands.add_parser(
+        "export", help="write the identified model(s) for MATLAB, python-control or servoid",
+        description="Read the results.json of 'servoid identify' and write its model(s): "
+        "--to mat (one MATLAB struct per model: num/den/Ts, A/B/C/D/Ts or idpoly's "
+        "A/B/C/D/F/nk/Ts, plus InputDelay and type), --to json (a servoid model file, read "
+        "back with servoid.models.load_model) or --to python (a script that rebuilds the "
+        "model with python-control). A black-box method writes one model, G; the closed-loop "
+        "method writes each approach's continuous plant and closed loop.",
+    )
+    export.add_argument("results", type=Path, help="results.json written by servoid identify")
+    export.add_argument("--to", required=True, choices=sorted(_SUFFIX),
+                        help="output format")
+    export.add_argument("--model", metavar="NAME",
+                        help="export only this model (the command lists the names)")
+    export.add_argument("--out", type=Path, help="file to write (default: model.mat, "
+                        "model.json or model.py beside RESULTS; model_NAME.* with --model)")
+    export.add_argument("--overwrite", action="store_true", help="replace an existing file")
+    json_flag(export)
+    export.set_defaults(run=_run_export)
+
+
+def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from .._atomic import atomic_path
+    from .._checks import read_json
+    from .._errors import DataError, OptionError
+    from ..models._file import model_record, record_text, write_mat
+
+    data = read_json(args.results, "results file")
+    models = _models(data, args.results)
+    if args.model is not None:
+        if args.model not in models:
+            raise OptionError(f"--model must be one of {', '.join(models)} (the models of "
+                              f"{args.results}); got {args.model!r}")
+        models = {args.model: models[args.model]}
+    if args.to == "json" and len(models) > 1:
+        raise OptionError(f"{args.results} holds {len(models)} models ({', '.join(models)}) and "
+                          "a model file holds one: pick one with --model NAME, or write them "
+                          "all with --to mat or --to python")
+    suffix = _SUFFIX[args.to]
+    out = args.out
+    if out is None:
+        stem = "model" if args.model is None else f"model_{args.model}"
+        out = args.results.parent / f"{stem}{suffix}"
+    elif out.suffix.lower() != suffix:
+        raise DataError(f"--out {out} does not end in {suffix}, which --to {args.to} writes: "
+                        f"name the file {out.with_suffix(suffix).name}, or pick the --to "
+                        "that matches it")
+    if args.to == "mat":
+        write_mat(models, out, overwrite=args.overwrite)
+    else:
+        if args.to == "json":
+            record = {**model_record(next(iter(models.values()))), "covariance": None,
+                      "units": None}
+            text = record_text(record)
+        else:
+            text = _python(models, args.results)
+        with atomic_path(out, args.overwrite) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+    names = ", ".join(f"{n} ({type(m).__name__})" for n, m in models.items())
+    return ({"results": str(args.results), "to": args.to, "file": str(out),
+             "models": {n: type(m).__name__ for n, m in models.items()}},
+            f"wrote {out}: {names}")
+
+
+# -- private ------------------------------------------------------------------------------
+
+
+def _models(data: object, path: Path) -> dict[str, Any]:
+    """Name → servoid model of every model a results file holds."""
+    from .._errors import FileFormatError, ModelError
+
+    if not isinstance(data, Mapping) or "servoid_version" not in data:
+        raise FileFormatError(f"{path} is not a results.json of servoid identify (no "
+                              f"\"servoid_version\"); give the results.json of a run")
+    models: dict[str, Any] = {}
+    if isinstance(data.get("model"), Mapping):
+        estimate = data.get("estimate")
+        variance = estimate.get("noise_variance") if isinstance(estimate, Mapping) else None
+        model = _from_model_dict(data["model"], path, variance)
+        if model is not None:
+            models["G"] = model
+    approaches = data.get("approaches")
+    if isinstance(approaches, Mapping):
+        for approach, result in approaches.items():
+            label = re.sub(r"\W", "_", str(approach))
+            for key, suffix in (("plant_continuous", "plant"), ("closed_loop", "closed_loop")):
+                tf = result.get(key) if isinstance(result, Mapping) else None
+                if tf is not None:
+                    models[f"{label}_{suffix}"] = _build(
+                        path, f"approaches.{approach}.{key}", "TransferFunction",
+                        num=tf.get("num"), den=tf.get("den"), dt=tf.get("dt"))
+    if not models:
+        method = data.get("method") or data.get("model", {}).get("type") or "this method"
+        raise ModelError(
+            f"{path} holds no model to export (written by {method}, whose result is not a "
+            "transfer function, state space or polynomial model); export works on the "
+            "results of the black-box methods (arx, oe, armax, bj, tf, n4sid, two-stage, "
+            "cliv, indirect) and of closedloop"
+        )
+    return models
+
+
+def _from_model_dict(model: Mapping[str, Any], path: Path, variance: object) -> Any:
+    kind = model.get("type")
+    if kind == "transfer_function":
+        return _build(path, "model", "TransferFunction", num=model.get("num"),
+                      den=model.get("den"), dt=model.get("dt"), delay=model.get("delay", 0.0))
+    if kind == "state_space":
+        return _build(path, "model", "StateSpace", **{k: model.get(k) for k in "ABCD"},
+                      dt=model.get("dt"))
+    if kind == "polynomial":
+        return _build(path, "model", "PolynomialModel", a=model.get("a"),
+                      b=tuple(model.get("b") or ()), nk=tuple(model.get("nk") or ()),
+                      dt=model.get("dt"), c=model.get("c"), d=model.get("d"),
+                      f=tuple(model.get("f") or ()),
+                      noise_variance=variance if isinstance(variance, float) else 0.0)
+    return None
+
+
+def _build(path: Path, where: str, kind: str, **fields: Any) -> Any:
+    from .. import models
+    from .._errors import FileFormatError, ServoidError
+
+    try:
+        return getattr(models, kind)(**fields)
+    except (ServoidError, TypeError, ValueError) as exc:
+        raise FileFormatError(f"{path}: {where} is not a valid {kind} ({exc}); the file is "
+                              f"damaged: {_FIX}") from None
+
+
+def _python(models: Mapping[str, Any], results: Path) -> str:
+    from .._errors import ModelError
+    from ..models import PolynomialModel, StateSpace, TransferFunction
+
+    lines = [f'"""Models exported by servoid from {results.name}; needs python-control."""',
+             "", "import control", ""]
+    for name, model in models.items():
+        if isinstance(model, PolynomialModel):
+            if model.n_inputs != 1:
+                raise ModelError(f"{name} is a PolynomialModel with {model.n_inputs} inputs and "
+                                 "control.tf holds one; export it --to mat or --to json")
+            lines.append(f"# {name}: transfer function from the input; the noise model "
+                         "C/(A·D) is not exported")
+            model = model.transfer_function(input=0)
+        dt = 0 if model.dt is None else model.dt
+        if isinstance(model, TransferFunction):
+            if model.delay:
+                raise ModelError(
+                    f"{name} has a delay of {model.delay!r} s and python-control transfer "
+                    "functions have none; export it --to mat or --to json (both keep "
+                    "InputDelay), or discretise it with servoid.models.c2d first")
+            lines.append(f"{name} = control.tf({_list(model.num)}, {_list(model.den)}, {dt!r})")
+        elif isinstance(model, StateSpace):
+            mats = ", ".join(_list(getattr(model, k)) for k in "ABCD")
+            lines.append(f"{name} = control.ss({mats}, {dt!r})")
+    return "\n".join(lines) + "\n"
+
+
+def _list(values: Any) -> str:
+    return repr(values.tolist())  # Python floats: repr reads back exactly

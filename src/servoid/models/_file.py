@@ -1,0 +1,336 @@
+"""Model files: servoid's own JSON format and a MATLAB ``.mat`` export.
+
+A model file is one JSON object::
+
+    {"servoid_model": 1, "type": "TransferFunction", "dt": null,
+     "method": null, "prewarp": null, "num": [...], "den": [...],
+     "delay": 0.0, "covariance": null, "units": null}
+
+``"type"`` is ``"TransferFunction"`` (``num``, ``den``, ``delay``),
+``"StateSpace"`` (``A``, ``B``, ``C``, ``D`` as lists of rows) or
+``"PolynomialModel"`` (``a``, ``b``, ``nk``, ``c``, ``d``, ``f``,
+``noise_variance``, ``input_names``, ``output_name``).  Floats are written
+with ``repr``, so a model read back equals the one saved bit for bit.
+``"servoid_model"`` is the format version: a reader refuses a version it
+does not know rather than guess.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .._atomic import atomic_path
+from .._checks import as_array, as_path, read_json
+from .._errors import (
+    DataError,
+    FileFormatError,
+    MissingFileError,
+    OptionError,
+    OptionTypeError,
+    ServoidError,
+)
+from ._polynomial import PolynomialModel
+from ._statespace import StateSpace
+from ._transfer import TransferFunction
+
+__all__ = [
+    "FORMAT_VERSION",
+    "export_mat",
+    "load_model",
+    "model_from_record",
+    "model_record",
+    "record_text",
+    "save_model",
+    "write_mat",
+]
+
+FORMAT_VERSION = 1
+_TYPES = ("TransferFunction", "StateSpace", "PolynomialModel")
+_MATLAB_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,62}")
+Model = TransferFunction | StateSpace | PolynomialModel
+
+
+def save_model(
+    model: Model,
+    path: str | Path,
+    *,
+    overwrite: bool = False,
+    covariance: ArrayLike | None = None,
+    units: Mapping[str, str] | None = None,
+) -> Path:
+    """Write a model to a servoid model file (JSON).
+
+    The file is written atomically: a failure leaves no partial file and
+    an existing file untouched.
+
+    Parameters
+    ----------
+    model : TransferFunction, StateSpace or PolynomialModel
+        The model; its discretisation method, prewarp and delay are kept.
+    path : str or pathlib.Path
+        The file to write (``.json`` by convention); its folder must exist.
+    overwrite : bool
+        Replace an existing file; otherwise an existing file is an error.
+    covariance : array_like or None
+        Square covariance matrix of the estimated parameters, stored as is
+        for other tools (MATLAB, a report); finite values only.
+    units : mapping of str to str or None
+        Units to record, e.g. ``{"u": "V", "y": "mm"}``.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> g = TransferFunction([2.0], [0.1, 1.0], delay=0.01)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     file = save_model(g, pathlib.Path(tmp) / "g.json")
+    ...     back = load_model(file)
+    >>> back.num.tolist(), back.den.tolist(), back.delay
+    ([20.0], [1.0, 10.0], 0.01)
+    """
+    record = model_record(model)
+    record["covariance"] = None if covariance is None else _covariance(covariance)
+    record["units"] = None if units is None else _units(units)
+    path = as_path("path", path)
+    text = record_text(record)
+    with atomic_path(path, overwrite) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return path
+
+
+def load_model(path: str | Path) -> Model:
+    """Read a model written by :func:`save_model`.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A servoid model file.
+
+    Returns
+    -------
+    TransferFunction, StateSpace or PolynomialModel
+        The model, equal to the one saved (same floats).  The file's
+        ``covariance`` and ``units`` are for other tools; read them from
+        the JSON if needed.
+
+    Raises
+    ------
+    MissingFileError
+        When no file exists at `path`.
+    FileFormatError
+        For a file that is not JSON, not a servoid model file, of another
+        format version, or with coefficients that make no model.
+    """
+    path = as_path("path", path)
+    if not path.is_file():
+        raise MissingFileError(f"model file {path}: no such file; check the path (relative "
+                               f"paths are taken from {Path.cwd()})")
+    try:
+        data = read_json(path, "model file")
+    except FileFormatError as exc:
+        raise FileFormatError(f"{exc}; the file is damaged: write it again with "
+                              "servoid.models.save_model") from None
+    return model_from_record(data, where=f"model file {path}")
+
+
+def export_mat(model: Model, path: str | Path, *, name: str = "G",
+               overwrite: bool = False) -> Path:
+    """Write a model to a MATLAB ``.mat`` file as one struct.
+
+    The struct `name` holds, as MATLAB names them:
+
+    - a TransferFunction: ``num``, ``den``, ``Ts``, ``InputDelay`` [s];
+    - a StateSpace: ``A``, ``B``, ``C``, ``D``, ``Ts``, ``InputDelay`` (0);
+    - a PolynomialModel: ``A``, ``B``, ``C``, ``D``, ``F``, ``nk``, ``Ts``,
+      ``NoiseVariance``, ``InputDelay`` (0).  ``B`` and ``F`` have one row
+      per input, padded with zeros on the right; ``B`` starts with
+      ``nk`` zeros, as MATLAB's ``idpoly`` expects;
+
+    plus ``type`` (``"tf"``, ``"ss"`` or ``"idpoly"``: the MATLAB function
+    that rebuilds it) and ``Method`` (the discretisation method, or "").
+    ``Ts`` is 0 for a continuous model.  In MATLAB::
+
+        s = load("g.mat");
+        G = tf(s.G.num, s.G.den, s.G.Ts, "InputDelay", s.G.InputDelay);
+
+    Parameters
+    ----------
+    model : TransferFunction, StateSpace or PolynomialModel
+        The model.
+    path : str or pathlib.Path
+        The ``.mat`` file to write; its folder must exist.
+    name : str
+        The MATLAB variable (a valid identifier, at most 63 characters).
+    overwrite : bool
+        Replace an existing file; otherwise an existing file is an error.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
+    path = as_path("path", path)
+    write_mat({name: model}, path, overwrite=overwrite)
+    return path
+
+
+# -- shared with the command line -------------------------------------------------------------
+
+
+def model_record(model: object) -> dict[str, Any]:
+    """A model as the plain data of a model file (no covariance, no units)."""
+    if isinstance(model, TransferFunction):
+        body = {"num": _floats(model.num), "den": _floats(model.den), "delay": model.delay}
+    elif isinstance(model, StateSpace):
+        body = {k: _floats(getattr(model, k)) for k in ("A", "B", "C", "D")}
+    elif isinstance(model, PolynomialModel):
+        body = {"a": _floats(model.a), "b": [_floats(b) for b in model.b],
+                "nk": list(model.nk), "c": _floats(model.c), "d": _floats(model.d),
+                "f": [_floats(f) for f in model.f or ()], "noise_variance": model.noise_variance,
+                "input_names": None if model.input_names is None else list(model.input_names),
+                "output_name": model.output_name}
+    else:
+        raise OptionTypeError(
+            f"model must be a TransferFunction, StateSpace or PolynomialModel, got "
+            f"{type(model).__name__}; a model file holds a parametric model (a measured "
+            "FrequencyResponseData is data: keep it with its experiment)"
+        )
+    return {"servoid_model": FORMAT_VERSION, "type": type(model).__name__, "dt": model.dt,
+            "method": getattr(model, "method", None), "prewarp": getattr(model, "prewarp", None),
+            **body}
+
+
+def record_text(record: Mapping[str, Any]) -> str:
+    """A model file's text: one key a line, each value compact (readable, diffable)."""
+    return "{\n" + ",\n".join(f" {json.dumps(k)}: {json.dumps(v, allow_nan=False)}"
+                               for k, v in record.items()) + "\n}\n"
+
+
+def model_from_record(data: object, *, where: str) -> Model:
+    """The model a model file's data describe; ``where`` names the file in errors."""
+    fix = "write it again with servoid.models.save_model"
+    if not isinstance(data, Mapping) or "servoid_model" not in data:
+        raise FileFormatError(f"{where} is not a servoid model file (no \"servoid_model\" "
+                              f"format version at the top); {fix}")
+    version = data["servoid_model"]
+    if version != FORMAT_VERSION or isinstance(version, bool):
+        raise FileFormatError(
+            f"{where} has format version {version!r}; this servoid reads version "
+            f"{FORMAT_VERSION}: read it with the servoid that wrote it (pip install -U servoid "
+            f"for a newer one) and {fix}"
+        )
+    kind = data.get("type")
+    if kind not in _TYPES:
+        listed = ", ".join(repr(t) for t in _TYPES)
+        raise FileFormatError(f"{where}: \"type\" must be one of {listed}, got {kind!r}; {fix}")
+    try:
+        common = {"dt": data["dt"], "method": data.get("method"), "prewarp": data.get("prewarp")}
+        if kind == "TransferFunction":
+            return TransferFunction(_arr(data, "num"), _arr(data, "den"), **common,
+                                    delay=data.get("delay", 0.0))
+        if kind == "StateSpace":
+            return StateSpace(*(_arr(data, k) for k in ("A", "B", "C", "D")), **common)
+        if common["method"] is not None or common["prewarp"] is not None:
+            raise DataError("a PolynomialModel has no method or prewarp")
+        names = data.get("input_names")
+        return PolynomialModel(
+            _arr(data, "a"), tuple(_arr({"b": b}, "b") for b in _list(data, "b")),
+            tuple(_list(data, "nk")), data["dt"], c=_arr(data, "c"), d=_arr(data, "d"),
+            f=tuple(_arr({"f": f}, "f") for f in _list(data, "f")),
+            noise_variance=data.get("noise_variance", 0.0),
+            input_names=None if names is None else tuple(_list(data, "input_names")),
+            output_name=data.get("output_name"),
+        )
+    except KeyError as exc:
+        raise FileFormatError(f"{where}: the {kind} has no {exc.args[0]!r}; the file is "
+                              f"damaged: {fix}") from None
+    except (ServoidError, TypeError, ValueError) as exc:
+        raise FileFormatError(f"{where}: the {kind} is damaged ({exc}); {fix}") from None
+
+
+def write_mat(models: Mapping[str, Model], path: Path, *, overwrite: bool = False) -> None:
+    """Write each model as a MATLAB struct named by its key, atomically."""
+    from scipy.io import savemat
+
+    structs = {}
+    for name, model in models.items():
+        if not isinstance(name, str) or not _MATLAB_NAME.fullmatch(name):
+            raise OptionError(f"name must be a MATLAB variable name (a letter, then letters, "
+                              f"digits or _; at most 63 characters), got {name!r}")
+        structs[name] = _mat_struct(model)
+    with atomic_path(path, overwrite) as tmp, open(tmp, "wb") as handle:
+        savemat(handle, structs, oned_as="row")
+
+
+# -- private ----------------------------------------------------------------------------------
+
+
+def _mat_struct(model: object) -> dict[str, Any]:
+    if not isinstance(model, (TransferFunction, StateSpace, PolynomialModel)):
+        raise OptionTypeError(
+            f"model must be a TransferFunction, StateSpace or PolynomialModel, got "
+            f"{type(model).__name__}; MATLAB export holds parametric models only"
+        )
+    ts = 0.0 if model.dt is None else model.dt
+    method = getattr(model, "method", None) or ""
+    if isinstance(model, TransferFunction):
+        return {"type": "tf", "num": np.array(model.num), "den": np.array(model.den), "Ts": ts,
+                "InputDelay": model.delay, "Method": method}
+    if isinstance(model, StateSpace):
+        return {"type": "ss", **{k: np.array(getattr(model, k)) for k in ("A", "B", "C", "D")},
+                "Ts": ts, "InputDelay": 0.0, "Method": method}
+    b = [np.concatenate([np.zeros(k), bi]) for k, bi in zip(model.nk, model.b, strict=True)]
+    return {"type": "idpoly", "A": np.array(model.a), "B": _rows(b), "C": np.array(model.c),
+            "D": np.array(model.d), "F": _rows(list(model.f or ())),
+            "nk": np.array(model.nk, dtype=float), "Ts": ts,
+            "NoiseVariance": model.noise_variance, "InputDelay": 0.0, "Method": ""}
+
+
+def _rows(polys: list[np.ndarray]) -> np.ndarray:
+    out = np.zeros((len(polys), max(p.size for p in polys)))
+    for i, p in enumerate(polys):
+        out[i, :p.size] = p
+    return out
+
+
+def _floats(values: np.ndarray) -> Any:
+    return np.asarray(values, dtype=float).tolist()  # Python floats: json writes their repr
+
+
+def _arr(data: Mapping[str, Any], key: str) -> np.ndarray:
+    return as_array(key, data[key])
+
+
+def _list(data: Mapping[str, Any], key: str) -> list[Any]:
+    value = data[key]
+    if not isinstance(value, list):
+        raise DataError(f"{key} must be a list, got {value!r}")
+    return value
+
+
+def _covariance(value: ArrayLike) -> list[list[float]]:
+    cov = as_array("covariance", value, ndim=2)
+    if cov.shape[0] != cov.shape[1]:
+        raise DataError(f"covariance must be a square matrix, got shape {cov.shape}")
+    return cov.tolist()
+
+
+def _units(value: object) -> dict[str, str]:
+    if not isinstance(value, Mapping) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in value.items()
+    ):
+        raise OptionTypeError(f"units must be a mapping of names to unit strings, e.g. "
+                              f"{{'u': 'V', 'y': 'mm'}}, got {value!r}")
+    return dict(value)
+
