@@ -11,6 +11,7 @@ import numpy as np
 
 from ..report import Figure, Page, Section, Table
 from ..report._text import plain
+from ..workflows._registry import toml_value
 from ._limits import RULE
 from ._stats import OUTLIER_Z
 
@@ -29,7 +30,7 @@ def fleet_page(result: FleetResult) -> Page:
                  if result.interrupted else "") + ".")
     summary = Section("Summary", paragraphs=(
         counts,
-        ("Identification: " + ", ".join(f"{k} = {_toml(v)}" for k, v in spec.identify.items())
+        ("Identification: " + ", ".join(f"{k} = {toml_value(v)}" for k, v in spec.identify.items())
          + "." if spec.identify is not None else "Identification: each record's own [identify].")
         + f" Trend axis: {spec.trend}.",
         f"Acceptance rule: {RULE}.",
@@ -148,16 +149,6 @@ def _units_table(result: FleetResult) -> Table:
                   "pass" if r["pass"] else "FAIL", r.get("outlier") or ""]
         rows.append(tuple(str(c) for c in cells))
     return Table(cols, tuple(rows), "Every record", sortable=True)
-
-
-def _toml(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return f'"{value}"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml(v) for v in value) + "]"
-    return str(value)
 
 
 def _f(x: Any) -> float:

@@ -168,7 +168,7 @@ class Method:
         lines = [f"{self.name}: {self.summary}", "", "[identify] keys:",
                  f"  {'method':<{width}}  = \"{self.name}\""]
         for o in self.options:
-            lines.append(f"  {o.name:<{width}}  {o.help} (default {_show(o.default)})")
+            lines.append(f"  {o.name:<{width}}  {o.help} (default {toml_value(o.default)})")
         if self.tables:
             lines += ["", "reads also: " + ", ".join(f"[{t}]" for t in self.tables)]
         return "\n".join(lines)
@@ -190,7 +190,8 @@ def registry(methods: Sequence[Method]) -> Mapping[str, Method]:
     return MappingProxyType(out)
 
 
-def _show(value: Any) -> str:
+def toml_value(value: Any) -> str:
+    """A value as the experiment file writes it (``true``, ``"text"``, ``[1, 2]``; ``none``)."""
     if value is None:
         return "none"
     if isinstance(value, bool):
@@ -198,5 +199,5 @@ def _show(value: Any) -> str:
     if isinstance(value, str):
         return f'"{value}"'
     if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_show(v) for v in value) + "]"
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
     return str(value)
