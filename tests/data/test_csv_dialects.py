@@ -68,3 +68,21 @@ def test_csv_keys_are_refused_for_other_formats(tmp_path):
                     encoding="utf-8")
     with pytest.raises(FileFormatError, match="delimiter apply to CSV files only"):
         load_experiment_spec(toml)
+
+
+def test_time_stamp_jitter_tolerance(tmp_path):
+    """A logger whose stamps jitter by 0.5 % of the step: refused by default, read with jitter."""
+    gen = np.random.default_rng(3)
+    t = (np.arange(N) + gen.uniform(-0.005, 0.005, N)) * 1e-3
+    rows = [f"{float(a)!r},{np.sin(k / 9)},{np.cos(k / 7)}" for k, a in enumerate(t)]
+    (tmp_path / "a.csv").write_text("time,u,y\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    with pytest.raises(Exception, match=r"pass jitter="):
+        read_csv(tmp_path / "a.csv")
+    assert read_csv(tmp_path / "a.csv", jitter=0.02).dt == pytest.approx(1e-3, rel=1e-4)
+    toml = tmp_path / "e.toml"
+    base = '[data]\nfile = "a.csv"\n{extra}\n[channels.u]\nrole = "u"\n[channels.y]\nrole = "y"\n'
+    toml.write_text(base.format(extra=""), encoding="utf-8")
+    with pytest.raises(Exception, match=r"\[data\] jitter = <fraction of the step>"):
+        load_experiment_spec(toml).load()
+    toml.write_text(base.format(extra="jitter = 0.02"), encoding="utf-8")
+    assert load_experiment_spec(toml).load().n_samples == N

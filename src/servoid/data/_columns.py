@@ -125,8 +125,12 @@ def build_experiment(
     time: NDArray[np.float64] | None = None,
     t0: float = 0.0,
     notes: Mapping[str, Any] | None = None,
+    jitter: float = TIME_TOLERANCE,
 ) -> Experiment:
     """Assemble an Experiment from the named columns of a file.
+
+    Time stamps must be uniform within ``jitter`` (a fraction of the mean
+    step); the nominal dt is then their mean step.
 
     Channels mapped in ``roles`` come first (role order r, u, y, side, then the
     order listed), the others follow as side channels in file order. Errors
@@ -140,8 +144,8 @@ def build_experiment(
         if not channels:
             raise DataError("no numeric channels found")
         if time is not None:
-            dt_t, t0 = _check_time(np.asarray(time, dtype=float), n, TIME_TOLERANCE)
-            if dt is not None and not np.isclose(dt, dt_t, rtol=TIME_TOLERANCE):
+            dt_t, t0 = _check_time(np.asarray(time, dtype=float), n, check_jitter(jitter))
+            if dt is not None and not np.isclose(dt, dt_t, rtol=max(jitter, TIME_TOLERANCE)):
                 raise DataError(f"dt = {dt} s disagrees with the time stamps (mean step {dt_t} s)")
             dt = dt_t
         if dt is None:
@@ -151,6 +155,14 @@ def build_experiment(
         raise
     except DataError as exc:
         raise DataError(f"{path}: {exc}") from exc
+
+
+def check_jitter(jitter: float) -> float:
+    """The time-stamp tolerance as a fraction of the step, in (0, 0.5]."""
+    if isinstance(jitter, bool) or not isinstance(jitter, (int, float)) or not 0 < jitter <= 0.5:
+        raise DataError(f"jitter must be a fraction of the sample period in (0, 0.5], got "
+                        f"{jitter!r}")
+    return float(jitter)
 
 
 def _listed_rank(name: str, roles: RolesArg) -> int:

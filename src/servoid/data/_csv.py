@@ -40,6 +40,7 @@ from .._checks import as_bool, as_path, as_str
 from .._errors import DataError, FileFormatError, ServoidWarning
 from ._columns import (
     DEFAULT_MAX_BYTES,
+    TIME_TOLERANCE,
     RolesArg,
     build_experiment,
     check_file_size,
@@ -73,6 +74,7 @@ def read_csv(
     decimal: str = ".",
     time_unit: str | None = None,
     max_bytes: int = DEFAULT_MAX_BYTES,
+    jitter: float = TIME_TOLERANCE,
 ) -> Experiment:
     """Read a CSV file with a header row into an Experiment.
 
@@ -104,6 +106,9 @@ def read_csv(
     max_bytes : int
         Memory budget [bytes]: a larger file is refused before it is read
         (its text is held while parsing); default 2 GiB.
+    jitter : float
+        Largest deviation of a time step from the mean step, as a fraction
+        of it (default 1e-3); raise it for a logger with time-stamp jitter.
 
     Returns
     -------
@@ -170,7 +175,8 @@ def read_csv(
             f"{path}: no sample period: {hint}pass dt [s] or time=<column name> "
             f"(columns: {', '.join(names)})"
         )
-    return build_experiment(path, columns, units, roles=roles, dt=dt, time=stamps)
+    return build_experiment(path, columns, units, roles=roles, dt=dt, time=stamps,
+                            jitter=jitter)
 
 
 def _check_separator(path: Path, lines: list[str], header_at: int, delimiter: str,

@@ -40,7 +40,7 @@ class Channel:
     unit: str = ""
     copy: InitVar[bool] = True
 
-    def __post_init__(self, copy: bool = True) -> None:
+    def __post_init__(self, copy: bool) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise DataError(f"channel name must be a non-empty string, got {self.name!r}")
         check_option("channel role", self.role, ROLES)
@@ -584,6 +584,6 @@ def _check_time(time: NDArray[np.float64], n: int, tol: float) -> tuple[float, f
             f"time stamps are not uniform: step {worst} ({time[worst]:.6g} s -> "
             f"{time[worst + 1]:.6g} s) is {steps[worst]:.6g} s against a mean of {dt:.6g} s "
             f"(tolerance {tol:.0e} relative). Resample to a uniform grid or split the record "
-            "at the gap"
+            "at the gap; for a logger's time-stamp jitter raise the tolerance (pass jitter=)"
         )
     return dt, float(time[0])

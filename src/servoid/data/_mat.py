@@ -29,6 +29,7 @@ from .._checks import as_str_list
 from .._errors import ChannelError, DataError, FileFormatError
 from ._columns import (
     DEFAULT_MAX_BYTES,
+    TIME_TOLERANCE,
     RolesArg,
     build_experiment,
     check_max_bytes,
@@ -55,6 +56,7 @@ def read_mat(
     dt: float | None = None,
     roles: RolesArg = None,
     max_bytes: int = DEFAULT_MAX_BYTES,
+    jitter: float = TIME_TOLERANCE,
 ) -> Experiment:
     """Read the vectors of a MAT file into an Experiment.
 
@@ -77,6 +79,9 @@ def read_mat(
         Memory budget of one variable [bytes]; default 2 GiB. It bounds
         what compressed (v7) and HDF5 (v7.3) variables may declare, which
         the file's own size does not.
+    jitter : float
+        Largest deviation of a time step from the mean step, as a fraction
+        of it (default 1e-3); raise it for a logger with time-stamp jitter.
 
     Returns
     -------
@@ -157,7 +162,7 @@ def read_mat(
             f"(vectors: {', '.join(_vector_names(vectors, listed))})"
         )
     return build_experiment(
-        path, used, {}, roles=roles, dt=dt, time=stamps, notes=notes,
+        path, used, {}, roles=roles, dt=dt, time=stamps, notes=notes, jitter=jitter,
     )
 
 

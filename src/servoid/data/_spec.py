@@ -19,6 +19,7 @@ Schema::
     delimiter = ";"           # CSV only: field separator, default ","
     decimal = ","             # CSV only: decimal mark, default "." (needs delimiter != ",")
     time_unit = "ms"          # CSV only: unit of an unlabelled time column: s | ms | us
+    jitter = 0.01             # time stamps uniform within this fraction of the step (1e-3)
 
     [channels.y_r]            # required, at least one: the servoid channel name
     source = "AI0"            # channel in the file; default the servoid name
@@ -105,8 +106,8 @@ DetrendSpec = Literal["none", "mean", "linear"]
 _DETRENDS: tuple[DetrendSpec, ...] = ("none", "mean", "linear")
 _TOP_KEYS = ("data", "channels", "preprocess", "split", "validation", "rig", "loop",
              "identify", "report")
-_DATA_KEYS = ("file", "format", "group", "time", "dt", "max_bytes", "delimiter", "decimal",
-              "time_unit")
+_DATA_KEYS = ("file", "format", "group", "time", "dt", "max_bytes", "jitter", "delimiter",
+              "decimal", "time_unit")
 _CSV_KEYS = ("delimiter", "decimal", "time_unit")
 _CHANNEL_KEYS = ("source", "role", "gain", "offset", "unit", "limits")
 _VALIDATION_KEYS = ("file", "initial", "transient")
@@ -134,6 +135,7 @@ _READER_WORDS = {
     "pass max_bytes= to read": "raise [data] max_bytes to read",
     "pass max_bytes= if it is real": "raise [data] max_bytes if it is real",
     "pass delimiter=": "set [data] delimiter = ",
+    "(pass jitter=)": "([data] jitter = <fraction of the step>)",
     "pass decimal=": "set [data] decimal = ",
 }
 
@@ -288,6 +290,8 @@ class ExperimentSpec:
         Sample period [s] when the file has no timing.
     max_bytes : int or None
         The readers' memory budget [bytes] (None: their default, 2 GiB).
+    jitter : float or None
+        Time-stamp tolerance as a fraction of the step (None: 1e-3).
     csv : mapping
         CSV reading options given in ``[data]``: ``delimiter``, ``decimal``,
         ``time_unit``.
@@ -322,6 +326,7 @@ class ExperimentSpec:
     rig: RigSpec = RigSpec()
     files: tuple[str, ...] = ()
     max_bytes: int | None = None
+    jitter: float | None = None
     csv: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
     loop: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     identify: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
@@ -383,6 +388,7 @@ class ExperimentSpec:
         dt = _optional(where, "dt", data.get("dt"), _positive)
         max_bytes = _optional(where, "max_bytes", data.get("max_bytes"),
                               lambda w, k, v: _integer(w, k, v, 1))
+        jitter = _optional(where, "jitter", data.get("jitter"), _positive)
         csv_options = {k: _string(where, k, data[k]) for k in _CSV_KEYS if k in data}
         if csv_options and fmt != "csv":
             raise FileFormatError(f"{where}: {', '.join(csv_options)} apply to CSV files only, "
@@ -420,6 +426,7 @@ class ExperimentSpec:
             time=time,
             dt=dt,
             max_bytes=max_bytes,
+            jitter=jitter,
             csv=MappingProxyType(csv_options),
             preprocess=preprocess,
             split=_split(origin, table.get("split", {})),
@@ -456,7 +463,7 @@ class ExperimentSpec:
         """The spec as a plain TOML-shaped dictionary (defaults omitted)."""
         data: dict[str, Any] = {"file": self.file if len(self.files) == 1 else list(self.files),
                                 "format": self.format}
-        for key in ("group", "time", "dt", "max_bytes"):
+        for key in ("group", "time", "dt", "max_bytes", "jitter"):
             if getattr(self, key) is not None:
                 data[key] = getattr(self, key)
         data.update(self.csv)
@@ -768,6 +775,8 @@ class ExperimentSpec:
             options.update(time=self.time, variables=sorted({c.source for c in self.channels}))
         if self.max_bytes is not None:
             options["max_bytes"] = self.max_bytes
+        if self.jitter is not None:
+            options["jitter"] = self.jitter
         return options
 
 

@@ -33,6 +33,7 @@ from .._checks import as_bool, as_path, as_str
 from .._errors import DataError, FileFormatError, OptionError
 from ._columns import (
     DEFAULT_MAX_BYTES,
+    TIME_TOLERANCE,
     RolesArg,
     build_experiment,
     check_max_bytes,
@@ -57,6 +58,7 @@ def read_tdms(
     dt: float | None = None,
     time: str | None = None,
     max_bytes: int = DEFAULT_MAX_BYTES,
+    jitter: float = TIME_TOLERANCE,
 ) -> Experiment:
     """Read one group of a TDMS file into an Experiment.
 
@@ -78,6 +80,9 @@ def read_tdms(
     max_bytes : int
         Memory budget of one channel as float64 [bytes]; default 2 GiB. A
         channel declaring more values is refused before it is read.
+    jitter : float
+        Largest deviation of a time step from the mean step, as a fraction
+        of it (default 1e-3); raise it for a logger with time-stamp jitter.
 
     Returns
     -------
@@ -151,7 +156,7 @@ def read_tdms(
     default_roles = {n: str(p[_ROLE_PROPERTY]) for n, p in props.items() if _ROLE_PROPERTY in p}
     return build_experiment(
         path, columns, units, roles=roles, default_roles=default_roles,
-        dt=dt, time=stamps, t0=t0, notes=notes,
+        dt=dt, time=stamps, t0=t0, notes=notes, jitter=jitter,
     )
 
 
