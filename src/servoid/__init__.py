@@ -33,13 +33,24 @@ __all__ = [
     "ServoidError",
     "ServoidWarning",
     "__version__",
+    "load_model",
+    "load_results",
 ]
 
 
 def __getattr__(name: str) -> object:
-    """Load :class:`Experiment` and :class:`ExperimentSet` on first use (a fast ``--version``)."""
+    """Load :class:`Experiment`, :class:`ExperimentSet`, :func:`load_model` and
+    :func:`load_results` on first use (a fast ``--version``)."""
     if name in ("Experiment", "ExperimentSet"):
         from . import data
 
         return getattr(data, name)
+    if name == "load_model":
+        from .models import load_model
+
+        return load_model
+    if name == "load_results":
+        from .workflows import load_results
+
+        return load_results
     raise AttributeError(f"module 'servoid' has no attribute {name!r}")

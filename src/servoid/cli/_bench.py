@@ -37,7 +37,7 @@ _PNEUMATIC_PHRASES = {"shorten the test or lower oversample": "shorten the test 
 def add_bench(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> None:
     """Add ``bench ehsa`` and ``bench pneumatic`` to the sub-command set."""
     # the bench's names as literals: building the parser must not import the bench (fast --help)
-    FIDELITIES = BENCH_FIDELITIES  # noqa: N806
+    FIDELITIES = BENCH_FIDELITIES
 
     bench = commands.add_parser(
         "bench", help="rehearse a test on a virtual rig and write its files",

@@ -1,9 +1,8 @@
-"""``servoid export``: the model(s) of a ``results.json`` as ``.mat``, model JSON or Python."""
+"""``servoid export`` (a run's models as ``.mat``, model JSON or Python) and ``servoid report``."""
 
 from __future__ import annotations
 
 import argparse
-import re
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -11,11 +10,10 @@ from typing import Any
 __all__ = ["add_export"]
 
 _SUFFIX = {"mat": ".mat", "json": ".json", "python": ".py"}
-_FIX = "write it again with servoid identify"
 
 
 def add_export(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> None:
-    """Add ``servoid export``."""
+    """Add ``servoid export`` and ``servoid report``."""
     export = commands.add_parser(
         "export", help="write the identified model(s) for MATLAB, python-control or servoid",
         description="Read the results.json of 'servoid identify' and write its model(s): "
@@ -36,15 +34,45 @@ def add_export(commands: Any, json_flag: Callable[[argparse.ArgumentParser], Non
     json_flag(export)
     export.set_defaults(run=_run_export)
 
+    report = commands.add_parser(
+        "report", help="write the report of a run again",
+        description="Write report.html, the figures and results.json of a run again from the "
+        "experiment file it names, after checking that every input is byte-for-byte the one "
+        "the run read (the SHA-256 in its manifest.json); a changed input is refused.",
+    )
+    report.add_argument("results", type=Path, help="results.json written by servoid identify")
+    report.add_argument("--out", type=Path,
+                        help="folder for the new report (default: the run's own folder)")
+    json_flag(report)
+    report.set_defaults(run=_run_report)
+
+
+def _run_report(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from ..workflows import rerender
+
+    result = rerender(args.results, args.out)
+    return ({"files": [str(f) for f in result.files]},
+            f"{result}\nwritten: {result.folder}")
+
 
 def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from .._atomic import atomic_path
-    from .._checks import read_json
     from .._errors import DataError, OptionError
     from ..models._file import model_record, record_text, write_mat
+    from ..workflows import load_results
 
-    data = read_json(args.results, "results file")
-    models = _models(data, args.results)
+    loaded = load_results(args.results)
+    models = loaded.models
+    if not models:
+        from .._errors import ModelError
+
+        method = loaded.data.get("method") or "this method"
+        raise ModelError(
+            f"{args.results} holds no model to export (written by {method}, whose result is "
+            "not a transfer "
+            "function, state space or polynomial model); export works on the results of the "
+            "black-box methods (arx, oe, armax, bj, tf, n4sid, two-stage, cliv, indirect) and "
+            "of closedloop")
     if args.model is not None:
         if args.model not in models:
             raise OptionError(f"--model must be one of {', '.join(models)} (the models of "
@@ -81,69 +109,6 @@ def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 
 # -- private ------------------------------------------------------------------------------
-
-
-def _models(data: object, path: Path) -> dict[str, Any]:
-    """Name → servoid model of every model a results file holds."""
-    from .._errors import FileFormatError, ModelError
-
-    if not isinstance(data, Mapping) or "servoid_version" not in data:
-        raise FileFormatError(f"{path} is not a results.json of servoid identify (no "
-                              f"\"servoid_version\"); give the results.json of a run")
-    models: dict[str, Any] = {}
-    if isinstance(data.get("model"), Mapping):
-        estimate = data.get("estimate")
-        variance = estimate.get("noise_variance") if isinstance(estimate, Mapping) else None
-        model = _from_model_dict(data["model"], path, variance)
-        if model is not None:
-            models["G"] = model
-    approaches = data.get("approaches")
-    if isinstance(approaches, Mapping):
-        for approach, result in approaches.items():
-            label = re.sub(r"\W", "_", str(approach))
-            for key, suffix in (("plant_continuous", "plant"), ("closed_loop", "closed_loop")):
-                tf = result.get(key) if isinstance(result, Mapping) else None
-                if tf is not None:
-                    models[f"{label}_{suffix}"] = _build(
-                        path, f"approaches.{approach}.{key}", "TransferFunction",
-                        num=tf.get("num"), den=tf.get("den"), dt=tf.get("dt"))
-    if not models:
-        method = data.get("method") or data.get("model", {}).get("type") or "this method"
-        raise ModelError(
-            f"{path} holds no model to export (written by {method}, whose result is not a "
-            "transfer function, state space or polynomial model); export works on the "
-            "results of the black-box methods (arx, oe, armax, bj, tf, n4sid, two-stage, "
-            "cliv, indirect) and of closedloop"
-        )
-    return models
-
-
-def _from_model_dict(model: Mapping[str, Any], path: Path, variance: object) -> Any:
-    kind = model.get("type")
-    if kind == "transfer_function":
-        return _build(path, "model", "TransferFunction", num=model.get("num"),
-                      den=model.get("den"), dt=model.get("dt"), delay=model.get("delay", 0.0))
-    if kind == "state_space":
-        return _build(path, "model", "StateSpace", **{k: model.get(k) for k in "ABCD"},
-                      dt=model.get("dt"))
-    if kind == "polynomial":
-        return _build(path, "model", "PolynomialModel", a=model.get("a"),
-                      b=tuple(model.get("b") or ()), nk=tuple(model.get("nk") or ()),
-                      dt=model.get("dt"), c=model.get("c"), d=model.get("d"),
-                      f=tuple(model.get("f") or ()),
-                      noise_variance=variance if isinstance(variance, float) else 0.0)
-    return None
-
-
-def _build(path: Path, where: str, kind: str, **fields: Any) -> Any:
-    from .. import models
-    from .._errors import FileFormatError, ServoidError
-
-    try:
-        return getattr(models, kind)(**fields)
-    except (ServoidError, TypeError, ValueError) as exc:
-        raise FileFormatError(f"{path}: {where} is not a valid {kind} ({exc}); the file is "
-                              f"damaged: {_FIX}") from None
 
 
 def _python(models: Mapping[str, Any], results: Path) -> str:

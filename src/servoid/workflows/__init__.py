@@ -2,7 +2,9 @@
 
 :func:`identify` runs the method an experiment file names; every method is
 registered in one place (:func:`get_method`, :func:`method_names`) with its
-``[identify]`` options, its run and its report.
+``[identify]`` options, its run and its report. :func:`load_results` reads
+a ``results.json`` back into objects and :func:`rerender` writes a run's
+report again from unchanged inputs.
 """
 
 from ._closedloop import ClosedLoopIdentification, loop_from_table
@@ -11,6 +13,7 @@ from ._inverse import InverseDynamicsIdentification, controller_from_table
 from ._lti import IdentificationResult, OrderRow
 from ._pneumatic import PneumaticIdentification
 from ._registry import Identification, Method, Option
+from ._results import Results, load_results, rerender
 from ._run import get_method, identify, method_names, write_results
 
 __all__ = [
@@ -23,11 +26,14 @@ __all__ = [
     "Option",
     "OrderRow",
     "PneumaticIdentification",
+    "Results",
     "controller_from_table",
     "get_method",
     "identify",
+    "load_results",
     "loop_from_table",
     "method_names",
+    "rerender",
     "run_demo",
     "write_results",
 ]

@@ -286,7 +286,8 @@ def _manifest(result: Identification, targets: Mapping[str, Path]) -> dict[str, 
         "complete": True,
         "files": [{"name": name, "bytes": path.stat().st_size, "sha256": sha256(path)}
                   for name, path in targets.items()],
-        "inputs": [{"path": str(p), "sha256": sha256(p)} for p in result.inputs() if p.is_file()],
+        "inputs": [{"path": str(Path(p).resolve()), "sha256": sha256(p)}
+                   for p in result.inputs() if p.is_file()],
     }
 
 

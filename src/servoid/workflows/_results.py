@@ -1,0 +1,167 @@
+"""A ``results.json`` read back: its models, its parameters, its verdicts; a report re-made.
+
+:func:`load_results` turns what ``servoid identify`` wrote into objects —
+the identified models (the black-box model ``G``; each closed-loop
+approach's continuous plant and closed loop) and the parameter summary with
+standard deviations and intervals. :func:`rerender` writes the report of a
+results folder again from the run's own experiment file, after checking
+that every input is byte-for-byte the one the run read (its manifest's
+SHA-256), so the new report describes the same data.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .._checks import as_path, read_json
+from .._errors import FileFormatError, OutputExistsError
+from ._common import sha256
+from ._summary import RecordSummary, summarise
+
+__all__ = ["Results", "load_results", "rerender"]
+
+_FIX = "write it again with servoid identify"
+
+
+@dataclass(frozen=True)
+class Results:
+    """What a ``results.json`` holds, as objects.
+
+    Attributes
+    ----------
+    path : Path
+        The file.
+    data : mapping
+        Its whole content.
+    models : mapping
+        Name → model (``G`` for a black-box method; ``<approach>_plant``
+        and ``<approach>_closed_loop`` for the closed-loop method); empty
+        when the method's result is not a model servoid can rebuild.
+    summary : RecordSummary
+        Parameters with std and 95 % intervals, validation fit, verdicts.
+    """
+
+    path: Path
+    data: Mapping[str, Any]
+    models: Mapping[str, Any] = field(default_factory=dict)
+    summary: RecordSummary = field(default_factory=lambda: RecordSummary(()))
+
+    def __repr__(self) -> str:
+        return (f"<Results {self.path.name}: {len(self.summary.parameters)} parameters, "
+                f"models {', '.join(self.models) or 'none'}>")
+
+
+def load_results(path: str | Path) -> Results:
+    """Read a ``results.json`` back into models and parameters.
+
+    Raises
+    ------
+    MissingFileError
+        No such file.
+    FileFormatError
+        Not JSON, not a servoid results file, or a model in it is damaged.
+    """
+    path = as_path("results file", path)
+    data = read_json(path, "results file")
+    models = _models(data, path)
+    return Results(path, data, models, summarise(data))
+
+
+def rerender(results: str | Path, out: str | Path | None = None) -> Any:
+    """Write a run's report again from its unchanged inputs.
+
+    Parameters
+    ----------
+    results : path
+        ``results.json`` of the run (its folder holds ``manifest.json``).
+    out : path, optional
+        Folder for the new report and results; default the run's own folder
+        (its files are replaced).
+
+    Raises
+    ------
+    OutputExistsError
+        An input changed since the run (the message names it): run
+        ``servoid identify`` instead.
+    """
+    from ._run import MANIFEST, identify
+
+    loaded = load_results(results)
+    source = loaded.data.get("experiment_file") or loaded.data.get("campaign_file")
+    if not source:
+        raise FileFormatError(f"{loaded.path} does not name its experiment file; {_FIX}")
+    manifest_path = loaded.path.parent / MANIFEST
+    try:
+        manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
+        inputs = manifest["inputs"]
+    except (OSError, ValueError, KeyError, TypeError):
+        raise FileFormatError(f"{manifest_path} is missing or damaged, so the inputs of this run "
+                              f"cannot be checked; {_FIX}") from None
+    for entry in inputs:
+        path = Path(entry["path"])
+        if not path.is_file() or sha256(path) != entry["sha256"]:
+            raise OutputExistsError(
+                f"{path} is not the file this run read (missing or changed since): the report "
+                f"would describe other data; run servoid identify {source} instead")
+    folder = loaded.path.parent if out is None else as_path("out", out)
+    return identify(source, folder, overwrite=True, allow_outside=True)
+
+
+def _models(data: object, path: Path) -> dict[str, Any]:
+    """Name → servoid model of every model a results file holds."""
+    if not isinstance(data, Mapping) or "servoid_version" not in data:
+        raise FileFormatError(f"{path} is not a results.json of servoid identify (no "
+                              f"\"servoid_version\"); give the results.json of a run")
+    models: dict[str, Any] = {}
+    if isinstance(data.get("model"), Mapping):
+        estimate = data.get("estimate")
+        variance = estimate.get("noise_variance") if isinstance(estimate, Mapping) else None
+        model = _from_model_dict(data["model"], path, variance)
+        if model is not None:
+            models["G"] = model
+    approaches = data.get("approaches")
+    if isinstance(approaches, Mapping):
+        for approach, result in approaches.items():
+            label = re.sub(r"\W", "_", str(approach))
+            for key, suffix in (("plant_continuous", "plant"), ("closed_loop", "closed_loop")):
+                tf = result.get(key) if isinstance(result, Mapping) else None
+                if tf is not None:
+                    models[f"{label}_{suffix}"] = _build(
+                        path, f"approaches.{approach}.{key}", "TransferFunction",
+                        num=tf.get("num"), den=tf.get("den"), dt=tf.get("dt"))
+    return models
+
+
+def _from_model_dict(model: Mapping[str, Any], path: Path, variance: object) -> Any:
+    kind = model.get("type")
+    if kind == "transfer_function":
+        return _build(path, "model", "TransferFunction", num=model.get("num"),
+                      den=model.get("den"), dt=model.get("dt"), delay=model.get("delay", 0.0))
+    if kind == "state_space":
+        return _build(path, "model", "StateSpace", **{k: model.get(k) for k in "ABCD"},
+                      dt=model.get("dt"))
+    if kind == "polynomial":
+        return _build(path, "model", "PolynomialModel", a=model.get("a"),
+                      b=tuple(model.get("b") or ()), nk=tuple(model.get("nk") or ()),
+                      dt=model.get("dt"), c=model.get("c"), d=model.get("d"),
+                      f=tuple(model.get("f") or ()),
+                      noise_variance=variance if isinstance(variance, float) else 0.0)
+    return None
+
+
+def _build(path: Path, where: str, kind: str, **fields: Any) -> Any:
+    from .. import models
+    from .._errors import FileFormatError, ServoidError
+
+    try:
+        return getattr(models, kind)(**fields)
+    except (ServoidError, TypeError, ValueError) as exc:
+        raise FileFormatError(f"{path}: {where} is not a valid {kind} ({exc}); the file is "
+                              f"damaged: {_FIX}") from None
+
+

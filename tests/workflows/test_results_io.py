@@ -1,0 +1,62 @@
+"""results.json read back into objects, and a run's report written again."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import servoid
+from servoid import OutputExistsError
+from servoid.cli import main
+from servoid.workflows import load_results
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("run")
+    assert main(["bench", "ehsa", "--out", str(root / "b"), "--register", "9"]) == 0
+    assert main(["identify", str(root / "b" / "ehsa.toml"), "--out", str(root / "r")]) == 0
+    return root
+
+
+def test_load_results_gives_models_and_parameters(run):
+    loaded = servoid.load_results(run / "r" / "results.json")
+    data = json.loads((run / "r" / "results.json").read_text(encoding="utf-8"))
+    assert set(loaded.models) == {"indirect_plant", "indirect_closed_loop", "one_step_plant",
+                                  "one_step_closed_loop"}
+    tf = data["approaches"]["one-step"]["plant_continuous"]
+    np.testing.assert_allclose(loaded.models["one_step_plant"].den, np.array(tf["den"]) / tf["den"][0],
+                               rtol=1e-12)
+    names = [p.name for p in loaded.summary.parameters]
+    assert names == ["K", "omega_hp", "delta_hp"]
+    assert loaded.summary.parameters[0].value == pytest.approx(
+        data["parameters"][0]["one-step"]["value"], rel=1e-15)
+
+
+def test_report_is_rewritten_from_unchanged_inputs_only(run, capsys, tmp_path):
+    out = tmp_path / "again"
+    assert main(["report", str(run / "r" / "results.json"), "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert (out / "report.html").is_file()
+    before = json.loads((run / "r" / "results.json").read_text(encoding="utf-8"))
+    after = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    assert after["parameters"] == before["parameters"]
+    toml = run / "b" / "ehsa.toml"
+    original = toml.read_text(encoding="utf-8")
+    try:
+        toml.write_text(original + "\n# edited\n", encoding="utf-8")
+        with pytest.raises(OutputExistsError, match="is not the file this run read"):
+            servoid.workflows.rerender(run / "r" / "results.json", tmp_path / "x")
+        assert main(["report", str(run / "r" / "results.json")]) == 1
+    finally:
+        toml.write_text(original, encoding="utf-8")
+
+
+def test_load_results_refuses_other_files(tmp_path):
+    (tmp_path / "x.json").write_text('{"a": 1}', encoding="utf-8")
+    with pytest.raises(servoid.FileFormatError, match="not a results.json"):
+        load_results(tmp_path / "x.json")
+    with pytest.raises(servoid.MissingFileError):
+        load_results(tmp_path / "none.json")
