@@ -303,3 +303,15 @@ def read_json(path: str | Path, what: str) -> Any:
     except json.JSONDecodeError as exc:
         raise FileFormatError(f"{what} {path} is not valid JSON: {exc.msg} (line {exc.lineno}, "
                               f"column {exc.colno})") from exc
+
+
+def as_generator(rng: object) -> np.random.Generator:
+    """A random generator from ``rng``: a Generator, an integer seed >= 0, or None (fresh)."""
+    if rng is None or isinstance(rng, np.random.Generator):
+        return np.random.default_rng(rng)
+    if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
+        if rng < 0:
+            raise DataError(f"rng seed must be >= 0, got {rng}")
+        return np.random.default_rng(int(rng))
+    raise OptionTypeError(
+        f"rng must be a numpy.random.Generator, an integer seed or None, got {type(rng).__name__}")

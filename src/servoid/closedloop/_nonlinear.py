@@ -69,7 +69,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from .._checks import as_instance, as_int, as_mapping, type_error
+from .._checks import as_generator, as_instance, as_int, as_mapping, type_error
 from .._errors import (
     ConvergenceError,
     DataError,
@@ -283,7 +283,7 @@ def refine_nonlinear_ehsa(
     multistart = as_int("multistart", multistart, minimum=0)
     n_bootstrap = as_int("n_bootstrap", n_bootstrap, minimum=2)
     kind = resolve(covariance, noise_model=False)
-    generator = _generator(rng) if multistart or kind == "bootstrap" else None
+    generator = as_generator(rng) if multistart or kind == "bootstrap" else None
     free = _check_names(parameters)
     bounds = {} if bounds is None else dict(as_mapping("bounds", bounds))
     if max_nfev is not None:
@@ -534,15 +534,6 @@ def _finite(name: str, value: object) -> float:
     if not math.isfinite(v):
         raise DataError(f"{name} must be finite, got {v}")
     return v
-
-
-def _generator(rng: object) -> np.random.Generator:
-    if rng is None or isinstance(rng, np.random.Generator):
-        return np.random.default_rng(rng)
-    if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool) and rng >= 0:
-        return np.random.default_rng(int(rng))
-    raise OptionTypeError(f"rng must be a numpy.random.Generator, an integer seed >= 0 or None, "
-                          f"got {rng!r}")
 
 
 def _value_of(params: EhsaParameters, name: str) -> float:

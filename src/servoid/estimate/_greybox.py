@@ -37,7 +37,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import as_array, as_float, as_int, as_str, type_error
+from .._checks import as_array, as_float, as_generator, as_int, as_str, type_error
 from .._errors import (
     ConvergenceError,
     DataError,
@@ -64,7 +64,7 @@ from ._diagnostics import (
     weakest_parameters,
 )
 from ._estimate import Estimate
-from ._tf_greybox import _bootstrap_options, _bootstrap_result, _generator
+from ._tf_greybox import _bootstrap_options, _bootstrap_result
 
 __all__ = ["GreyboxModel", "GreyboxParameter", "fit_greybox"]
 
@@ -283,7 +283,7 @@ def fit_greybox(
         raise DataError(f"multistart must be <= {MAX_STARTS} extra starts, got {multistart}")
     n_bootstrap = as_int("n_bootstrap", n_bootstrap, minimum=2)
     kind = resolve(covariance, noise_model=False)
-    generator = _generator(rng) if multistart or kind == "bootstrap" else None
+    generator = as_generator(rng) if multistart or kind == "bootstrap" else None
     check_option("hold", hold, ("zoh", "foh"))
     check_option("method", method, ("trf", "dogbox", "lm"))
     if isinstance(parameters, (str, bytes, GreyboxParameter)) or not isinstance(

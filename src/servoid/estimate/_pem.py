@@ -42,7 +42,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import as_array, as_float, as_int
+from .._checks import as_array, as_float, as_generator, as_int
 from .._errors import (
     ConvergenceError,
     DataError,
@@ -378,7 +378,7 @@ def _fit(
     else:
         theta0, how = _user_start(init, orders, names), "user"
     theta0, reflected0 = stabilize(orders, theta0)
-    generator = _generator(rng) if multistart else None
+    generator = as_generator(rng) if multistart else None
     results: list[_Search | None] = []
     failure: ConvergenceError | None = None
     for k in range(multistart + 1):
@@ -518,17 +518,6 @@ def _user_start(init: Init, orders: PemOrders, names: tuple[str, ...]) -> NDArra
     if not np.all(np.isfinite(theta)):
         raise DataError("init must be finite")
     return theta.copy()
-
-
-def _generator(rng: object) -> np.random.Generator:
-    if rng is None or isinstance(rng, np.random.Generator):
-        return np.random.default_rng(rng)
-    if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
-        if rng < 0:
-            raise DataError(f"rng seed must be >= 0, got {rng}")
-        return np.random.default_rng(int(rng))
-    raise OptionTypeError(
-        f"rng must be a numpy.random.Generator, an integer seed or None, got {type(rng).__name__}")
 
 
 def _search(problem: Problem, orders: PemOrders, theta: NDArray[np.float64], max_iter: int,

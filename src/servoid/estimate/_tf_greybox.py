@@ -33,7 +33,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import as_array, as_int, as_str_list, type_error
+from .._checks import as_array, as_generator, as_int, as_str_list, type_error
 from .._errors import (
     ConvergenceError,
     DataError,
@@ -216,7 +216,7 @@ def fit_tf_greybox(
     chosen = ("lm" if bounds is None else "trf") if solver == "auto" else solver
     lo, hi = _bounds(bounds, n, is_log)
     kind = resolve(covariance, noise_model=False)
-    generator = _generator(rng) if multistart or kind == "bootstrap" else None
+    generator = as_generator(rng) if multistart or kind == "bootstrap" else None
 
     segments = as_segments(data)
     dt = segments[0].dt
@@ -436,17 +436,6 @@ def _failure(
             "stable model"
         )
     return None
-
-
-def _generator(rng: object) -> np.random.Generator:
-    if rng is None or isinstance(rng, np.random.Generator):
-        return np.random.default_rng(rng)
-    if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
-        if rng < 0:
-            raise DataError(f"rng seed must be >= 0, got {rng}")
-        return np.random.default_rng(int(rng))
-    raise OptionTypeError(
-        f"rng must be a numpy.random.Generator, an integer seed or None, got {type(rng).__name__}")
 
 
 def _bootstrap_result(boot: BootstrapResult, n_bootstrap: int, method: str) -> NDArray[np.float64]:

@@ -25,7 +25,7 @@ from .._errors import OptionError, OptionTypeError
 from .._progress import Progress
 from ._result import FleetResult, assemble
 from ._spec import FleetSpec, load_fleet_spec
-from ._task import identify_record, record_key
+from ._task import identify_record, record_inputs, record_key
 
 __all__ = ["run_fleet"]
 
@@ -228,15 +228,10 @@ def _folder(spec: FleetSpec, out: str | os.PathLike[str] | None, allow_outside: 
 def _protect(spec: FleetSpec, folder: Path) -> None:
     """No output of the fleet may land on one of its inputs."""
     from .._errors import OutputExistsError
-    from ..data import load_experiment_spec
 
     inputs = {p.resolve() for p in (spec.source, spec.manifest) if p is not None}
     for record in spec.records:
-        inputs.add(record.path.resolve())
-        try:
-            inputs.update(p.resolve() for p in load_experiment_spec(record.path).data_paths)
-        except Exception:  # noqa: BLE001, S112 - a record that cannot be read fails in its task
-            continue
+        inputs.update(p.resolve() for p in record_inputs(record.path))
     outputs = [folder / name for name in FleetResult.FILES]
     for path in inputs:
         if path in {o.resolve() for o in outputs} or path.is_relative_to(

@@ -22,7 +22,7 @@ from .. import __version__
 from .._errors import ServoidError
 from ..workflows._summary import summarise
 
-__all__ = ["identify_record", "record_key"]
+__all__ = ["identify_record", "record_inputs", "record_key"]
 
 _CHUNK = 1 << 20
 
@@ -36,7 +36,7 @@ def record_key(path: Path, identify: Mapping[str, Any] | None) -> str:
     h.update(f"servoid {__version__}\n{path.resolve()}\n".encode())
     h.update(json.dumps(dict(identify) if identify is not None else None, sort_keys=True,
                         default=str).encode())
-    for file in _inputs(path):
+    for file in record_inputs(path):
         h.update(f"\n{file.name}\n".encode())
         try:
             with file.open("rb") as f:
@@ -47,7 +47,7 @@ def record_key(path: Path, identify: Mapping[str, Any] | None) -> str:
     return h.hexdigest()
 
 
-def _inputs(path: Path) -> list[Path]:
+def record_inputs(path: Path) -> list[Path]:
     """The experiment file and the data files it names (as far as it can be read)."""
     from ..data import load_experiment_spec
 
