@@ -1114,7 +1114,7 @@ def test_fixture_arrays_untouched():
 
 WALKED = ["servoid", "servoid.data", "servoid.estimate", "servoid.models", "servoid.signals",
           "servoid.validate", "servoid.bench", "servoid.actuators", "servoid.closedloop",
-          "servoid.multistep", "servoid.workflows", "servoid.datasets"]
+          "servoid.multistep", "servoid.workflows", "servoid.datasets", "servoid.nonlinear"]
 GENERIC_BAD: dict[str, Any] = {"None": None, "text": "abc", "empty": np.array([]),
                                "list-of-text": ["a", "b"], "nan": math.nan}
 

@@ -10,19 +10,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import as_bool, as_float, as_int, type_error
-from .._errors import DataError, check_option
+from .._errors import DataError, ModelError, check_option
 from .._lazy import signal as sps
 from ..data import Experiment
 from ..data._experiment import check_experiment
 from ._metrics import fit_percent, nrmse, relative_error, rmse, vaf
 from ._residuals import ResidualAnalysis, residual_analysis
 from ._simulate import (
+    INITIALS,
     Initial,
     Intersample,
     check_signals,
     discrete_model,
     has_noise_model,
     is_arx,
+    is_replayable,
     simulate_model,
 )
 
@@ -241,7 +243,17 @@ def validate(
     if len(outputs) != 1:
         experiment.signal("y")
         raise DataError(f"several outputs ({', '.join(outputs)}): pass output=<name>")
-    model = _one_output(discrete_model(model, experiment.dt, intersample), experiment, outputs[0])
+    if hasattr(model, "model") and hasattr(model, "covariance") and is_replayable(model.model):
+        model = model.model  # an Estimate of a nonlinear or grey-box model
+    replayable = is_replayable(model)
+    if replayable:
+        check_option("initial", initial, INITIALS)
+        if not np.isclose(model.dt, experiment.dt, rtol=1e-9, atol=0.0):
+            raise DataError(f"the model has dt = {model.dt} s but the experiment "
+                            f"{experiment.dt} s; resample the data to the model's rate")
+    else:
+        model = _one_output(discrete_model(model, experiment.dt, intersample), experiment,
+                            outputs[0])
     y = experiment[outputs[0]]
     u = experiment.signal(input)
     if horizon >= y.size:
@@ -249,8 +261,16 @@ def validate(
             f"horizon = {horizon} samples is not shorter than the {y.size}-sample validation "
             "record; a k-step prediction needs k below the record length (a few samples is usual)"
         )
-    y_sim, first, initial_used = simulate_model(model, y, u, initial=initial,
-                                                transient=transient)
+    if replayable:
+        y_sim, first, initial_used = model.replay(y, u, initial=initial)
+        y_sim = np.asarray(y_sim, dtype=float)
+        first += int(transient)
+        if y_sim.shape != y.shape or not 0 <= first < y.size - 2:
+            raise ModelError(f"{type(model).__name__}.replay returned {y_sim.shape} samples "
+                             f"from sample {first} for a {y.size}-sample record")
+    else:
+        y_sim, first, initial_used = simulate_model(model, y, u, initial=initial,
+                                                    transient=transient)
     if max_lag is None:
         max_lag = _default_max_lag(y.size, first, experiment.name)
     if has_noise_model(model):

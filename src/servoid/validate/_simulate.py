@@ -18,7 +18,7 @@ slow model is judged by its start-up transient, not its dynamics.
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,13 +27,40 @@ from .._checks import as_array, as_float, type_error
 from .._errors import DataError, ModelError, check_option
 from .._lazy import signal as sps
 
-__all__ = ["INITIALS", "INTERSAMPLES", "Initial", "Intersample", "discrete_model",
-           "has_noise_model", "is_arx", "simulate_model"]
+__all__ = ["INITIALS", "INTERSAMPLES", "Initial", "Intersample", "Replayable", "discrete_model",
+           "has_noise_model", "is_arx", "is_replayable", "simulate_model"]
 
 Initial = Literal["auto", "estimate", "zero", "measured"]
 Intersample = Literal["zoh", "foh", "bandlimited"]
 INITIALS: tuple[Initial, ...] = ("auto", "estimate", "zero", "measured")
 INTERSAMPLES: tuple[Intersample, ...] = ("zoh", "foh", "bandlimited")
+
+
+@runtime_checkable
+class Replayable(Protocol):
+    """A model that simulates itself on a record: nonlinear and grey-box models.
+
+    Linear models are discretised and simulated here; a model of any other
+    kind (NARX, block-oriented, a grey-box ODE) brings its own free run.
+    ``validate``, ``compare`` and the workflows' validation records then
+    treat it as they treat a linear model.
+    """
+
+    dt: float
+
+    def replay(self, y: NDArray[np.float64], u: NDArray[np.float64], *,
+               initial: Initial = "auto") -> tuple[NDArray[np.float64], int, str]:
+        """Free-run simulation on input ``u`` (N,) or (N, n_inputs).
+
+        ``y`` (N,) is the measured output, used only for the initial state.
+        Returns the simulated output (N,), the first sample the metrics
+        use, and the initial-state rule applied.
+        """
+
+
+def is_replayable(model: Any) -> bool:
+    """Return True for a model that brings its own free run (``replay``)."""
+    return callable(getattr(model, "replay", None)) and hasattr(model, "dt")
 
 
 def discrete_model(model: Any, dt: float, intersample: Intersample = "zoh") -> Any:
@@ -85,6 +112,8 @@ def is_arx(model: Any) -> bool:
 
 def has_noise_model(model: Any) -> bool:
     """Return True unless the one-step predictor is the simulation (H = 1)."""
+    if is_replayable(model):
+        return bool(getattr(model, "has_noise_model", False))
     if not hasattr(model, "c"):  # transfer functions and state space: output error
         return False
     return any(np.asarray(p).size > 1 for p in (model.a, model.c, model.d))
