@@ -97,7 +97,7 @@ def test_discrete_model_checks():
         discrete_model(c2d(PLANT, 0.02), DT)
     with pytest.raises(OptionError, match="intersample"):
         discrete_model(PLANT, DT, "cubic")
-    with pytest.raises(TypeError, match="PolynomialModel, TransferFunction, StateSpace"):
+    with pytest.raises(TypeError, match="TransferFunction, StateSpace, PolynomialModel"):
         discrete_model("G", DT)
 
 

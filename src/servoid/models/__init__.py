@@ -8,12 +8,15 @@ scipy.signal and python-control; :func:`save_model` and :func:`load_model`
 keep a model in a JSON file, :func:`export_mat` hands it to MATLAB.  :class:`FrequencyResponseData` is a
 measured (nonparametric) frequency response; :func:`bandwidth`,
 :func:`phase_lag` and :func:`resonance_peak` give the spec numbers of it
-or of any model.
+or of any model.  :func:`bode`, :func:`freqresp` and :func:`simulate` take
+any model — polynomial, transfer function, state space, an Estimate of one,
+or a python-control / scipy.signal system (:func:`as_lti`).
 """
 
 from ._discretize import c2d, d2c
 from ._file import export_mat, load_model, save_model
 from ._frd import FrequencyResponseData, NonlinearDistortion
+from ._generic import as_lti, bode, freqresp, simulate
 from ._interop import from_control, from_scipy, to_control, to_scipy
 from ._polynomial import PolynomialModel
 from ._response import TimeResponse
@@ -29,16 +32,20 @@ __all__ = [
     "StateSpace",
     "TimeResponse",
     "TransferFunction",
+    "as_lti",
     "bandwidth",
+    "bode",
     "c2d",
     "d2c",
     "export_mat",
+    "freqresp",
     "from_control",
     "from_scipy",
     "load_model",
     "phase_lag",
     "resonance_peak",
     "save_model",
+    "simulate",
     "to_control",
     "to_scipy",
 ]

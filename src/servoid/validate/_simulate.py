@@ -38,7 +38,7 @@ INTERSAMPLES: tuple[Intersample, ...] = ("zoh", "foh", "bandlimited")
 
 @runtime_checkable
 class Replayable(Protocol):
-    """A model that simulates itself on a record: nonlinear and grey-box models.
+    """A model that brings its own free run (nonlinear, grey-box).
 
     Linear models are discretised and simulated here; a model of any other
     kind (NARX, block-oriented, a grey-box ODE) brings its own free run.
@@ -59,7 +59,7 @@ class Replayable(Protocol):
 
 
 def is_replayable(model: Any) -> bool:
-    """Return True for a model that brings its own free run (``replay``)."""
+    """Return True for a model with its own free run (``replay``)."""
     return callable(getattr(model, "replay", None)) and hasattr(model, "dt")
 
 
@@ -70,7 +70,8 @@ def discrete_model(model: Any, dt: float, intersample: Intersample = "zoh") -> A
     ----------
     model : PolynomialModel, TransferFunction, StateSpace or Estimate
         An identified model (an Estimate's model is used, with its
-        ``intersample`` option when it was fitted in continuous time).
+        ``intersample`` option when it was fitted in continuous time), or
+        a python-control / scipy.signal system.
     dt : float
         Sample period of the record [s].
     intersample : {"zoh", "foh", "bandlimited"}
@@ -89,8 +90,9 @@ def discrete_model(model: Any, dt: float, intersample: Intersample = "zoh") -> A
         intersample = model.options.get("intersample", intersample)
         model = model.model
     if not isinstance(model, (PolynomialModel, TransferFunction, StateSpace)):
-        raise type_error("model", model, "a PolynomialModel, TransferFunction, StateSpace or "
-                         "an Estimate of one")
+        from ..models import as_lti  # python-control, scipy.signal, an InnovationModel
+
+        model = as_lti(model)
     if model.dt is None:
         method = "zoh" if intersample == "zoh" else "foh"
         return c2d(model, dt, method)
