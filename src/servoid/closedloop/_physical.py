@@ -175,13 +175,13 @@ def pole_report(
                     f"the plant's integrator came out at s0 = {s0:.4g} rad/s (± {s0_std:.2g}), "
                     f"not within {limit:.3g} rad/s of 0: the ARX structure misses it (the Tustin "
                     "image of a strictly proper 3rd-order plant needs nb = na + 1 = 4 with "
-                    "nk = 0, spec §1.2) or noise biases the ARX fit; refine with "
+                    "nk = 0) or noise biases the ARX fit; refine with "
                     "approach='one-step', which fixes the integrator"
                 )
         elif abs(p) >= nyquist:
             note = (
                 f"pole s = {_c(p)} rad/s lies beyond the Nyquist frequency π/dt = {nyquist:.4g} "
-                "rad/s: dynamics this fast cannot be resolved at this rate (spec §1.2); read it "
+                "rad/s: dynamics this fast cannot be resolved at this rate; read it "
                 "as an artefact of unresolvable fast dynamics"
             )
         elif role == "hydraulic" and p.real >= 0.0:
@@ -250,8 +250,8 @@ def _negative_real(z: complex) -> bool:
 def _artefact(z: complex, which: str) -> str:
     return (
         f"{which} pole z = {_c(z)} is negative real: it has no ZOH preimage and by Tustin maps "
-        "beyond the Nyquist frequency, a typical ARX artefact of unresolvable fast dynamics "
-        "(spec §1.2); treat it as non-physical"
+        "beyond the Nyquist frequency, a typical ARX artefact of unresolvable fast dynamics; "
+        "treat it as non-physical"
     )
 
 

@@ -502,7 +502,8 @@ def _finite_moves(
         if moved[0] is not None and moved[1] is not None and norms[k] > 0:
             curv = (float(moved[0] @ moved[0]) - 2.0 * v0 + float(moved[1] @ moved[1])) / h**2
             ratio[k] = curv / (2.0 * norms[k] ** 2)
-        bounds = [h**2 / _expm1(whiten(r0 - r)) for r in moved if r is not None]
+        with np.errstate(divide="ignore"):  # a step that moves nothing: no finite floor
+            bounds = [h**2 / _expm1(whiten(r0 - r)) for r in moved if r is not None]
         if bounds:
             floor[k] = float(np.sqrt(max(bounds)))
     return steps, ratio, floor
