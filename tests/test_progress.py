@@ -53,3 +53,45 @@ def test_stage_line_appears_only_for_long_steps_and_only_when_switched_on(monkey
         configure(False)
     assert "servoid: fitting the one-step model …" in out.getvalue()
     assert out.getvalue().endswith("done in 0:00\x1b[K\n")
+
+
+def test_an_inner_stage_takes_the_line_over(monkeypatch):
+    monkeypatch.setattr(progress, "_STAGE_DELAY", 0.05)
+    out = io.StringIO()
+    configure(True, out)
+    try:
+        with stage("simulating the bench"):
+            time.sleep(0.12)
+            with stage("compiling"):
+                mark = len(out.getvalue())
+                time.sleep(0.25)
+                during = out.getvalue()[mark:]
+    finally:
+        configure(False)
+    assert "compiling …" in during and "simulating" not in during  # one writer at a time
+    assert "simulating the bench … done in" in out.getvalue()
+
+
+def test_a_real_compilation_is_named_and_a_cached_load_is_not(monkeypatch):
+    import numba
+
+    monkeypatch.setattr(progress, "_STAGE_DELAY", 0.0)
+    monkeypatch.setitem(progress._STAGES, "watching", False)
+    out = io.StringIO()
+    configure(True, out)
+    try:
+        progress.watch_compiles()
+
+        @numba.njit(cache=False)
+        def _square_plus_one(x):  # a new function: numba must compile it here
+            return x * x + 1.0
+
+        time.sleep(0.01)
+        assert _square_plus_one(2.0) == 5.0
+        first = out.getvalue()
+        assert _square_plus_one(3.0) == 10.0  # compiled already: nothing more to say
+    finally:
+        configure(False)
+    assert "compiling test_progress._square_plus_one (first use; cached for later runs)" \
+        in first
+    assert out.getvalue() == first

@@ -16,9 +16,9 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import TextIO
+from typing import Any, TextIO
 
-__all__ = ["Progress", "configure", "stage"]
+__all__ = ["Progress", "configure", "stage", "watch_compiles"]
 
 _WIDTH = 24
 _MIN_INTERVAL = 0.2  # s between redraws on a terminal
@@ -111,7 +111,9 @@ class Progress:
 
 
 # -- stage lines -----------------------------------------------------------------------------
-_STAGES = {"enabled": False, "stream": None}
+_STAGES: dict[str, Any] = {"enabled": False, "stream": None}
+_OPEN: list[object] = []  # the stages now running, innermost last
+_LOCK = threading.Lock()
 _STAGE_DELAY = 2.0  # s: a stage shorter than this prints nothing
 
 
@@ -126,6 +128,8 @@ def stage(label: str) -> Iterator[None]:
 
     Off unless :func:`configure` switched it on (the API stays silent); the
     line is redrawn each second by a background thread and cleared at the end.
+    A stage opened inside another (a compilation inside a simulation) takes
+    the line over until it ends.
     """
     if not _STAGES["enabled"]:
         yield
@@ -133,17 +137,23 @@ def stage(label: str) -> Iterator[None]:
     stream = _STAGES["stream"] or sys.stderr
     done = threading.Event()
     start = time.monotonic()
+    me = object()
+    _OPEN.append(me)
 
     def tick() -> None:
         shown = False
         while not done.wait(_STAGE_DELAY if not shown else 1.0):
-            stream.write(f"\rservoid: {label} … {_clock(time.monotonic() - start)}\x1b[K")
-            stream.flush()
+            if _OPEN and _OPEN[-1] is not me:  # an inner stage has the line
+                continue
+            with _LOCK:
+                stream.write(f"\rservoid: {label} … {_clock(time.monotonic() - start)}\x1b[K")
+                stream.flush()
             shown = True
         if shown:
-            stream.write(f"\rservoid: {label} … done in {_clock(time.monotonic() - start)}"
-                         "\x1b[K\n")
-            stream.flush()
+            with _LOCK:
+                stream.write(f"\rservoid: {label} … done in "
+                             f"{_clock(time.monotonic() - start)}\x1b[K\n")
+                stream.flush()
 
     thread = threading.Thread(target=tick, daemon=True)
     thread.start()
@@ -152,3 +162,39 @@ def stage(label: str) -> Iterator[None]:
     finally:
         done.set()
         thread.join()
+        _OPEN.remove(me)
+
+
+def watch_compiles() -> None:
+    """Name numba's first-use compilations in a stage line (once installed).
+
+    numba loads a kernel from its on-disk cache without compiling; only a
+    real compilation (a fresh install, a changed kernel) raises the event
+    this listens to, so the line appears once per install, when it lasts.
+    """
+    if not _STAGES["enabled"] or _STAGES.get("watching"):
+        return
+    from numba.core import event
+
+    class _Compiles(event.Listener):  # type: ignore[misc]
+        def __init__(self) -> None:
+            self.depth = 0
+            self.open: Any = None
+
+        def on_start(self, ev: Any) -> None:
+            self.depth += 1
+            if self.depth == 1:
+                func = getattr(ev.data.get("dispatcher"), "py_func", None)
+                where = getattr(func, "__module__", "") or ""
+                name = f"{where.rsplit('.', 1)[-1].lstrip('_')}.{getattr(func, '__name__', '?')}"
+                self.open = stage(f"compiling {name} (first use; cached for later runs)")
+                self.open.__enter__()
+
+        def on_end(self, ev: Any) -> None:
+            self.depth -= 1
+            if self.depth == 0 and self.open is not None:
+                self.open.__exit__(None, None, None)
+                self.open = None
+
+    event.register("numba:compile", _Compiles())
+    _STAGES["watching"] = True

@@ -36,12 +36,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except SystemExit as stop:  # argparse exits on --help/--version (0)
         return int(stop.code or 0)
-    from .._progress import configure
+    from .._progress import configure, watch_compiles
     from ..workflows._provenance import set_command
 
     set_command(["servoid", *words])
-    configure(sys.stderr.isatty() and not getattr(args, "json", False)
-              and not getattr(args, "quiet", False))
+    shown = (sys.stderr.isatty() and not getattr(args, "json", False)
+             and not getattr(args, "quiet", False))
+    configure(shown)
+    if shown and args.run.__name__ not in _LIGHT:  # these compute: say when numba compiles
+        watch_compiles()
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ServoidWarning)
@@ -90,6 +93,10 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         raise _UsageError(self, message)
+
+
+#: Commands that never reach a compiled kernel (no need to import numba for them).
+_LIGHT = frozenset({"_run_methods", "_run_export", "_run_prbs", "_run_multisine", "_run_chirp"})
 
 
 def _parser() -> argparse.ArgumentParser:
