@@ -125,3 +125,19 @@ def test_refusals_name_the_fix():
         bode(TransferFunction([1.0], [1.0, 0.0]), [0.0, 1.0])
     with pytest.raises(OptionTypeError, match="TransferFunction"):
         as_lti("abc")
+
+
+def test_estimates_and_innovation_models_convert(estimates):
+    import control
+
+    for name in ("arx", "n4sid"):
+        est = estimates[name]
+        g = control.frequency_response(to_control(est), [3.0]).complex.ravel()
+        np.testing.assert_allclose(g, freqresp(est.model, [3.0]), rtol=1e-9)
+        assert isinstance(to_scipy(est), (ss.TransferFunction, ss.StateSpace))
+    from servoid.estimate import InnovationModel
+
+    m = StateSpace([[0.9]], [[1.0]], [[1.0]], [[0.0]], dt=1.0)
+    innovation = InnovationModel(m, np.array([[0.5]]), np.array([[0.01]]))
+    assert to_scipy(innovation).A.tolist() == [[0.9]]  # its deterministic part
+    assert bode(innovation, [0.0]).response[0] == pytest.approx(10.0)  # 1/(1 − 0.9)

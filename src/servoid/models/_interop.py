@@ -155,6 +155,11 @@ def from_control(obj: Any) -> TransferFunction | StateSpace:
 
 def _plain(model: object, target: str, caller: str) -> TransferFunction | StateSpace:
     """The TransferFunction or StateSpace ``target`` receives, or a servoid error."""
+    if not isinstance(model, (PolynomialModel, TransferFunction, StateSpace)) and \
+            hasattr(model, "model"):  # an Estimate or an InnovationModel: its deterministic part
+        from ._generic import as_lti
+
+        model = as_lti(model)
     if isinstance(model, PolynomialModel):
         if model.n_inputs != 1:
             raise ModelError(
