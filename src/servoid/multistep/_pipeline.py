@@ -39,6 +39,7 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._progress import stage
 from ..actuators import PneumaticParameters, PositionController
 from ..data import Experiment
 from ..estimate._covariance import GREYBOX_COVARIANCES, GreyboxCovariance
@@ -343,18 +344,22 @@ def identify_multistep(
         warnings.warn(w.message, w.category, stacklevel=2)
     values = _assemble(steps, given)
     params = known.to_parameters(**values)
-    validation = compare_record(params, records["validation"], controller,
-                                mdot_limit=mdot_limit, name="validation")
+    with stage("S6: simulating the multi-step model on the validation record"):
+        validation = compare_record(params, records["validation"], controller,
+                                    mdot_limit=mdot_limit, name="validation")
     refinement = refined_validation = None
     if refine is not False:
         free = None if refine is True else list(refine)
-        refinement = refine_parameters(records[refine_record], params, free=free,
-                                       controller=controller, max_nfev=refine_max_nfev,
-                                       name=refine_record, covariance=refine_covariance,
-                                       rng=rng)
-        refined_validation = compare_record(refinement.parameters, records["validation"],
-                                            controller, mdot_limit=mdot_limit,
-                                            name="validation")
+        with stage(f"refining the parameters by simulation error on the {refine_record!r} "
+                   "record"):
+            refinement = refine_parameters(records[refine_record], params, free=free,
+                                           controller=controller, max_nfev=refine_max_nfev,
+                                           name=refine_record, covariance=refine_covariance,
+                                           rng=rng)
+        with stage("S6: simulating the refined model on the validation record"):
+            refined_validation = compare_record(refinement.parameters, records["validation"],
+                                                controller, mdot_limit=mdot_limit,
+                                                name="validation")
     return MultistepResult(steps, params, known, validation, derivatives, refinement,
                            refined_validation, given, tuple(dict.fromkeys(notes)))
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -17,6 +16,7 @@ from .. import __version__
 from .._checks import as_float, as_float_list, as_mapping, type_error
 from .._errors import DataError, OptionError, ServoidWarning
 from .._lazy import signal as sps
+from .._progress import stage
 from ..actuators import SET_B, SET_C
 from ..closedloop import (
     APPROACHES,
@@ -246,7 +246,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
             kwargs["prefilter"] = options["prefilter"]
         if approach == "one-step":
             kwargs.update(_rig_options(spec, options["discretization"]))
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), stage(f"fitting the {_LABEL[approach]} model"):
             # Pole flags become notes of the result and of the report, printed once there.
             warnings.simplefilter("ignore", ServoidWarning)
             result = identify_closed_loop(estimation, loop, approach=approach, **kwargs)
@@ -258,8 +258,9 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     primary = options["approach"][-1]
     structure_test = None
     if options["structure_test"] and "one-step" in results:
-        structure_test = _structure_test(spec, estimation, loop, results["one-step"],
-                                         options["discretization"])
+        with stage("testing the model structure (richer models fitted beside it)"):
+            structure_test = _structure_test(spec, estimation, loop, results["one-step"],
+                                             options["discretization"])
         if structure_test.rejected:
             notes.append("the reduced model is rejected by the data (structure test): its "
                          f"intervals understate the error; {structure_test.preferred} is "
@@ -267,7 +268,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     refinement = None
     if options["refine"] is not False:
         names = NONLINEAR_DEFAULTS if options["refine"] is True else tuple(options["refine"])
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), stage("refining with the nonlinear EHSA model"):
             warnings.simplefilter("ignore", ServoidWarning)  # its flags are in its notes
             refinement = refine_after_linear(
                 estimation, validation_data, loop, results[primary], parameters=names,
@@ -292,7 +293,7 @@ def _disagreement(results: Mapping[str, ClosedLoopResult]) -> list[str]:
             apart.append(name)
     if not apart:
         return []
-    return [
+    return [(
         f"why two-step and one-step disagree on {', '.join(apart)} (by more than 4 combined "
         "standard deviations): the two-step approach fits a low-order ARX model to the closed "
         "loop and divides the known feedback out afterwards. ARX minimises an equation error, "
@@ -305,7 +306,7 @@ def _disagreement(results: Mapping[str, ClosedLoopResult]) -> list[str]:
         "consistent when the model's structure is right (`[identify] structure_test = true` "
         "asks the data); trust the one-step values and read the two-step ones as a starting "
         "point."
-    ]
+    )]
 
 
 def _structure_test(spec: ExperimentSpec, estimation: Any, loop: FeedbackLoop,
