@@ -76,7 +76,7 @@ def test_noise_moves_the_estimate_within_four_sigma(model):
 
 def test_regression_shapes_and_time_base():
     exp = _record(SYMMETRIC)
-    reg = inverse_dynamics_regression(exp, decimation=10, trim=1)
+    reg = inverse_dynamics_regression(exp, pipeline="servoid", decimation=10, trim=1)
     n = exp.n_samples - 2  # central differences lose one sample at each end
     assert reg.regressors.shape == (-(-n // 10) - 2, 4)
     assert reg.dt == pytest.approx(10 * DT)
@@ -86,8 +86,8 @@ def test_regression_shapes_and_time_base():
 
 def test_backward_differences_are_biased_by_their_delay():
     exp = _record(SYMMETRIC)
-    central = fit_inverse_dynamics(exp)
-    backward = fit_inverse_dynamics(exp, differentiation="backward")
+    central = fit_inverse_dynamics(exp, pipeline="servoid")
+    backward = fit_inverse_dynamics(exp, pipeline="servoid", differentiation="backward")
     assert backward.options["relative_error"] > central.options["relative_error"]
 
 
@@ -106,7 +106,7 @@ def test_backward_differences_are_biased_by_their_delay():
 )
 def test_rejects_bad_settings(kwargs, error, match):
     with pytest.raises(error, match=match):
-        fit_inverse_dynamics(_record(SYMMETRIC), **kwargs)
+        fit_inverse_dynamics(_record(SYMMETRIC), **{"pipeline": "servoid", **kwargs})
 
 
 def test_one_direction_only_is_not_identifiable_asymmetrically():
@@ -142,16 +142,16 @@ def test_closed_loop_oe_takes_an_estimate_and_keeps_its_model():
 @pytest.mark.parametrize("model", ["symmetric", "asymmetric"])
 @pytest.mark.parametrize("ftype", ["fir", "iir"])
 def test_emps_reproduces_the_published_idim_ls(emps, model, ftype):
-    est = fit_inverse_dynamics(emps, model=model, decimation_filter=ftype)
+    est = fit_inverse_dynamics(emps, model=model, pipeline="servoid", decimation_filter=ftype)
     values, rel = PUBLISHED[model]
     # acceptance of issue 5: parameters within 1 %, relative error within 0.5 percentage point
     np.testing.assert_allclose(est.parameters, values, rtol=0.01)
     assert abs(est.options["relative_error"] - rel) < 0.5
 
 
-def test_emps_default_matches_closely(emps):
-    est = fit_inverse_dynamics(emps)
-    # the default settings (FIR parallel decimation, one trimmed sample at each end) land much
+def test_emps_servoid_pipeline_matches_closely(emps):
+    est = fit_inverse_dynamics(emps, pipeline="servoid")
+    # servoid's settings (FIR parallel decimation, one trimmed sample at each end) land much
     # closer than the acceptance band: 0.25 % on parameters, 0.01 point on the relative error
     np.testing.assert_allclose(est.parameters, PUBLISHED["symmetric"][0], rtol=0.0025)
     assert abs(est.options["relative_error"] - 4.0834) < 0.01

@@ -733,7 +733,7 @@ TOML_CASES = [
     case("data-two-files-no-validation", ID, "add [validation] file",
          set_("data", "file", '["data.csv", "data.csv"]')),
     case("validation-unused-by-method", ID, "[validation] table",
-         method("inverse-dynamics"), add("validation", 'file = "val.csv"'),
+         method("pneumatic-multistep"), add("validation", 'file = "val.csv"'),
          write("val.csv", VALIDATION_CSV)),
     # -- [identify] --------------------------------------------------------------------------
     case("method-unknown", ID, "[identify] method must be one of",

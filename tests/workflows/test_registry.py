@@ -94,9 +94,9 @@ def test_order_on_the_edge_of_the_grid_is_a_note(two_records):
 
 
 def test_validation_table_is_refused_where_it_would_be_ignored(two_records):
-    path = _toml(two_records, {"method": "inverse-dynamics"}, validation={"file": "run1.csv"})
+    path = _toml(two_records, {"method": "pneumatic-multistep"}, validation={"file": "run1.csv"})
     with pytest.raises(OptionError, match=r"\[validation\] table, which method = "
-                                          r"\"inverse-dynamics\" does not use"):
+                                          r"\"pneumatic-multistep\" does not use"):
         identify(path, write=False)
 
 

@@ -27,6 +27,16 @@ integrates the same equation with the sign function literally, by a
 fixed-step RK4 with ``substeps`` steps per sample, as a fixed-step
 block-diagram solver would; it chatters around q̇ = 0 with an amplitude of
 order Fc·h/M.
+
+Disturbances. A measured force ``d(k)`` [N], held over each sample like
+the drive force, enters the loop in one of two places
+(``disturbance_at``): ``"drive"`` adds it to the drive force after the
+voltage limit, ``τ = gtau·v + d``, as the force pulses of the EMPS
+validation record (a voltage added to the controller output, so the
+recorded drive force contains them); ``"load"`` applies it to the axis
+as an external force that the drive force does not contain,
+``M·q̈ = gtau·v + d − friction − offset``. A ``reference_offset`` [m] is
+added to the reference before the controller sees it.
 """
 
 from __future__ import annotations
@@ -46,6 +56,8 @@ __all__ = ["CascadeController", "RigidAxis", "RigidLoopResponse", "simulate_rigi
 
 Integration = Literal["exact", "sign"]
 INTEGRATIONS: tuple[Integration, ...] = ("exact", "sign")
+DisturbanceAt = Literal["drive", "load"]
+DISTURBANCE_AT: tuple[DisturbanceAt, ...] = ("drive", "load")
 
 # indices of the packed axis vector read by the kernels
 _M, _FVP, _FCP, _FVN, _FCN, _OFF = range(6)
@@ -186,7 +198,8 @@ class RigidLoopResponse:
     voltage : ndarray
         Controller output after saturation v(k) [V].
     force : ndarray
-        Drive force gtau·v(k) [N].
+        Drive force gtau·v(k) [N], plus the disturbance when it enters at
+        the drive.
     saturated : float
         Fraction of samples at the voltage limit.
     integration : str
@@ -212,6 +225,9 @@ def simulate_rigid_loop(
     v0: float = 0.0,
     integration: Integration = "exact",
     substeps: int = 10,
+    disturbance: ArrayLike | None = None,
+    disturbance_at: DisturbanceAt = "drive",
+    reference_offset: float = 0.0,
 ) -> RigidLoopResponse:
     """Simulate a rigid axis in its cascaded position loop.
 
@@ -236,6 +252,17 @@ def simulate_rigid_loop(
         solution), or fixed-step RK4 of the sign-function model.
     substeps : int
         RK4 steps per sample for ``"sign"`` (ignored by ``"exact"``).
+    disturbance : array_like, shape (N,), optional
+        Measured force on the axis [N] per sample, held over the sample,
+        positive in the direction of positive q (e.g. the EMPS force
+        pulses, gtau times the pulse voltage); default none.
+    disturbance_at : {"drive", "load"}
+        Where it enters: added to the drive force after the voltage limit
+        (and so part of the returned force), or an external load on the
+        axis that the drive force does not contain.
+    reference_offset : float
+        Constant added to the reference [m] (e.g. a zero that differs
+        between the reference and the encoder).
 
     Returns
     -------
@@ -266,18 +293,30 @@ def simulate_rigid_loop(
         raise DataError(f"dt must be > 0 s, got {dt!r}")
     if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
         raise DataError(f"substeps must be an integer >= 1, got {substeps!r}")
+    check_option("disturbance_at", disturbance_at, DISTURBANCE_AT)
+    offset = as_float("reference_offset", reference_offset, unit="m")
+    if disturbance is None:
+        dist = np.zeros(ref.size)
+    else:
+        dist = np.ascontiguousarray(as_array("disturbance", disturbance, ndim=1))
+        if dist.size != ref.size:
+            raise DataError(f"disturbance must have one value per reference sample ({ref.size}),"
+                            f" got {dist.size}")
+    if offset != 0.0:
+        ref = ref + offset
     q_start = float(ref[0]) if q0 is None else as_float("q0", q0, finite=False)
     v0 = as_float("v0", v0, finite=False)
     if not (math.isfinite(q_start) and math.isfinite(v0)):
         raise DataError(f"q0 and v0 must be finite, got {q0!r} and {v0!r}")
     gains = np.array([controller.kp, controller.kv, controller.gtau, controller.saturation,
                       float(dt)])
-    out = _run_loop(axis.packed(), gains, ref, q_start, float(v0), integration == "exact",
+    at_drive = disturbance_at == "drive"
+    out = _run_loop(axis.packed(), gains, ref, dist, q_start, float(v0), integration == "exact",
                     int(substeps))
     q, v, volt = out[0], out[1], out[2]
     for arr in (q, v, volt):
         arr.setflags(write=False)
-    force = controller.gtau * volt
+    force = controller.gtau * volt + (dist if at_drive else 0.0)
     force.setflags(write=False)
     sat = float(np.mean(np.abs(volt) >= controller.saturation * (1 - 1e-12)))
     time = dt * np.arange(ref.size)
@@ -288,12 +327,13 @@ def simulate_rigid_loop(
 
 
 def _run_loop(p: NDArray[np.float64], gains: NDArray[np.float64], r: NDArray[np.float64],
-              q0: float, v0: float, exact: bool, substeps: int) -> NDArray[np.float64]:
-    return _loop_kernel(p, gains, r, q0, v0, exact, substeps)
+              d: NDArray[np.float64], q0: float, v0: float, exact: bool, substeps: int
+              ) -> NDArray[np.float64]:
+    return _loop_kernel(p, gains, r, d, q0, v0, exact, substeps)
 
 
 @numba.njit(cache=True)
-def _loop_kernel(p, gains, r, q0, v0, exact, substeps):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _loop_kernel(p, gains, r, d, q0, v0, exact, substeps):  # type: ignore[no-untyped-def]  # pragma: no cover
     kp, kv, gtau, vmax, dt = gains[0], gains[1], gains[2], gains[3], gains[4]
     n = r.size
     out = np.empty((3, n))
@@ -314,10 +354,11 @@ def _loop_kernel(p, gains, r, q0, v0, exact, substeps):  # type: ignore[no-untyp
         out[2, k] = volt
         q2, q1 = q1, q
         state[0], state[1] = q, v
+        # a disturbance adds to the force on the axis wherever it enters (drive or load)
         if exact:
-            _exact_step(p, gtau * volt, dt, state)
+            _exact_step(p, gtau * volt + d[k], dt, state)
         else:
-            _rk4_steps(p, gtau * volt, dt, substeps, state)
+            _rk4_steps(p, gtau * volt + d[k], dt, substeps, state)
         q, v = state[0], state[1]
     return out
 

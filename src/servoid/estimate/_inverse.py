@@ -24,13 +24,32 @@ relative error does: the record starts with the axis already moving, so
 the first and last decimated samples carry the zero-phase filters'
 end transients (a 26 N residual at sample 0 against a 2.3 N RMS), and
 these two samples alone move the relative error by 0.1 to 0.4 percentage
-points. Here the default is servoid's linear-phase FIR decimator
-(``"fir"``, no forward-backward padding transient) and ``trim = 1``
-decimated sample is dropped at each end; with these, EMPS gives the
+points. ``pipeline = "servoid"`` uses servoid's linear-phase FIR decimator
+by default (``"fir"``, no forward-backward padding transient) and drops
+``trim = 1`` decimated sample at each end; with these, EMPS gives the
 published parameters within 0.25 %, their standard deviations within
 0.1 %, and the relative error within 0.003 percentage points. The IIR
 (``"iir"``, MATLAB's filter design) with the same trim is within 0.25 %
 and 0.04 percentage points.
+
+The published pipeline. ``pipeline = "published"`` is a faithful port of
+the reference's MATLAB script ``Script_IDIM_LS.m`` (Janot, Gautier,
+Brunot 2019, distributed with the data): ``[b, a] = butter(4, 100/500)``
+applied by MATLAB's ``filtfilt`` (odd reflection of ``3·(nfilt − 1)``
+samples at each end, steady-state initial conditions — SciPy's
+``filtfilt`` pads ``3·nfilt`` by default); velocity and acceleration
+by the script's ``diffcent`` (a central difference with one-sided ends,
+applied to q and then to q̇, so q̈(k) = (q(k+2) − 2q(k) + q(k−2))/(4 dt²));
+the first 49 samples dropped (``n_border = 50`` in MATLAB's 1-based
+indexing; nothing at the end); every column and the force through
+MATLAB's ``decimate`` (order-8 Chebyshev I, 0.05 dB ripple, cut at
+0.8/r, the same ``filtfilt``, samples ``r − (r·⌈N/r⌉ − N)``, ``+r``, …
+in 1-based indexing); ``X \\ y`` and the script's standard deviations
+``std(e)·√diag((ΦᵀΦ)⁻¹)`` (σ̂ with N − 1, mean removed). On EMPS it gives
+the published 4.0834 % and every published digit of the parameters.
+It is the default: fitted on either EMPS record and scored on the other,
+it predicts the other record better on average (inverse model and
+closed-loop simulation alike); ``docs/emps.md`` gives the numbers.
 
 Closed-loop output error. :func:`fit_closed_loop_oe` adjusts the same
 physical parameters so that the simulated closed loop (the axis in its
@@ -48,14 +67,23 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from .._errors import ChannelError, ConvergenceError, DataError, OptionTypeError, check_option
+from .._checks import as_float
+from .._errors import (
+    ChannelError,
+    ConvergenceError,
+    DataError,
+    OptionError,
+    OptionTypeError,
+    check_option,
+)
 from .._lazy import optimize
 from ..actuators import CascadeController, RigidAxis, RigidLoopResponse, simulate_rigid_loop
 from ..data import Channel, Experiment, decimate, lowpass
 from ._estimate import Estimate
 from ._ls import lstsq
 
-Integration = Literal["exact", "sign"]  # as simulate_rigid_loop takes it
+Integration = Literal["exact", "sign"]  # as simulate_rigid_loop takes them
+DisturbanceAt = Literal["drive", "load"]
 
 __all__ = [
     "FRICTION_MODELS",
@@ -70,6 +98,16 @@ FRICTION_MODELS: tuple[FrictionModel, ...] = ("symmetric", "asymmetric")
 Differentiation = Literal["central", "backward"]
 DecimationFilter = Literal["fir", "iir"]
 OeOutput = Literal["position", "force", "both"]
+Pipeline = Literal["servoid", "published"]
+INVERSE_PIPELINES: tuple[Pipeline, ...] = ("servoid", "published")
+_SERVOID_DEFAULTS: dict[str, Any] = {"decimation_filter": "fir", "differentiation": "central",
+                                     "trim": 1}
+# Script_IDIM_LS.m keeps q_f(n_border:N_pts) with n_border = 50 (1-based): 49 samples go
+_PUBLISHED_BORDER = 49
+# MATLAB decimate's IIR filter: cheby1(8, 0.05, 0.8/r)
+_MATLAB_DECIMATE_ORDER = 8
+_MATLAB_DECIMATE_RIPPLE = 0.05
+_MAX_BA_ORDER = 8
 
 _NAMES: dict[str, tuple[str, ...]] = {
     "symmetric": ("M", "Fv", "Fc", "offset"),
@@ -123,12 +161,13 @@ def inverse_dynamics_regression(
     position: str | None = None,
     force: str | None = None,
     model: FrictionModel = "symmetric",
+    pipeline: Pipeline = "published",
     cutoff: float = 100.0,
     order: int = 4,
     decimation: int = 10,
-    decimation_filter: DecimationFilter = "fir",
-    differentiation: Differentiation = "central",
-    trim: int = 1,
+    decimation_filter: DecimationFilter | None = None,
+    differentiation: Differentiation | None = None,
+    trim: int | None = None,
 ) -> InverseDynamicsRegression:
     """Build the filtered, decimated IDIM regression τ = Φ θ.
 
@@ -142,13 +181,29 @@ def inverse_dynamics_regression(
     if not isinstance(data, Experiment):
         raise OptionTypeError(f"data must be an Experiment, got {type(data).__name__}")
     check_option("model", model, FRICTION_MODELS)
-    check_option("decimation_filter", decimation_filter, ("fir", "iir"))
-    check_option("differentiation", differentiation, ("central", "backward"))
+    check_option("pipeline", pipeline, INVERSE_PIPELINES)
     _check_int("order", order, 1)
     _check_int("decimation", decimation, 1)
-    _check_int("trim", trim, 0)
+    given = {"decimation_filter": decimation_filter, "differentiation": differentiation,
+             "trim": trim}
     pos_name = _single(data, position, "y", "position")
     force_name = _force_name(data, force)
+    if pipeline == "published":
+        fixed = [k for k, v in given.items() if v is not None]
+        if fixed:
+            raise OptionError(
+                f"{' and '.join(fixed)} {'is a setting' if len(fixed) == 1 else 'are settings'} "
+                "of pipeline='servoid'; pipeline='published' (the default) is the reference's "
+                "MATLAB recipe and fixes them: pass pipeline='servoid' as well, or leave "
+                f"{'it' if len(fixed) == 1 else 'them'} unset")
+        cutoff = as_float("cutoff", cutoff)
+        return _published_regression(data, pos_name, force_name, model, cutoff, int(order),
+                                     int(decimation))
+    decimation_filter, differentiation, trim = (
+        _SERVOID_DEFAULTS[k] if v is None else v for k, v in given.items())
+    check_option("decimation_filter", decimation_filter, ("fir", "iir"))
+    check_option("differentiation", differentiation, ("central", "backward"))
+    _check_int("trim", trim, 0)
     filtered = lowpass(data.select(pos_name), cutoff, order, zero_phase=True)[pos_name]
     qd, qdd, tau, first = _derivatives(filtered, data[force_name], data.dt, differentiation)
     columns = _columns(qd, qdd, model)
@@ -181,6 +236,7 @@ def inverse_dynamics_regression(
         t0=reduced.t0 + trim * reduced.dt,
         options={
             "model": model,
+            "pipeline": "servoid",
             "position": pos_name,
             "force": force_name,
             "cutoff": float(cutoff),
@@ -200,12 +256,13 @@ def fit_inverse_dynamics(
     position: str | None = None,
     force: str | None = None,
     model: FrictionModel = "symmetric",
+    pipeline: Pipeline = "published",
     cutoff: float = 100.0,
     order: int = 4,
     decimation: int = 10,
-    decimation_filter: DecimationFilter = "fir",
-    differentiation: Differentiation = "central",
-    trim: int = 1,
+    decimation_filter: DecimationFilter | None = None,
+    differentiation: Differentiation | None = None,
+    trim: int | None = None,
 ) -> Estimate:
     """Fit mass and friction by inverse-model least squares (IDIM-LS).
 
@@ -222,6 +279,14 @@ def fit_inverse_dynamics(
         ``τ = M q̈ + Fv q̇ + Fc sign(q̇) + offset``, or separate ``Fv±``,
         ``Fc±`` per direction (the offset is then absorbed by Fc±:
         ``1 = 1(q̇>0) + 1(q̇<0)``, so it has no column).
+    pipeline : {"published", "servoid"}
+        ``"published"`` (the default): the reference's MATLAB script
+        exactly (see the module notes); it fixes the filters, the
+        differences and the border, so ``decimation_filter``,
+        ``differentiation`` and ``trim`` must be left unset, and its
+        standard deviations use the script's σ̂. It is the default because
+        it predicts the other EMPS record better (``docs/emps.md``).
+        ``"servoid"``: servoid's filters, each adjustable.
     cutoff : float
         Cutoff of the zero-phase Butterworth on the position [Hz]; the
         reference uses 100 Hz (about 5× the position-loop bandwidth).
@@ -229,13 +294,15 @@ def fit_inverse_dynamics(
         Butterworth order (applied twice, forward and backward).
     decimation : int
         Parallel decimation factor of force and regressors (1: none).
-    decimation_filter : {"fir", "iir"}
-        Anti-alias filter of :func:`servoid.data.decimate`; see the module notes.
-    differentiation : {"central", "backward"}
-        Central differences (no delay, the reference), or backward ones (half
-        a sample of delay per derivative, for comparison).
-    trim : int
-        Decimated samples dropped at each end (filter end transients), >= 0.
+    decimation_filter : {"fir", "iir"}, optional
+        Anti-alias filter of :func:`servoid.data.decimate` (default
+        ``"fir"``); see the module notes.
+    differentiation : {"central", "backward"}, optional
+        Central differences (no delay, the reference; the default), or
+        backward ones (half a sample of delay per derivative, for comparison).
+    trim : int, optional
+        Decimated samples dropped at each end (filter end transients), >= 0;
+        default 1.
 
     Returns
     -------
@@ -258,18 +325,24 @@ def fit_inverse_dynamics(
     --------
     >>> from servoid.datasets import load_emps
     >>> est = fit_inverse_dynamics(load_emps())
-    >>> round(est["M"], 1), round(float(est.options["relative_error"]), 2)
-    (95.0, 4.08)
+    >>> round(est["M"], 4), round(float(est.options["relative_error"]), 4)
+    (95.1089, 4.0834)
     """
     reg = inverse_dynamics_regression(
-        data, position=position, force=force, model=model, cutoff=cutoff, order=order,
-        decimation=decimation, decimation_filter=decimation_filter,
+        data, position=position, force=force, model=model, pipeline=pipeline, cutoff=cutoff,
+        order=order, decimation=decimation, decimation_filter=decimation_filter,
         differentiation=differentiation, trim=trim,
     )
     y, phi = reg.force, reg.regressors
     result = lstsq(phi, y, reg.names)
     theta = result.theta
     rel = 100.0 * np.sqrt(result.rss) / float(np.linalg.norm(y))
+    covariance, noise_variance = result.covariance, result.noise_variance
+    if pipeline == "published":
+        # the script's σ̂ is std(error_LS): divided by N − 1, the mean removed
+        published_var = float(np.var(y - phi @ theta, ddof=1))
+        covariance = covariance * (published_var / max(noise_variance, 1e-300))
+        noise_variance = published_var
 
     def residuals() -> NDArray[np.float64]:
         return y - phi @ theta
@@ -278,8 +351,8 @@ def fit_inverse_dynamics(
         model=_axis(theta, model),
         parameters=theta,
         names=reg.names,
-        covariance=result.covariance,
-        noise_variance=result.noise_variance,
+        covariance=covariance,
+        noise_variance=noise_variance,
         n_samples=result.n_rows,
         method="idim-ls",
         options={
@@ -310,6 +383,9 @@ def fit_closed_loop_oe(
     integration: Integration = "exact",
     max_nfev: int | None = None,
     tol: float = 1e-10,
+    disturbance: str | None = None,
+    disturbance_at: DisturbanceAt = "drive",
+    reference_offset: float = 0.0,
 ) -> Estimate:
     """Refine mass and friction by closed-loop output error.
 
@@ -350,6 +426,14 @@ def fit_closed_loop_oe(
         Limit on simulations (default 100·(n + 1)).
     tol : float
         Relative tolerance on cost, step and gradient.
+    disturbance : str, optional
+        Channel of a measured disturbance force [N] on the axis (e.g. the
+        EMPS force pulses); default none.
+    disturbance_at : {"drive", "load"}
+        Where it enters the loop (see
+        :func:`~servoid.actuators.simulate_rigid_loop`).
+    reference_offset : float
+        Constant added to the reference [m].
 
     Returns
     -------
@@ -379,6 +463,7 @@ def fit_closed_loop_oe(
     r = data[_single(data, reference, "r", "reference")]
     q_meas = data[_single(data, position, "y", "position")]
     f_meas = data[_force_name(data, force)]
+    dist = None if disturbance is None else data.channel(disturbance).values
     q_start = float(q_meas[0]) if q0 is None else float(q0)
     theta0 = _theta(axis0, model)
     names = _NAMES[model]
@@ -386,7 +471,9 @@ def fit_closed_loop_oe(
 
     def simulate(theta: NDArray[np.float64]) -> RigidLoopResponse:
         return simulate_rigid_loop(_axis(theta, model, clip=True), controller, r, data.dt,
-                                   q0=q_start, v0=v0, integration=integration)
+                                   q0=q_start, v0=v0, integration=integration,
+                                   disturbance=dist, disturbance_at=disturbance_at,
+                                   reference_offset=reference_offset)
 
     sim0 = simulate(theta0)
     weights = {
@@ -437,6 +524,9 @@ def fit_closed_loop_oe(
             "model": model,
             "output": output,
             "integration": integration,
+            "disturbance": disturbance,
+            "disturbance_at": disturbance_at,
+            "reference_offset": float(reference_offset),
             "q0": q_start,
             "v0": float(v0),
             "theta0": theta0.tolist(),
@@ -459,6 +549,105 @@ def fit_closed_loop_oe(
 def _check_int(name: str, value: object, minimum: int) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise DataError(f"{name} must be an integer >= {minimum}, got {value!r}")
+
+
+def _published_regression(data: Experiment, pos_name: str, force_name: str, model: str,
+                          cutoff: float, order: int, r: int) -> InverseDynamicsRegression:
+    from scipy import signal as sps  # deferred: importing scipy.signal costs ~1 s
+    dt = data.dt
+    nyquist = 0.5 / dt
+    if not 0 < cutoff < nyquist:
+        raise DataError(
+            f"cutoff must lie in (0, {nyquist:g}) Hz (the Nyquist frequency), got {cutoff}")
+    if order > _MAX_BA_ORDER:
+        raise DataError(
+            f"order must be <= {_MAX_BA_ORDER} with pipeline = 'published' (the script filters "
+            f"with a transfer function, which loses accuracy at high orders), got {order}")
+    n_rows = data.n_samples - _PUBLISHED_BORDER
+    names = _NAMES[model]
+    # MATLAB's filtfilt needs more samples than its padding (3·8 for the order-8 decimator)
+    needed = max(3 * _MATLAB_DECIMATE_ORDER, 3 * order) + 1
+    if n_rows < needed or -(-n_rows // r) <= len(names):
+        raise DataError(
+            f"the published pipeline drops {_PUBLISHED_BORDER} samples and then needs more than "
+            f"{max(needed, r * len(names))} samples ({len(names)} parameters after decimation "
+            f"by {r}); the record has {data.n_samples}: use a longer record or less decimation")
+    b, a = sps.butter(order, cutoff / nyquist)
+    q = _matlab_filtfilt(b, a, np.asarray(data[pos_name], dtype=float))
+    qd = _diffcent(q, dt)
+    qdd = _diffcent(qd, dt)
+    keep = slice(_PUBLISHED_BORDER, None)
+    qd, qdd = qd[keep], qdd[keep]
+    tau = np.asarray(data[force_name], dtype=float)[keep]
+    if r > 1:
+        cb, ca = _matlab_decimation_filter(r)
+    first = r - (r * -(-tau.size // r) - tau.size) - 1  # MATLAB's nbeg, 0-based
+
+    def dec(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        if r == 1:
+            return np.array(x, dtype=float)
+        return np.ascontiguousarray(_matlab_filtfilt(cb, ca, x)[first::r])
+
+    y = dec(tau)
+    phi = np.column_stack([dec(col) for col in _columns(qd, qdd, model)])
+    for arr in (y, phi):
+        arr.setflags(write=False)
+    return InverseDynamicsRegression(
+        force=y,
+        regressors=phi,
+        names=names,
+        units=_UNITS[model],
+        dt=r * dt,
+        t0=data.t0 + (_PUBLISHED_BORDER + (first if r > 1 else 0)) * dt,
+        options={
+            "model": model,
+            "pipeline": "published",
+            "position": pos_name,
+            "force": force_name,
+            "cutoff": float(cutoff),
+            "order": int(order),
+            "decimation": int(r),
+            "decimation_filter": "matlab-decimate",
+            "differentiation": "diffcent",
+            "border": _PUBLISHED_BORDER,
+            "dt": r * dt,
+        },
+    )
+
+
+def _matlab_decimation_filter(r: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """MATLAB decimate's Chebyshev I, its order lowered until the design is accurate."""
+    from scipy import signal as sps
+    edge = 0.8 / r
+    for n in range(_MATLAB_DECIMATE_ORDER, 0, -1):
+        b, a = sps.cheby1(n, _MATLAB_DECIMATE_RIPPLE, edge)
+        # decimate's own test: the gain at the band edge must be −ripple dB within 1e-6
+        z = np.exp(-1j * np.pi * edge * np.arange(max(b.size, a.size)))
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            gain_db = 20.0 * np.log10(abs((z[:b.size] @ b) / (z[:a.size] @ a)))
+        if np.any(b != 0) and abs(gain_db + _MATLAB_DECIMATE_RIPPLE) <= 1e-6:
+            return b, a
+    raise DataError(f"decimation = {r} is too large for MATLAB's decimation filter (no accurate "
+                    "Chebyshev design); decimate in stages or choose a smaller factor")
+
+
+def _matlab_filtfilt(b: NDArray[np.float64], a: NDArray[np.float64], x: NDArray[np.float64]
+                     ) -> NDArray[np.float64]:
+    """MATLAB's filtfilt: odd reflection of 3·(nfilt − 1) samples, steady-state start."""
+    from scipy import signal as sps
+    nfilt = max(len(a), len(b))
+    # SciPy's own default pads 3·nfilt; with 3·(nfilt − 1) and its lfilter_zi start (the same
+    # steady state MATLAB solves for) the two agree to rounding
+    return np.asarray(sps.filtfilt(b, a, x, padtype="odd", padlen=3 * (nfilt - 1)))
+
+
+def _diffcent(y: NDArray[np.float64], dt: float) -> NDArray[np.float64]:
+    """The reference's central difference, one-sided at both ends."""
+    out = np.empty_like(y)
+    out[1:-1] = 0.5 * (y[2:] - y[:-2])
+    out[0] = y[1] - y[0]
+    out[-1] = y[-1] - y[-2]
+    return out / dt
 
 
 def _single(data: Experiment, name: str | None, role: Any, what: str) -> str:

@@ -8,6 +8,19 @@ the position for comparison, and a cross-check that fits on the
 estimation part of ``[split]`` and simulates the held-back part.
 Reference for the method and the EMPS data: Janot, Gautier, Brunot,
 *Data Set and Reference Models of EMPS*, 2019.
+
+Cross-test. With ``[validation] file`` (then no ``[split]``) every
+estimate is scored on each validation record as well: the inverse model's
+relative error on that record, processed by the same pipeline, and the
+closed-loop simulation errors of position and force.
+
+Loop inputs. ``[loop] disturbance`` names a channel holding a measured
+force [N] on the axis (e.g. the EMPS force pulses, gtau times the pulse
+voltage), ``disturbance_at`` (``"drive"`` or ``"load"``) where it enters,
+and ``reference_offset`` [m] a constant added to the reference; every
+closed-loop simulation and the refinement use them. A record whose file
+lacks the disturbance channel (a record without pulses) gets zero there,
+and the run's notes say so.
 """
 
 from __future__ import annotations
@@ -15,7 +28,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -23,8 +36,15 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from .._checks import as_float, as_int_list, as_mapping, read_json
-from .._errors import DataError, FileFormatError, OptionError, ServoidWarning
+from .._checks import as_float, as_int_list, as_mapping, as_str, read_json
+from .._errors import (
+    ChannelError,
+    DataError,
+    FileFormatError,
+    OptionError,
+    ServoidWarning,
+    check_option,
+)
 from ..actuators import CascadeController, RigidAxis, simulate_rigid_loop
 from ..data import Experiment, ExperimentSpec
 from ..estimate import (
@@ -35,6 +55,7 @@ from ..estimate import (
     fit_inverse_dynamics,
     inverse_dynamics_regression,
 )
+from ..estimate._inverse import INVERSE_PIPELINES
 from ..report import (
     Figure,
     Page,
@@ -54,6 +75,10 @@ from ._summary import Displayed
 __all__ = ["METHOD", "InverseDynamicsIdentification", "controller_from_table"]
 
 _LOOP_KEYS = ("kp", "kv", "gtau", "saturation")
+_LOOP_INPUT_KEYS = ("disturbance", "disturbance_at", "reference_offset")
+_DISTURBANCE_AT = ("drive", "load")
+# settings that only pipeline = "servoid" takes (the published one fixes them)
+_SERVOID_ONLY = ("decimation_filter", "differentiation", "trim")
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -74,6 +99,12 @@ class InverseDynamicsIdentification(Displayed):
         Linear model from plant input to position: orders and relative errors.
     holdout : mapping or None
         Per method: closed-loop relative errors on the held-back part of a fit on the rest.
+    validation : mapping or None
+        Cross-test, per record then per estimate: ``inverse`` (relative
+        error of the inverse model on that record [%]) and the closed-loop
+        relative errors; the estimation record comes first.
+    loop_inputs : mapping
+        ``[loop]`` disturbance channel, where it enters, reference offset.
     published : mapping or None
         Reference values to compare with (``[report] truth``).
     folder : pathlib.Path or None
@@ -86,6 +117,8 @@ class InverseDynamicsIdentification(Displayed):
         The record identified (for the figures).
     options : mapping
         The ``[identify]`` options used.
+    records : tuple of Experiment
+        The validation records (for the figures).
     """
 
     spec: ExperimentSpec
@@ -94,12 +127,15 @@ class InverseDynamicsIdentification(Displayed):
     loop_errors: Mapping[str, Mapping[str, float]]
     linear: Mapping[str, Any] | None = None
     holdout: Mapping[str, Mapping[str, float]] | None = None
+    validation: Mapping[str, Mapping[str, Mapping[str, float]]] | None = None
+    loop_inputs: Mapping[str, Any] = field(default_factory=dict)
     published: Mapping[str, Any] | None = None
     folder: Path | None = None
     files: tuple[Path, ...] = ()
     notes: tuple[str, ...] = field(default=())
     data: Experiment | None = None
     options: Mapping[str, Any] = field(default_factory=dict)
+    records: tuple[Experiment, ...] = ()
 
     @property
     def estimate(self) -> Estimate:
@@ -120,6 +156,10 @@ class InverseDynamicsIdentification(Displayed):
             "linear": {k: v for k, v in self.linear.items() if k != "simulated"}
             if self.linear else None,
             "holdout": {k: dict(v) for k, v in self.holdout.items()} if self.holdout else None,
+            "loop_inputs": dict(self.loop_inputs),
+            "validation": {rec: {k: dict(v) for k, v in scores.items()}
+                           for rec, scores in self.validation.items()}
+            if self.validation else None,
             "published": dict(self.published) if self.published else None,
             "notes": list(self.notes),
         }
@@ -132,7 +172,7 @@ class InverseDynamicsIdentification(Displayed):
 
     def inputs(self) -> tuple[Path, ...]:
         """Every file the run read."""
-        out = [self.spec.data_path]
+        out = [self.spec.data_path, *self.spec.validation_paths]
         if self.spec.source:
             out.append(Path(self.spec.source))
         truth = report_options(self.spec.report).get("truth")
@@ -149,6 +189,8 @@ class InverseDynamicsIdentification(Displayed):
         }
         if self.linear:
             out["linear.png"] = partial(_plot_linear, self)
+        for k in range(len(self.records)):
+            out[f"validation_loop_{k + 1}.png"] = partial(_plot_loop, self, record=k)
         return out
 
     def page(self, files: Mapping[str, Path]) -> Page:
@@ -191,6 +233,12 @@ class InverseDynamicsIdentification(Displayed):
             for key, errs in self.holdout.items():
                 lines.append(f"  held-back closed loop, {key}: position {errs['position']:.4g} %,"
                              f" force {errs['force']:.4g} %")
+        for record, scores in (self.validation or {}).items():
+            lines.append(f"  cross-test on {record} (inverse model; closed loop from the "
+                         "measured state):")
+            for key, errs in scores.items():
+                lines.append(f"    {key:<26} inverse {errs['inverse']:.4f} %; position "
+                             f"{errs['position']:.4g} %, force {errs['force']:.4f} %")
         lines += [f"  note: {n}" for n in self.notes]
         if self.folder:
             lines.append(f"  report: {self.folder / 'report.html'}")
@@ -204,7 +252,9 @@ def controller_from_table(
 
     Keys: ``kp`` [1/s], ``kv`` [V/(m/s)], ``gtau`` [N/V], ``saturation`` [V]
     (default 10). A missing gain is taken from the data file's scalars
-    (``notes``) of the same name, if there.
+    (``notes``) of the same name, if there. The loop-input keys
+    ``disturbance``, ``disturbance_at`` and ``reference_offset`` are
+    allowed and read by the workflow, not here.
 
     Parameters
     ----------
@@ -220,10 +270,11 @@ def controller_from_table(
     """
     table = as_mapping("table", table)  # the [loop] of an experiment file
     notes = {} if notes is None else as_mapping("notes", notes)
-    unknown = sorted(set(table) - set(_LOOP_KEYS))
+    unknown = sorted(set(table) - set(_LOOP_KEYS) - set(_LOOP_INPUT_KEYS))
     if unknown:
         raise OptionError(f"unknown key(s) in [loop]: {', '.join(unknown)}; valid keys for "
-                          f"method = \"inverse-dynamics\" are {', '.join(_LOOP_KEYS)}")
+                          f"method = \"inverse-dynamics\" are "
+                          f"{', '.join(_LOOP_KEYS + _LOOP_INPUT_KEYS)}")
     values: dict[str, float] = {"saturation": 10.0}
     for key in _LOOP_KEYS:
         value = table.get(key, notes.get(key, values.get(key)))
@@ -243,36 +294,51 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     """Run the rigid-axis identification an experiment file asks for.
 
     ``[identify]`` keys: see :data:`METHOD` (``servoid methods
-    inverse-dynamics``); ``[loop]``: see :func:`controller_from_table`.
-    ``truth`` (or ``[report] truth``, a JSON file) holds published
-    reference results to compare with.
+    inverse-dynamics``); ``[loop]``: see :func:`controller_from_table`
+    and the module notes. ``truth`` (or ``[report] truth``, a JSON file)
+    holds published reference results to compare with.
     """
     options = _checked(options)
-    data = spec.load()
+    loop = _loop_inputs(spec)
+    notes: list[str] = []
+    data = _load_record(spec, None, loop, notes)
+    records = tuple(_load_record(spec, path, loop, notes) for path in spec.validation_paths)
+    if notes and len(notes) == 1 + len(records):
+        raise DataError(
+            f"[loop] disturbance = {loop['disturbance']!r}: no record has that channel's source "
+            "in its file; check its [channels] entry, or remove the key")
     controller = controller_from_table(spec.loop, data.notes)
     published = truth if truth is not None else _published_from_spec(spec)
     channels = {k: options[k] for k in ("position", "force")}
-    idim = {k: options[k] for k in ("cutoff", "order", "decimation", "decimation_filter",
-                                    "differentiation", "trim")}
+    idim = _idim_settings(options)
     estimates: dict[str, Estimate] = {}
     for model in options["model"]:
         estimates[f"idim-ls {model}"] = fit_inverse_dynamics(data, model=model, **channels, **idim)
-    notes: list[str] = []
     if options["refine"]:
         for model in options["model"]:
             start = estimates[f"idim-ls {model}"]
             estimates[f"closed-loop-oe {model}"] = fit_closed_loop_oe(
                 data, controller, start, output=options["refine_output"],
-                reference=options["reference"], integration=options["integration"], **channels)
-    loop_errors = {key: _loop_errors(data, controller, est.model, options)
+                reference=options["reference"], integration=options["integration"],
+                **channels, **loop)
+    loop_errors = {key: _loop_errors(data, controller, est.model, options, loop)
                    for key, est in estimates.items()}
     linear = _linear(data, options) if options["linear"] else None
-    holdout = _holdout(spec, data, controller, options, channels, idim) \
-        if options["holdout"] else None
+    holdout = None
+    if options["holdout"] and not records:
+        holdout = _holdout(spec, data, controller, options, channels, idim, loop)
+    validation = None
+    if records:
+        names = (spec.data_path.name, *(p.name for p in spec.validation_paths))
+        if len(set(names)) < len(names):  # same file name in two folders: as written
+            names = (spec.file, *spec.validation.files)
+        validation = {name: _cross_test(rec, controller, estimates, options, loop)
+                      for name, rec in zip(names, (data, *records), strict=True)}
     notes += _notes(estimates, loop_errors)
     return InverseDynamicsIdentification(spec, controller, estimates, loop_errors, linear,
-                                         holdout, published, notes=tuple(notes), data=data,
-                                         options=options)
+                                         holdout, validation, loop, published,
+                                         notes=tuple(notes), data=data, options=options,
+                                         records=records)
 
 
 # -- steps ------------------------------------------------------------------------------------
@@ -287,32 +353,114 @@ def _checked(options: Mapping[str, Any]) -> dict[str, Any]:
     if orders[1] < 1:
         raise DataError(f"[identify] linear_orders = [na, nb, nk] needs nb >= 1, got {orders!r}")
     out["linear_orders"] = orders
+    if out["pipeline"] == "published":
+        fixed = [k for k in _SERVOID_ONLY if out[k] is not None]
+        if fixed:
+            raise OptionError(
+                f"[identify] {', '.join(fixed)}: only pipeline = \"servoid\" takes "
+                f"{'this setting' if len(fixed) == 1 else 'these settings'}; pipeline = "
+                "\"published\" is the reference's MATLAB recipe exactly. Remove the key(s), or "
+                "set pipeline = \"servoid\"")
     return out
 
 
+def _idim_settings(options: Mapping[str, Any]) -> dict[str, Any]:
+    """The fit_inverse_dynamics keywords of a run (or of an estimate's options)."""
+    out = {k: options[k] for k in ("pipeline", "cutoff", "order", "decimation")}
+    if options["pipeline"] == "servoid":
+        out.update({k: options.get(k) for k in _SERVOID_ONLY})
+    return out
+
+
+def _loop_inputs(spec: ExperimentSpec) -> dict[str, Any]:
+    table = spec.loop
+    where = "[loop]"
+    name = table.get("disturbance")
+    if name is not None:
+        name = as_str("disturbance", name, where=where)
+        declared = {ch.name: ch for ch in spec.channels}
+        if name not in declared:
+            raise DataError(
+                f"[loop] disturbance = {name!r} is not a channel of [channels] "
+                f"({', '.join(declared)}); declare it as [channels.{name}] with its source, "
+                "gain (to newtons) and unit = \"N\"")
+        unit = declared[name].unit
+        if unit not in (None, "", "N"):
+            raise DataError(
+                f"[loop] disturbance = {name!r} has unit {unit!r}, but the disturbance is a "
+                f"force [N]; give [channels.{name}] the gain to newtons (for a voltage added to "
+                "the drive: gain = gtau) and unit = \"N\"")
+    at = table.get("disturbance_at", "drive")
+    check_option("[loop] disturbance_at", at, _DISTURBANCE_AT)
+    offset = as_float("reference_offset", table.get("reference_offset", 0.0), unit="m",
+                      where=where)
+    return {"disturbance": name, "disturbance_at": str(at), "reference_offset": offset}
+
+
+def _load_record(spec: ExperimentSpec, path: Path | None, loop: Mapping[str, Any],
+                 notes: list[str]) -> Experiment:
+    """Read a record; one without the disturbance channel's source gets zeros there."""
+    name = loop["disturbance"]
+    try:
+        return spec.load(path)
+    except ChannelError:
+        if name is None:
+            raise
+    reduced = replace(spec, channels=tuple(ch for ch in spec.channels if ch.name != name))
+    exp = reduced.load(path)  # raises if something else is missing too
+    source = next(ch.source for ch in spec.channels if ch.name == name)
+    notes.append(f"{Path(path or spec.data_path).name} has no {source!r}: its disturbance "
+                 f"{name!r} is taken as zero (a record without pulses)")
+    return exp.add_channel(name, np.zeros(exp.n_samples), role="side", unit="N")
+
+
 def _simulate(data: Experiment, controller: CascadeController, axis: RigidAxis,
-              options: Mapping[str, Any], from_rest: bool = False) -> tuple[Any, str, str, str]:
+              options: Mapping[str, Any], loop: Mapping[str, Any],
+              from_rest: bool = False) -> tuple[Any, str, str, str]:
     r_name = options["reference"] or _only(data, "r")
     q_name = options["position"] or _only(data, "y")
     f_name = options["force"] or ("force" if "force" in data.names else _only(data, "u"))
     q = data[q_name]
     # from the measured state, or (as the reference seems to) at rest on the reference
     q0, v0 = (None, 0.0) if from_rest else (float(q[0]), float((q[1] - q[0]) / data.dt))
+    dist = None if loop["disturbance"] is None else data[loop["disturbance"]]
     sim = simulate_rigid_loop(axis, controller, data[r_name], data.dt, q0=q0, v0=v0,
-                              integration=options["integration"])
+                              integration=options["integration"], disturbance=dist,
+                              disturbance_at=loop["disturbance_at"],
+                              reference_offset=loop["reference_offset"])
     return sim, r_name, q_name, f_name
 
 
 def _loop_errors(data: Experiment, controller: CascadeController, axis: RigidAxis,
-                 options: Mapping[str, Any]) -> dict[str, float]:
-    sim, _, q_name, f_name = _simulate(data, controller, axis, options)
-    rest = _simulate(data, controller, axis, options, from_rest=True)[0]
+                 options: Mapping[str, Any], loop: Mapping[str, Any]) -> dict[str, float]:
+    sim, _, q_name, f_name = _simulate(data, controller, axis, options, loop)
+    rest = _simulate(data, controller, axis, options, loop, from_rest=True)[0]
     q, f = data[q_name], data[f_name]
     return {"position": float(relative_error(q, sim.position)),
             "force": float(relative_error(f, sim.force)),
             "position_from_rest": float(relative_error(q, rest.position)),
             "force_from_rest": float(relative_error(f, rest.force)),
             "saturated_fraction": sim.saturated}
+
+
+def _cross_test(record: Experiment, controller: CascadeController,
+                estimates: Mapping[str, Estimate], options: Mapping[str, Any],
+                loop: Mapping[str, Any]) -> dict[str, dict[str, float]]:
+    """Every estimate scored on one record: inverse model and closed loop."""
+    out: dict[str, dict[str, float]] = {}
+    channels = {k: options[k] for k in ("position", "force")}
+    regressions: dict[str, Any] = {}
+    for key, est in estimates.items():
+        model = key.split(" ")[-1]
+        if model not in regressions:
+            regressions[model] = inverse_dynamics_regression(
+                record, model=model, **channels, **_idim_settings(options))
+        reg = regressions[model]
+        inverse = 100.0 * float(np.linalg.norm(reg.force - reg.regressors @ est.parameters)
+                                / np.linalg.norm(reg.force))
+        out[key] = {"inverse": inverse,
+                    **_loop_errors(record, controller, est.model, options, loop)}
+    return out
 
 
 def _linear(data: Experiment, options: Mapping[str, Any]) -> dict[str, Any]:
@@ -334,17 +482,18 @@ def _linear(data: Experiment, options: Mapping[str, Any]) -> dict[str, Any]:
 
 def _holdout(spec: ExperimentSpec, data: Experiment, controller: CascadeController,
              options: Mapping[str, Any], channels: Mapping[str, Any],
-             idim: Mapping[str, Any]) -> dict[str, dict[str, float]]:
+             idim: Mapping[str, Any], loop: Mapping[str, Any]) -> dict[str, dict[str, float]]:
     estimation, validation = spec.split_data(data)
     model = options["model"][0]
     out: dict[str, dict[str, float]] = {}
     est = fit_inverse_dynamics(estimation, model=model, **channels, **idim)
-    out[f"idim-ls {model}"] = _loop_errors(validation, controller, est.model, options)
+    out[f"idim-ls {model}"] = _loop_errors(validation, controller, est.model, options, loop)
     if options["refine"]:
         oe = fit_closed_loop_oe(estimation, controller, est, output=options["refine_output"],
                                 reference=options["reference"],
-                                integration=options["integration"], **channels)
-        out[f"closed-loop-oe {model}"] = _loop_errors(validation, controller, oe.model, options)
+                                integration=options["integration"], **channels, **loop)
+        out[f"closed-loop-oe {model}"] = _loop_errors(validation, controller, oe.model, options,
+                                                      loop)
     return out
 
 
@@ -419,10 +568,8 @@ def _regressions(ident: InverseDynamicsIdentification) -> tuple[dict[str, Any], 
     idim = {k: v for k, v in ident.estimates.items() if v.method == "idim-ls"}
     regressions = {
         key: inverse_dynamics_regression(
-            ident.data, **{k: est.options[k] for k in ("position", "force", "model", "cutoff",
-                                                       "order", "decimation",
-                                                       "decimation_filter", "differentiation",
-                                                       "trim")})
+            ident.data, **{k: est.options[k] for k in ("position", "force", "model")},
+            **_idim_settings(ident.options))
         for key, est in idim.items()
     }
     return regressions, idim
@@ -436,17 +583,21 @@ def _plot_friction(ident: InverseDynamicsIdentification, path: Path, overwrite: 
     plot_friction(*_regressions(ident), path, overwrite)
 
 
-def _plot_loop(ident: InverseDynamicsIdentification, path: Path, overwrite: bool) -> None:
-    data, options = ident.data, ident.options
-    sims = {key: _simulate(data, ident.controller, est.model, options)[0]
+def _plot_loop(ident: InverseDynamicsIdentification, path: Path, overwrite: bool,
+               record: int | None = None) -> None:
+    data = ident.data if record is None else ident.records[record]
+    options, loop = ident.options, ident.loop_inputs
+    sims = {key: _simulate(data, ident.controller, est.model, options, loop)[0]
             for key, est in ident.estimates.items()}
-    _, _, q_name, f_name = _simulate(data, ident.controller, ident.estimate.model, options)
+    _, _, q_name, f_name = _simulate(data, ident.controller, ident.estimate.model, options,
+                                     loop)
     plot_loop(data.time, data[q_name], data[f_name], sims, path, overwrite)
 
 
 def _plot_linear(ident: InverseDynamicsIdentification, path: Path, overwrite: bool) -> None:
     data, linear = ident.data, ident.linear
-    q_name = _simulate(data, ident.controller, ident.estimate.model, ident.options)[2]
+    q_name = _simulate(data, ident.controller, ident.estimate.model, ident.options,
+                       ident.loop_inputs)[2]
     plot_linear(data.time, data[q_name], linear["simulated"], linear["structure"], path,
                 overwrite)
 
@@ -490,7 +641,29 @@ def _page(ident: InverseDynamicsIdentification, files: Mapping[str, Path]) -> Pa
             tuple((k, f"{v['position']:.4g} %", f"{v['force']:.4g} %")
                   for k, v in ident.holdout.items()),
             "Closed-loop simulation of the held-back part ([split])"))
+    if ident.validation:
+        tables.append(Table(
+            ("record", "estimate", "inverse model", "position", "force", "position (from rest)",
+             "force (from rest)"),
+            tuple((record, key, f"{v['inverse']:.4f} %", f"{v['position']:.4g} %",
+                   f"{v['force']:.4f} %", f"{v['position_from_rest']:.4g} %",
+                   f"{v['force_from_rest']:.4f} %")
+                  for record, scores in ident.validation.items() for key, v in scores.items()),
+            "Cross-test ([validation] file): the estimates of the first record scored on every "
+            "record — inverse-model relative error 100·‖τ − Φθ̂‖/‖τ‖ through the same pipeline, "
+            "and closed-loop simulation errors [%]"))
     ctrl = ident.controller
+    loop = ident.loop_inputs
+    inputs = ""
+    if loop.get("disturbance"):
+        inputs += (f" Disturbance: channel {loop['disturbance']!r} [N] added at the "
+                   f"{loop['disturbance_at']}.")
+    if loop.get("reference_offset"):
+        inputs += f" Reference offset {loop['reference_offset']:g} m."
+    recipe = ("the reference's MATLAB script exactly (pipeline = \"published\": MATLAB filtfilt "
+              "and decimate, diffcent, 49 samples dropped at the start)"
+              if ident.options.get("pipeline") == "published" else
+              "servoid's pipeline (pipeline = \"servoid\")")
     method = Section(
         "Method",
         paragraphs=(
@@ -498,11 +671,11 @@ def _page(ident: InverseDynamicsIdentification, files: Mapping[str, Path]) -> Pa
             "per direction). IDIM-LS: zero-phase Butterworth low-pass of the position, central "
             "differences, parallel decimation of force and regressors through one anti-alias "
             "filter, least squares by QR with covariance σ̂²(ΦᵀΦ)⁻¹ (Janot, Gautier, Brunot, "
-            "Data Set and Reference Models of EMPS, 2019)."),
+            f"Data Set and Reference Models of EMPS, 2019); here {recipe}."),
             (f"Known loop: v = kv·(kp·(r − q) − q̇f), kp = {ctrl.kp:g} 1/s, kv = {ctrl.kv:g} "
             f"V/(m/s), ±{ctrl.saturation:g} V, τ = gtau·v with gtau = {ctrl.gtau:.6g} N/V; q̇f "
             "from the backward difference of the two-sample mean. The direct model is simulated "
-            "exactly between samples with stick/slip events at q̇ = 0."),
+            "exactly between samples with stick/slip events at q̇ = 0." + inputs),
             ("Closed-loop OE refines the physical parameters so the simulated loop reproduces "
             "the measured position and force (Levenberg–Marquardt from the IDIM-LS estimate). "
             "Its standard deviations assume white output errors and are lower bounds."),
@@ -513,6 +686,10 @@ def _page(ident: InverseDynamicsIdentification, files: Mapping[str, Path]) -> Pa
             Figure.from_file(files["friction.png"], "Friction: τ − M q̈ against velocity"),
             Figure.from_file(files["closed_loop.png"],
                              "Closed loop: measured vs simulated position and force")]
+    for k, rec in enumerate(ident.records):
+        figs.append(Figure.from_file(files[f"validation_loop_{k + 1}.png"],
+                                     f"Cross-test on {rec.name}: measured vs simulated position "
+                                     "and force"))
     linear_sec = []
     if ident.linear:
         figs.append(Figure.from_file(files["linear.png"], "Linear model from the plant input"))
@@ -524,8 +701,10 @@ def _page(ident: InverseDynamicsIdentification, files: Mapping[str, Path]) -> Pa
             + (f" (published best linear model: {pub:g} %)" if pub is not None else "")
             + ". It has a pole at 1 (the integrator) and a second real pole standing in for "
             "friction; it drifts with any input offset and says nothing physical.",)))
-    data_sec = Section("Experiment", paragraphs=(
-        f"Data file {spec.data_path.name} (sha256 {sha256(spec.data_path)[:16]}…).",))
+    data_sec = Section("Experiment", paragraphs=tuple(
+        f"{what} file {path.name} (sha256 {sha256(path)[:16]}…)."
+        for what, path in (("Data", spec.data_path),
+                           *(("Validation", p) for p in spec.validation_paths))))
     return Page(
         title=f"Rigid axis with friction: {spec.source.name if spec.source else 'experiment'}",
         subtitle="Inverse-model least squares, closed-loop simulation and output-error refinement",
@@ -539,7 +718,8 @@ def _page(ident: InverseDynamicsIdentification, files: Mapping[str, Path]) -> Pa
 METHOD = Method(
     name="inverse-dynamics",
     summary="rigid axis with friction in its known cascade loop ([loop] kp, kv, gtau): "
-            "IDIM-LS of M, Fv, Fc, closed-loop OE refinement, hold-out check",
+            "IDIM-LS of M, Fv, Fc, closed-loop OE refinement, hold-out check or cross-test "
+            "([validation] file)",
     options=(
         Option("model", ["symmetric", "asymmetric"], choices(FRICTION_MODELS),
                "friction model or list; the first is primary"),
@@ -551,10 +731,16 @@ METHOD = Method(
                "zero-phase low-pass before differentiation [Hz]"),
         Option("order", 4, integer(minimum=1), "Butterworth order of that low-pass"),
         Option("decimation", 10, integer(minimum=1), "decimation of the regression"),
-        Option("decimation_filter", "fir", choice(("fir", "iir")), "decimation filter"),
-        Option("differentiation", "central", choice(("central", "backward")),
-               "numerical derivative"),
-        Option("trim", 1, integer(minimum=0), "samples trimmed at each end [decimated samples]"),
+        Option("pipeline", "published", choice(INVERSE_PIPELINES),
+               "published: the reference's MATLAB script exactly (it predicts the other EMPS "
+               "record better, docs/emps.md); servoid: adjustable filters"),
+        Option("decimation_filter", None, optional(choice(("fir", "iir"))),
+               "decimation filter, pipeline = \"servoid\" only; none means fir"),
+        Option("differentiation", None, optional(choice(("central", "backward"))),
+               "numerical derivative, pipeline = \"servoid\" only; none means central"),
+        Option("trim", None, optional(integer(minimum=0)),
+               "samples trimmed at each end [decimated samples], pipeline = \"servoid\" only; "
+               "none means 1"),
         Option("refine", True, boolean(), "closed-loop output-error refinement"),
         Option("refine_output", "both", choice(("position", "force", "both")),
                "signals the refinement fits"),
@@ -564,8 +750,8 @@ METHOD = Method(
         Option("linear_orders", [2, 2, 1], lambda v, w, n: as_int_list(n, v, minimum=0, where=w),
                "[na, nb, nk] of that ARX"),
         Option("holdout", True, boolean(),
-               "fit on the estimation part of [split], simulate the rest"),
+               "fit on the estimation part of [split], simulate the rest (not with [validation])"),
     ),
     run=run,
-    tables=("loop",),
+    tables=("loop", "validation"),
 )
