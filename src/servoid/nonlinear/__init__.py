@@ -6,9 +6,12 @@ records treat it as they treat a linear model.
 """
 
 # NARX
-# (exports added by the NARX modules)
+from ._narx import MAX_CANDIDATES, candidate_terms, fit_narx
+from ._narx_model import NarxModel
 
-# Block-oriented
-# (exports added by the block-oriented modules)
-
-__all__: list[str] = []
+__all__: list[str] = [
+    "MAX_CANDIDATES",
+    "NarxModel",
+    "candidate_terms",
+    "fit_narx",
+]
