@@ -9,9 +9,39 @@ records treat it as they treat a linear model.
 from ._narx import MAX_CANDIDATES, candidate_terms, fit_narx
 from ._narx_model import NarxModel
 
+# Block-oriented
+# isort: split
+from ._block import BlockModel
+from ._block_fit import fit_block, fit_hammerstein, fit_hammerstein_wiener, fit_wiener
+from ._static import (
+    SHAPES,
+    AbsoluteValue,
+    DeadZone,
+    PiecewiseLinear,
+    Polynomial,
+    Saturation,
+    SignedPower,
+    StaticFunction,
+    StaticNonlinearity,
+)
+
 __all__: list[str] = [
     "MAX_CANDIDATES",
+    "SHAPES",
+    "AbsoluteValue",
+    "BlockModel",
+    "DeadZone",
     "NarxModel",
+    "PiecewiseLinear",
+    "Polynomial",
+    "Saturation",
+    "SignedPower",
+    "StaticFunction",
+    "StaticNonlinearity",
     "candidate_terms",
+    "fit_block",
+    "fit_hammerstein",
+    "fit_hammerstein_wiener",
     "fit_narx",
+    "fit_wiener",
 ]

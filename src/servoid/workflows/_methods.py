@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from . import _arx, _closedloop, _closedloop_any, _frf, _inverse, _n4sid, _pem, _pneumatic, _tf
+from ._blocks import HAMMERSTEIN, HAMMERSTEIN_WIENER, WIENER
 from ._narx import METHOD as NARX
 from ._registry import registry
 
@@ -22,5 +23,8 @@ METHODS = registry((
     _closedloop.METHOD,
     _inverse.METHOD,
     _pneumatic.METHOD,
+    HAMMERSTEIN,
+    WIENER,
+    HAMMERSTEIN_WIENER,
     NARX,
 ))
