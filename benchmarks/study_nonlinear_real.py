@@ -28,7 +28,7 @@ choice costs against hindsight.
 
 Run from the repository root::
 
-    .venv/bin/python benchmarks/study_nonlinear_real.py            # ~3 min
+    .venv/bin/python benchmarks/study_nonlinear_real.py            # about 30 s
     .venv/bin/python benchmarks/study_nonlinear_real.py --quick    # a few candidates
 
 It prints a Markdown table and writes ``benchmarks/results-nonlinear-real.json``
