@@ -135,6 +135,9 @@ def _parser() -> argparse.ArgumentParser:
                           help="replace results of an earlier run (inputs are never overwritten)")
     identify.add_argument("--allow-outside", action="store_true",
                           help="let [report] folder point outside the experiment file's folder")
+    identify.add_argument("--allow-code", action="store_true",
+                          help="let the experiment file's Python model file run (method = "
+                          "\"greybox\"); check the file first")
     identify.add_argument("--max-bytes", type=int, default=None,
                           help="refuse a rig file (data or validation record) larger than this "
                           "many bytes before reading it (default: no limit on the file; a "
@@ -198,5 +201,6 @@ def _run_identify(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     if args.max_bytes is not None:
         at_least("--max-bytes", args.max_bytes, 1)
     result = identify(args.experiment, args.out, overwrite=args.overwrite,
-                      allow_outside=args.allow_outside, max_bytes=args.max_bytes)
+                      allow_outside=args.allow_outside, max_bytes=args.max_bytes,
+                      allow_code=args.allow_code)
     return result.to_dict() | {"files": [str(f) for f in result.files]}, str(result)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from . import _arx, _closedloop, _closedloop_any, _frf, _inverse, _n4sid, _pem, _pneumatic, _tf
 from ._blocks import HAMMERSTEIN, HAMMERSTEIN_WIENER, WIENER
+from ._greybox import GREYBOX
 from ._narx import METHOD as NARX
 from ._registry import registry
 
@@ -27,4 +28,5 @@ METHODS = registry((
     WIENER,
     HAMMERSTEIN_WIENER,
     NARX,
+    GREYBOX,
 ))

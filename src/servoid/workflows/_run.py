@@ -75,6 +75,7 @@ def identify(
     truth: Mapping[str, float] | None = None,
     allow_outside: bool = False,
     max_bytes: int | None = None,
+    allow_code: bool = False,
 ) -> Any:
     """Run the identification an experiment file describes.
 
@@ -104,6 +105,10 @@ def identify(
         Refuse a rig file (estimation or validation record) larger than
         this before reading anything (``--max-bytes``); default no limit
         on the file.
+    allow_code : bool
+        Let the run execute Python code the experiment file names
+        (``method = "greybox"``: ``model = "file.py:rhs"``); without it
+        such a run stops before reading the file (``--allow-code``).
 
     Returns
     -------
@@ -114,6 +119,7 @@ def identify(
     overwrite = as_bool("overwrite", overwrite)
     write = as_bool("write", write)
     allow_outside = as_bool("allow_outside", allow_outside)
+    allow_code = as_bool("allow_code", allow_code)
     if out is not None:
         out = as_path("out", out)
     if truth is not None:
@@ -122,6 +128,8 @@ def identify(
         spec = load_experiment_spec(spec)
     method = get_method(spec.identify.get("method", "arx"))
     options = method.parse(spec.identify)
+    if allow_code:  # never an [identify] key: only the caller may let a file run code
+        options["allow_code"] = True
     _check_tables(spec, method)
     report = report_options(spec.report)
     if truth is None and "truth" in report and spec.source is not None:

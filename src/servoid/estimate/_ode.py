@@ -1,0 +1,391 @@
+"""One fixed-step RK4 integrator for a user's ODE, compiled when it can be.
+
+The user writes the physics as plain Python::
+
+    def rhs(x, u, p):          # or rhs(t, x, u, p)
+        return dx/dt           # one entry per state
+
+    def out(x, u, p):          # optional; default: the first state
+        return y               # a number (or one entry per output)
+
+with ``x`` the state (nx,), ``u`` the input at the sample (m,), ``p`` every
+parameter in the order they are declared, and ``t`` the time since the
+record's first sample [s].  :func:`make_system` wraps them in an
+:class:`OdeSystem` whose ``simulate`` runs fixed-step RK4 with ``substeps``
+steps per sample period, the input held between samples (zero-order hold,
+as a DAC holds it), and declared saturations:
+
+- an **input saturation** ``[lo, hi]`` clips the logged input before the
+  right-hand side sees it (a valve or pump that saturates);
+- a **state saturation** ``[lo, hi]`` is a clamp (overflow, a full tank):
+  at a limit the state's outward rate is zero inside every RK4 stage, and
+  after each step the state is projected back onto its range.  A clamp, not
+  an impact: a mechanical end stop that must also stop a velocity state is
+  written into ``rhs``.
+
+There is one integrator source (:func:`_make_kernel`).  It is compiled with
+numba when the user's functions compile (``numba.njit`` in nopython mode,
+``error_model="numpy"`` so that 1/0 gives inf like numpy instead of
+raising) and the compiled and the plain results agree on the first
+samples; otherwise the same source runs as Python, with a one-line note in
+:attr:`OdeSystem.note`.  Errors raised by the user's code become
+:class:`~servoid.ModelError` naming the file, the line and the function
+(:func:`user_error`).
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import ModelError
+
+__all__ = ["OdeSystem", "make_system", "user_error"]
+
+#: samples the compiled and the Python integrators are compared on
+_PROBE = 8
+#: compiled kernels by the caller's key (file, its SHA-256, function names): a fleet of
+#: records, or a second run in one process, compiles a model file once
+_COMPILED: dict[tuple[Any, ...], Callable[..., Any]] = {}
+_MAX_COMPILED = 16
+
+
+@dataclass(frozen=True, eq=False)
+class OdeSystem:
+    """A user's ODE with its integrator, compiled or plain.
+
+    Attributes
+    ----------
+    rhs : callable
+        The user's right-hand side.
+    output : callable or int
+        The user's output function, or the index of the measured state.
+    n_states, n_inputs, n_outputs : int
+        Sizes.
+    takes_time : bool
+        ``rhs(t, x, u, p)`` rather than ``rhs(x, u, p)``.
+    state_lower, state_upper : ndarray
+        State clamps (±inf for none), (nx,).
+    input_lower, input_upper : ndarray
+        Input saturations (±inf for none), (m,).
+    compiled : bool
+        The numba kernel runs; False: the Python integrator.
+    note : str
+        Why the Python integrator runs ('' when compiled).
+    source : str
+        ``"file.py:function"``, for messages.
+    """
+
+    rhs: Callable[..., Any]
+    output: Callable[..., Any] | int
+    n_states: int
+    n_inputs: int
+    n_outputs: int
+    takes_time: bool
+    state_lower: NDArray[np.float64]
+    state_upper: NDArray[np.float64]
+    input_lower: NDArray[np.float64]
+    input_upper: NDArray[np.float64]
+    compiled: bool
+    note: str
+    source: str
+    path: Path | None = field(default=None, repr=False)
+    _kernel: Callable[..., Any] | None = field(default=None, repr=False)
+    _plain: Callable[..., Any] | None = field(default=None, repr=False)
+
+    def simulate(self, x0: NDArray[np.float64], u: NDArray[np.float64],
+                 p: NDArray[np.float64], dt: float, substeps: int) -> NDArray[np.float64]:
+        """Outputs (N, n_outputs) from ``x0`` under the input ``u``.
+
+        Samples after a divergence (a non-finite state) are NaN.  Inputs
+        are trusted (the fits check them at their boundary).
+        """
+        ys = np.empty((u.shape[0], self.n_outputs))
+        assert self._kernel is not None
+        args = (np.ascontiguousarray(x0, dtype=float), np.ascontiguousarray(u, dtype=float),
+                np.ascontiguousarray(p, dtype=float), float(dt), int(substeps),
+                self.state_lower, self.state_upper, self.input_lower, self.input_upper)
+        try:
+            self._kernel(*args, ys)
+        except ModelError:
+            raise
+        except Exception as exc:  # noqa: BLE001 — the user's code failed: say where, no traceback
+            if self.compiled and self._plain is not None:
+                # compiled code keeps no line numbers: the same step in Python names the line
+                try:
+                    self._plain(*args, np.empty_like(ys))
+                except Exception as plain_exc:  # noqa: BLE001
+                    raise user_error(plain_exc, self.source, self.path) from None
+            raise user_error(exc, self.source, self.path) from None
+        return ys
+
+
+def make_system(
+    rhs: Callable[..., Any],
+    output: Callable[..., Any] | int,
+    *,
+    x0: NDArray[np.float64],
+    u: NDArray[np.float64],
+    p: NDArray[np.float64],
+    state_lower: NDArray[np.float64],
+    state_upper: NDArray[np.float64],
+    input_lower: NDArray[np.float64],
+    input_upper: NDArray[np.float64],
+    source: str,
+    output_source: str = "",
+    path: Path | None = None,
+    compile: bool = True,
+    cache_key: tuple[Any, ...] | None = None,
+) -> OdeSystem:
+    """Check the user's functions and build their integrator.
+
+    Parameters
+    ----------
+    rhs : callable
+        ``rhs(x, u, p)`` or ``rhs(t, x, u, p)`` returning dx/dt (nx,).
+    output : callable or int
+        ``output(x, u, p)`` returning a number or (n_outputs,); or a state
+        index.
+    x0, u, p : ndarray
+        A probe: initial state (nx,), the record's input (N, m), every
+        parameter.  ``rhs`` and ``output`` are called on them once.
+    state_lower, state_upper, input_lower, input_upper : ndarray
+        Clamps and saturations (±inf for none).
+    source, output_source : str
+        ``"file.py:function"`` of each, for messages.
+    path : Path, optional
+        The user's file (errors name its lines).
+    compile : bool
+        Try numba; False: the Python integrator.
+    cache_key : tuple, optional
+        Identifies the functions' source (e.g. the file's path and
+        SHA-256): a kernel compiled under the same key is reused.
+
+    Returns
+    -------
+    OdeSystem
+
+    Raises
+    ------
+    ModelError
+        A function with the wrong arguments, one that raises on the probe
+        (naming the file and line), or returns the wrong shape or type.
+    """
+    n_states = x0.size
+    n_inputs = u.shape[1]
+    takes_time = _arity(rhs, source, ("x, u, p", "t, x, u, p")) == 4
+    x_probe = np.clip(x0, state_lower, state_upper)
+    u_probe = np.clip(u[0], input_lower, input_upper)
+    args = ((0.0,) if takes_time else ()) + (x_probe, u_probe, p)
+    rates = _call(rhs, args, source, path)
+    rates = _numbers(rates, source, "dx/dt")
+    if rates.shape != (n_states,):
+        raise ModelError(
+            f"{source} returned dx/dt of shape {rates.shape} for {n_states} states; return one "
+            f"rate per state, e.g. (dx0, dx1) or np.array([dx0, dx1])")
+    if callable(output):
+        if _arity(output, output_source, ("x, u, p",)) != 3:
+            raise ModelError(f"{output_source} must take (x, u, p)")
+        y = _numbers(_call(output, (x_probe, u_probe, p), output_source, path),
+                     output_source, "the output")
+        if y.ndim > 1 or y.size < 1:
+            raise ModelError(f"{output_source} returned an output of shape {y.shape}; return a "
+                             "number (one measured output) or one number per output")
+        n_outputs, kind = (1, "scalar") if y.ndim == 0 else (y.size, "vector")
+    else:
+        n_outputs, kind = 1, "index"
+    bounds = tuple(np.ascontiguousarray(b, dtype=float)
+                   for b in (state_lower, state_upper, input_lower, input_upper))
+    plain = _make_kernel(rhs, output, takes_time, kind, jit=False)
+    system = OdeSystem(rhs, output, n_states, n_inputs, n_outputs, takes_time, *bounds,
+                       compiled=False, note="", source=source, path=path, _kernel=plain,
+                       _plain=plain)
+    if not compile:
+        return _replace(system, note="compile = false: the Python integrator runs")
+    probe_u = np.ascontiguousarray(u[:_PROBE], dtype=float)
+    expected = system.simulate(x0, probe_u, p, 1e-3, 1)
+    key = None if cache_key is None else (*cache_key, takes_time, kind)
+    try:
+        import numba  # noqa: F401 — a missing numba is one more reason for the Python path
+
+        fast = _COMPILED.get(key) if key is not None else None
+        if fast is None:
+            fast = _make_kernel(rhs, output, takes_time, kind, jit=True)
+        got = np.empty_like(expected)
+        fast(np.ascontiguousarray(x0, dtype=float), probe_u, np.ascontiguousarray(p, dtype=float),
+             1e-3, 1, *bounds, got)
+    except Exception as exc:  # noqa: BLE001 — numba fails in many ways: any failure falls back
+        first = next((line for line in str(exc).splitlines() if line.strip()), type(exc).__name__)
+        return _replace(system, note=f"{source} does not compile with numba ({first.strip()[:160]}"
+                        "); the Python integrator runs (much slower)")
+    if not np.allclose(got, expected, rtol=1e-9, atol=1e-300, equal_nan=True):
+        return _replace(system, note=f"{source} gives other numbers compiled than in Python; the "
+                        "Python integrator runs (much slower)")
+    if key is not None:
+        if len(_COMPILED) >= _MAX_COMPILED:
+            _COMPILED.pop(next(iter(_COMPILED)))
+        _COMPILED[key] = fast
+    return _replace(system, compiled=True, _kernel=fast)
+
+
+def user_error(exc: BaseException, source: str, path: Path | None) -> ModelError:
+    """A ModelError naming the user's file, line and error."""
+    where = source
+    if isinstance(exc, SyntaxError) and exc.lineno is not None:
+        where = f"{Path(exc.filename or source).name}, line {exc.lineno}"
+    elif path is not None:
+        frames = [f for f in traceback.extract_tb(exc.__traceback__)
+                  if Path(f.filename).resolve() == path.resolve()]
+        if frames:
+            f = frames[-1]
+            where = f"{path.name}, line {f.lineno}, in {f.name}"
+            if f.line:
+                where += f": {f.line.strip()}"
+    message = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    return ModelError(f"the model code failed ({where}): {type(exc).__name__}"
+                      + (f": {message}" if message else ""))
+
+
+# -- private ------------------------------------------------------------------------------
+
+
+def _replace(system: OdeSystem, **changes: Any) -> OdeSystem:
+    import dataclasses
+
+    return dataclasses.replace(system, **changes)
+
+
+def _arity(fn: Callable[..., Any], source: str, forms: tuple[str, ...]) -> int:
+    """Number of positional parameters, checked against the forms."""
+    try:
+        params = inspect.signature(fn).parameters.values()
+    except (TypeError, ValueError):
+        raise ModelError(f"{source} is not a Python function servoid can inspect") from None
+    positional = [q for q in params if q.kind in (q.POSITIONAL_ONLY, q.POSITIONAL_OR_KEYWORD)
+                  and q.default is q.empty]
+    allowed = {len(f.split(", ")) for f in forms}
+    if len(positional) not in allowed:
+        listed = " or ".join(f"({f})" for f in forms)
+        raise ModelError(f"{source} takes {len(positional)} arguments; it must take {listed}")
+    return len(positional)
+
+
+def _call(fn: Callable[..., Any], args: tuple[Any, ...], source: str, path: Path | None) -> Any:
+    try:
+        with np.errstate(all="ignore"):
+            return fn(*args)
+    except Exception as exc:  # noqa: BLE001 — user code may raise anything
+        raise user_error(exc, source, path) from None
+
+
+def _numbers(value: Any, source: str, what: str) -> NDArray[np.float64]:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ModelError(f"{source} returned {type(value).__name__} {value!r:.80}; {what} must "
+                         "be numbers") from None
+    return arr
+
+
+def _make_kernel(rhs: Callable[..., Any], output: Callable[..., Any] | int, takes_time: bool,
+                 kind: str, *, jit: bool) -> Callable[..., Any]:
+    """The RK4 integrator over the user's functions, plain or compiled."""
+    if jit:
+        import numba
+
+        def dec(fn: Callable[..., Any]) -> Any:
+            return numba.njit(error_model="numpy")(fn)
+    else:
+        def dec(fn: Callable[..., Any]) -> Any:
+            return fn
+
+    user = dec(rhs)
+    if takes_time:
+        def f(t: float, x: Any, u: Any, p: Any) -> Any:
+            return user(t, x, u, p)
+    else:
+        def f(t: float, x: Any, u: Any, p: Any) -> Any:
+            return user(x, u, p)
+    f = dec(f)
+    if kind == "index":
+        index = int(output)  # type: ignore[arg-type]
+
+        def write(x: Any, u: Any, p: Any, ys: Any, k: int) -> None:
+            ys[k, 0] = x[index]
+    else:
+        measure = dec(output)
+        if kind == "scalar":
+            def write(x: Any, u: Any, p: Any, ys: Any, k: int) -> None:
+                ys[k, 0] = measure(x, u, p)
+        else:
+            def write(x: Any, u: Any, p: Any, ys: Any, k: int) -> None:
+                o = measure(x, u, p)
+                for i in range(ys.shape[1]):
+                    ys[k, i] = o[i]
+    write = dec(write)
+
+    def rates(t: float, xs: Any, uk: Any, p: Any, lo: Any, hi: Any, out: Any) -> None:
+        d = f(t, xs, uk, p)
+        for i in range(xs.size):
+            r = d[i]
+            # a clamped state does not move further out (overflow, a full tank)
+            if (xs[i] >= hi[i] and r > 0.0) or (xs[i] <= lo[i] and r < 0.0):
+                r = 0.0
+            out[i] = r
+
+    rates = dec(rates)
+
+    def kernel(x0: Any, u: Any, p: Any, dt: float, substeps: int, lo: Any, hi: Any,
+               ulo: Any, uhi: Any, ys: Any) -> None:
+        n, m = u.shape
+        nx = x0.size
+        x = np.empty(nx)
+        xt = np.empty(nx)
+        k1 = np.empty(nx)
+        k2 = np.empty(nx)
+        k3 = np.empty(nx)
+        k4 = np.empty(nx)
+        uk = np.empty(m)
+        for i in range(nx):
+            x[i] = min(max(x0[i], lo[i]), hi[i])
+        h = dt / substeps
+        for k in range(n):
+            for j in range(m):
+                uk[j] = min(max(u[k, j], ulo[j]), uhi[j])
+            write(x, uk, p, ys, k)
+            if k == n - 1:
+                break
+            for s in range(substeps):
+                t = (k * substeps + s) * h
+                rates(t, x, uk, p, lo, hi, k1)
+                for i in range(nx):
+                    xt[i] = x[i] + 0.5 * h * k1[i]
+                rates(t + 0.5 * h, xt, uk, p, lo, hi, k2)
+                for i in range(nx):
+                    xt[i] = x[i] + 0.5 * h * k2[i]
+                rates(t + 0.5 * h, xt, uk, p, lo, hi, k3)
+                for i in range(nx):
+                    xt[i] = x[i] + h * k3[i]
+                rates(t + h, xt, uk, p, lo, hi, k4)
+                for i in range(nx):
+                    x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+                    x[i] = min(max(x[i], lo[i]), hi[i])
+            finite = True
+            for i in range(nx):
+                if not math.isfinite(x[i]):
+                    finite = False
+            if not finite:  # diverged: the rest is NaN, and the fit rejects the step
+                for kk in range(k + 1, n):
+                    for i in range(ys.shape[1]):
+                        ys[kk, i] = np.nan
+                return
+
+    return dec(kernel)
