@@ -9,8 +9,10 @@ mutated files in all. Each input is a valid seed file of the format
 suite's Hypothesis fuzzers) with one to three mutations drawn from
 ``random.Random(f"{SEED}:{format}:{index}")``, so any input can be rebuilt
 from its index. Readers: ``read_csv``, ``load_experiment_spec``,
-``read_tdms``, ``read_mat``, each in two call modes (the reader's defaults;
-named variables/channels or a given ``dt``).
+``read_tdms``, ``read_mat``, each in three call modes (the reader's defaults;
+named variables/channels or a given ``dt``; the rig-file options: CSV
+``skip_rows`` and ``skip_columns``, TDMS ``"group/channel"`` names, MAT
+struct fields ``run.sig.y``).
 
 Method
 ------

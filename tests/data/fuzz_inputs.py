@@ -49,8 +49,9 @@ FORMATS = ("csv", "toml", "tdms", "mat4", "mat5", "mat5z", "mat73")
 SUFFIX = {"csv": ".csv", "toml": ".toml", "tdms": ".tdms", "mat4": ".mat", "mat5": ".mat",
           "mat5z": ".mat", "mat73": ".mat"}
 N_OPS = 11
-#: Reader calls per input: the reader's own defaults, or named variables / given dt.
-N_MODES = 2
+#: Reader calls per input: the reader's own defaults, named variables / given dt, or the
+#: rig-file options (CSV skip_rows and skip_columns, TDMS "group/channel", MAT struct fields).
+N_MODES = 3
 
 _BYTES = (0x00, 0x01, 0x7F, 0x80, 0xFF, 0x20, 0x0A, 0x2C, 0x22, 0x09)
 _U32 = (
@@ -144,6 +145,19 @@ reference = "command"
 controller = "P"
 kp = 2.5
 """,
+    """[data]
+file = "data.csv"
+skip_rows = 0
+columns = ["u", "y", 0]
+delimiter = ","
+
+[channels.u]
+source = "u"
+role = "u"
+
+[channels.y]
+role = "y"
+""",
 )
 
 
@@ -173,6 +187,11 @@ def _csv_seeds() -> list[bytes]:
     out.append("\r\n".join(rows).encode())  # CRLF, and no line end at the end
     out.append(b'"time [s]","u [A]"\n' + b"".join(
         f"{k * 0.01!r},{k % 3 - 1}\n".encode() for k in range(20)))
+    # a logger's file: a preamble, a text column, a trailing delimiter
+    rows = ["DL-7 logger", "samples:,25", "time [s],u [V],status,y [m],"]
+    rows += [f"{k * 1e-3!r},{np.cos(k / 7):.6f},{'OK' if k % 4 else 'WARN'},"
+             f"{np.sin(k / 3):.6f}," for k in range(25)]
+    out.append(("\n".join(rows) + "\n").encode())
     return out
 
 
@@ -197,6 +216,18 @@ def _tdms_seeds() -> list[bytes]:
                     ChannelObject("servoid", "y", values.astype(np.int32), properties=props),
                 ])
         out.append(path.read_bytes())
+        path = folder / "c.tdms"  # several groups, one channel name in two of them
+        with TdmsWriter(str(path)) as writer:
+            writer.write_segment([
+                RootObject({}),
+                GroupObject("servoid", {"card": 1}),
+                ChannelObject("servoid", "u", np.arange(12.0), properties=props),
+                ChannelObject("servoid", "y", np.ones(12), properties=props),
+                GroupObject("other", {"card": 2}),
+                ChannelObject("other", "y", np.zeros(12), properties=props),
+                ChannelObject("other", "note", np.array(["a", "b"]), properties={}),
+            ])
+        out.append(path.read_bytes())
     return out
 
 
@@ -216,6 +247,7 @@ def _mat_arrays(n: int = 30) -> dict[str, object]:
         "z": np.array([1 + 2j, 3 - 1j]),
         "cells": np.array([[1.0, "a"]], dtype=object),
         "st": {"a": 1.0, "b": np.arange(3.0)},
+        "run": {"sig": {"u": np.cos(t)[:, None], "y": np.sin(t)[None, :]}, "fs": 1e3},
         "sp": scipy.sparse.eye(3, format="csc"),
         "flag": np.arange(n) % 2 == 0,
         "empty": np.zeros((0, 0)),
@@ -258,6 +290,11 @@ def _mat73_seeds() -> list[bytes]:
                                     .astype(np.uint16)[:, None])
             text.attrs["MATLAB_class"] = np.bytes_("char")
             f.create_group("st").create_dataset("a", data=np.ones((1, 1)))
+            run = f.create_group("run")
+            run.attrs["MATLAB_class"] = np.bytes_("struct")
+            sig = run.create_group("sig")
+            sig.attrs["MATLAB_class"] = np.bytes_("struct")
+            sig["u"], sig["y"] = arrays["qm"].T, arrays["vir"].T
         with path.open("r+b") as fh:
             fh.write(b"MATLAB 7.3 MAT-file, Platform: GLNXA64".ljust(128, b" "))
         out.append(path.read_bytes())
@@ -408,8 +445,10 @@ def _read_csv(path: Path, mode: int, folder: Path) -> None:
 
     if mode == 0:
         read_csv(path)
-    else:
+    elif mode == 1:
         read_csv(path, time=None, dt=1e-3, roles={"u": ["u"]})
+    else:
+        read_csv(path, skip_rows=2, skip_columns=["status"], roles={"u": ["u"]})
 
 
 def _read_toml(path: Path, mode: int, folder: Path) -> None:
@@ -426,8 +465,10 @@ def _read_tdms(path: Path, mode: int, folder: Path) -> None:
 
     if mode == 0:
         read_tdms(path)
-    else:
+    elif mode == 1:
         read_tdms(path, group="servoid", dt=1e-3, roles={"u": ["u"]})
+    else:
+        read_tdms(path, channels=["u", "servoid/y"], roles={"u": ["u"]})
 
 
 def _read_mat(path: Path, mode: int, folder: Path) -> None:
@@ -435,8 +476,11 @@ def _read_mat(path: Path, mode: int, folder: Path) -> None:
 
     if mode == 0:
         read_mat(path, dt=1e-3)
-    else:
+    elif mode == 1:
         read_mat(path, variables=["qm", "vir"], time="t", roles={"y": ["qm"]})
+    else:
+        read_mat(path, variables=["run.sig.u", "run.sig.y"], dt=1e-3,
+                 roles={"y": ["run.sig.y"]})
 
 
 _READERS: dict[str, Callable[[Path, int, Path], None]] = {

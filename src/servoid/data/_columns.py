@@ -23,8 +23,9 @@ from .._errors import (
 )
 from ._experiment import ROLES, Channel, Experiment, _check_time
 
-__all__ = ["DEFAULT_MAX_BYTES", "RolesArg", "build_experiment", "check_file_size",
-           "check_max_bytes", "check_reader_options", "existing_file", "library_errors"]
+__all__ = ["DEFAULT_MAX_BYTES", "MissingChannel", "RolesArg", "build_experiment",
+           "check_file_size", "check_max_bytes", "check_reader_options", "existing_file",
+           "library_errors"]
 
 RolesArg = Mapping[str, str | Sequence[str]] | None
 
@@ -35,6 +36,28 @@ DEFAULT_MAX_BYTES = 2**31
 #: Relative deviation of a time step from the mean step accepted in a time column;
 #: the same default as :meth:`Experiment.from_arrays`.
 TIME_TOLERANCE = 1e-3
+
+
+class MissingChannel(ChannelError):
+    """A channel asked of a reader is not in the file.
+
+    Carries what the file offers, so that the experiment file can say it
+    in its own words (``[channels.<name>] source``).
+
+    Parameters
+    ----------
+    message : str
+        The reader's message.
+    name : str
+        The channel asked for.
+    available : sequence of str
+        The names the file offers.
+    """
+
+    def __init__(self, message: str, name: str, available: Sequence[str]) -> None:
+        super().__init__(message)
+        self.name = name
+        self.available = tuple(available)
 
 
 def existing_file(path: str | os.PathLike[str]) -> Path:

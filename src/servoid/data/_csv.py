@@ -8,7 +8,12 @@ Layout read and written::
 
 A header cell ``name [unit]`` gives the channel name and its unit. Blank
 lines and lines starting with ``#`` before the header or among the data are
-skipped.
+skipped. Rig loggers often write more: a preamble of lines before the
+header (``skip_rows`` skips it; a preamble that is not skipped is detected
+and refused naming that fix), columns nobody needs (``columns`` or
+``skip_columns``: the others are never converted to numbers, so a wide file
+costs memory only for the columns read), and a trailing delimiter on every
+line (an unnamed empty last column, tolerated).
 
 A file cut short inside its last number still parses: ``0.12345`` becomes
 ``0.12``, ``1.5e-05`` becomes ``1.5e-0``. So a last data line without a line
@@ -25,19 +30,28 @@ second.
 
 from __future__ import annotations
 
+import codecs
 import csv
 import io
 import os
 import re
 import warnings
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .._atomic import atomic_path
-from .._checks import as_bool, as_path, as_str
-from .._errors import DataError, FileFormatError, ServoidWarning
+from .._checks import as_bool, as_int, as_path, as_str, type_error
+from .._errors import (
+    ChannelError,
+    DataError,
+    FileFormatError,
+    OptionError,
+    ServoidError,
+    ServoidWarning,
+)
 from ._columns import (
     DEFAULT_MAX_BYTES,
     TIME_TOLERANCE,
@@ -50,7 +64,9 @@ from ._columns import (
 )
 from ._experiment import Experiment, check_experiment
 
-__all__ = ["read_csv", "write_csv"]
+__all__ = ["header_names", "read_csv", "write_csv"]
+
+ColumnsArg = Sequence[str | int] | None
 
 _HEADER_CELL = re.compile(r"^\s*(?P<name>.*?)\s*(?:\[(?P<unit>[^\]]*)\])?\s*$")
 # Sign, integer digits, decimals, exponent digits of a number as written.
@@ -62,6 +78,7 @@ _NUMBER_SHAPE = re.compile(
 _FORMAT_MIN, _FORMAT_WINDOW = 5, 1000
 _DECIMAL_COMMA = re.compile(r"[-+]?\d+,\d+")
 _TIME_UNITS = {"": 1.0, "s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
+_LINE_END = re.compile(r"\r\n|\r|\n")
 
 
 def read_csv(
@@ -73,6 +90,9 @@ def read_csv(
     delimiter: str = ",",
     decimal: str = ".",
     time_unit: str | None = None,
+    columns: ColumnsArg = None,
+    skip_columns: ColumnsArg = None,
+    skip_rows: int = 0,
     max_bytes: int = DEFAULT_MAX_BYTES,
     jitter: float = TIME_TOLERANCE,
 ) -> Experiment:
@@ -103,9 +123,21 @@ def read_csv(
         ``time [ms]`` says it itself). Time stamps that step by 0.1 s or
         more over hundreds of samples draw a warning that they may be in
         another unit.
+    columns : sequence of str or int, optional
+        The columns to read, by header name or 0-based index; the time
+        column is read too when it is in the file. Default: all. Only
+        these are converted to numbers.
+    skip_columns : sequence of str or int, optional
+        Columns not to read, by name or 0-based index (e.g. a logger's
+        status text or an unnamed column); not with ``columns``.
+    skip_rows : int
+        Lines at the start of the file to skip before looking for the
+        header: a logger's preamble. A preamble left unskipped is refused
+        with the number to pass.
     max_bytes : int
-        Memory budget [bytes]: a larger file is refused before it is read
-        (its text is held while parsing); default 2 GiB.
+        Budget [bytes]: a larger file is refused before it is read;
+        default 2 GiB. The text is streamed, not held: memory goes to
+        the columns read.
     jitter : float
         Largest deviation of a time step from the mean step, as a fraction
         of it (default 1e-3); raise it for a logger with time-stamp jitter.
@@ -118,11 +150,13 @@ def read_csv(
     Raises
     ------
     FileFormatError
-        Empty file, ragged rows or non-numeric cells (with line and column).
+        Empty file, ragged rows, non-numeric cells (with line and column),
+        or a preamble before the header.
     DataError
         The file is larger than `max_bytes`.
     ChannelError
-        A column named in ``roles`` is not in the file.
+        A column named in ``roles``, ``columns`` or ``skip_columns`` is not
+        in the file.
     """
     path = existing_file(path)
     dt = check_reader_options(dt=dt, roles=roles, names={"time": time})
@@ -137,29 +171,33 @@ def read_csv(
     if time_unit is not None and time_unit not in _TIME_UNITS:
         raise DataError(f"time_unit must be one of {', '.join(repr(u) for u in _TIME_UNITS if u)}"
                         f", got {time_unit!r}")
+    wanted = _column_list("columns", columns)
+    skipped = _column_list("skip_columns", skip_columns)
+    if wanted is not None and skipped is not None:
+        raise OptionError("give columns= (what to read) or skip_columns= (what not to read), "
+                          "not both")
+    skip_rows = as_int("skip_rows", skip_rows, minimum=0)
     check_file_size(path, check_max_bytes(max_bytes))
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise FileFormatError(
-            f"{path}: not a text CSV file (byte {exc.start} is not UTF-8)"
-        ) from exc
-    lines = text.splitlines()
-    header_at = next(
-        (k for k, line in enumerate(lines) if line.strip() and not line.lstrip().startswith("#")),
-        None,
-    )
-    if header_at is None:
-        raise FileFormatError(f"{path}: empty CSV file, expected a header row of channel names")
+    lines, header_at = _read_head(path, skip_rows)
+    _check_preamble(path, lines, header_at, delimiter)
     _check_separator(path, lines, header_at, delimiter, decimal)
+    cells, units_of = _parse_header(path, lines[header_at], header_at + 1, delimiter)
+    first = next((line for line in lines[header_at + 1:]
+                  if line.strip() and not line.lstrip().startswith("#")), None)
+    if first is None:
+        raise FileFormatError(f"{path}: header but no data rows")
     if decimal == ",":
-        lines = lines[: header_at + 1] + [line.replace(",", ".") for line in lines[header_at + 1:]]
-    names, units = _parse_header(path, lines[header_at], header_at + 1, delimiter)
-    unterminated = not text.endswith(("\n", "\r"))
-    data = _parse_rows(path, lines, header_at + 1, names, delimiter, unterminated)
-    columns = {n: data[:, k] for k, n in enumerate(names)}
+        first = first.replace(",", ".")
+    width = _row_width(cells, first, delimiter)
+    keep = _kept_columns(path, cells, wanted, skipped, time)
+    names = [cells[k] for k in keep]
+    _check_names(path, cells, keep, header_at + 1)
+    units = {cells[k]: units_of[k] for k in keep}
+    rows = _Rows(path, header_at + 1, delimiter, decimal, count=keep != list(range(width)))
+    data = _parse_rows(path, rows, keep, width, cells)
+    columns_read = {n: data[:, j] for j, n in enumerate(names)}
     stamps = None
-    if time is not None and time in columns:
+    if time is not None and time in columns_read:
         unit = units.get(time, "") or (time_unit or "")
         scale = _TIME_UNITS.get(unit)
         if scale is None:
@@ -167,16 +205,198 @@ def read_csv(
                 f"{path}: time column {time!r} has unit {units[time]!r}; expected one of "
                 f"{', '.join(repr(u) for u in _TIME_UNITS)}"
             )
-        stamps = columns.pop(time) * scale
+        stamps = columns_read.pop(time) * scale
         _check_time_unit(path, stamps, time, bool(units.get(time)) or time_unit is not None)
     elif dt is None:
         hint = f"it has no column {time!r}; " if time is not None else ""
         raise DataError(
             f"{path}: no sample period: {hint}pass dt [s] or time=<column name> "
-            f"(columns: {', '.join(names)})"
+            f"(columns: {', '.join(c for c in cells if c)})"
         )
-    return build_experiment(path, columns, units, roles=roles, dt=dt, time=stamps,
+    return build_experiment(path, columns_read, units, roles=roles, dt=dt, time=stamps,
                             jitter=jitter)
+
+
+def header_names(path: Path, *, delimiter: str = ",", skip_rows: int = 0) -> list[str] | None:
+    """The names in a CSV file's header row ("" for an unnamed cell).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file; only its head is read.
+    delimiter : str
+        Field separator.
+    skip_rows : int
+        Lines skipped before looking for the header.
+
+    Returns
+    -------
+    list of str or None
+        The names, or None when the file or its header cannot be read
+        (:func:`read_csv` then says why).
+    """
+    try:
+        lines, header_at = _read_head(path, skip_rows)
+        return _parse_header(path, lines[header_at], header_at + 1, delimiter)[0]
+    except (ServoidError, OSError):
+        return None
+
+
+def _column_list(key: str, value: ColumnsArg) -> list[str | int] | None:
+    """``columns`` or ``skip_columns`` as a list of names and indices, checked."""
+    if value is None:
+        return None
+    expected = "a list of column names or 0-based column indices"
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence):
+        raise type_error(key, value, expected)
+    items = list(value)
+    if not items:
+        raise DataError(f"{key} must name at least one column, got []")
+    for item in items:
+        if isinstance(item, bool) or not isinstance(item, (str, int)):
+            raise type_error(key, value, expected)
+        if isinstance(item, int) and item < 0:
+            raise DataError(f"{key} holds the index {item}: indices count from 0 (the first "
+                            "column) and must be >= 0")
+        if isinstance(item, str) and not item.strip():
+            raise DataError(f"{key} holds an empty name; name a column of the header, or give "
+                            "its 0-based index")
+    repeated = sorted({repr(i) for i in items if items.count(i) > 1})
+    if repeated:
+        raise DataError(f"{key} lists {', '.join(repeated)} more than once")
+    return items
+
+
+def _check_preamble(path: Path, lines: list[str], header_at: int, delimiter: str) -> None:
+    """Refuse lines of text before the header row, naming ``skip_rows``.
+
+    The header row is taken as the last line without numbers before the
+    first line of (mostly) numbers; text lines above it are a preamble
+    left unskipped. A units row under the header looks the same, so the
+    message names both readings.
+    """
+    first_data = None
+    for k in range(header_at + 1, min(len(lines), header_at + _PREAMBLE_WINDOW)):
+        line = lines[k]
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        if _mostly_numbers(line, delimiter):
+            first_data = k
+            break
+    if first_data is None:
+        return
+    width = len(lines[first_data].split(delimiter))
+    candidates = [k for k in range(header_at, first_data)
+                  if lines[k].strip() and not lines[k].lstrip().startswith("#")]
+    real = candidates[-1]
+    if real == header_at or _any_number(lines[real], delimiter):
+        return
+    if len(lines[real].split(delimiter)) < width - 1:
+        return  # not a header for these rows either: leave the field-count error to say so
+    above = lines[header_at].strip()
+    raise FileFormatError(
+        f"{path}: line {real + 1} ({_short(lines[real])!r}) looks like the header row and "
+        f"the lines above it, from line {header_at + 1} ({_short(above)!r}), like a logger's "
+        f"preamble: pass skip_rows={real} to skip the lines before the header "
+        f"(if line {real + 1} is a row of units instead, write the units into the header "
+        "cells as 'name [unit]')"
+    )
+
+
+#: Lines after the header searched for the first line of numbers (preamble detection).
+_PREAMBLE_WINDOW = 200
+
+
+def _short(text: str, n: int = 40) -> str:
+    text = text.strip()
+    return text if len(text) <= n else text[: n - 1] + "…"
+
+
+def _mostly_numbers(line: str, delimiter: str) -> bool:
+    """A data line: more than half its non-empty cells are numbers (status text allowed)."""
+    cells = [c.strip().strip('"') for c in line.split(delimiter)]
+    cells = [c for c in cells if c]
+    numbers = sum(_is_number(c) or _is_number(c.replace(",", ".")) for c in cells)
+    return 2 * numbers > len(cells)
+
+
+def _any_number(line: str, delimiter: str) -> bool:
+    return any(_is_number(c.strip().strip('"')) for c in line.split(delimiter) if c.strip())
+
+
+def _row_width(cells: list[str], first_row: str, delimiter: str) -> int:
+    """The number of fields every data row must have.
+
+    The header's, or the first row's when the two differ only by unnamed
+    empty columns at the end (a trailing delimiter on either).
+    """
+    fields = first_row.split(delimiter)
+    named = len(cells)
+    while named and not cells[named - 1]:
+        named -= 1
+    if len(fields) != len(cells) and len(fields) >= named and \
+            all(not f.strip() for f in fields[named:]):
+        return len(fields)
+    return len(cells)
+
+
+def _kept_columns(path: Path, cells: list[str], wanted: list[str | int] | None,
+                  skipped: list[str | int] | None, time: str | None) -> list[int]:
+    """Indices of the columns to read, in file order."""
+    named = len(cells)
+    while named and not cells[named - 1]:
+        named -= 1  # unnamed trailing columns: a trailing delimiter
+    if wanted is None and skipped is None:
+        return list(range(named))
+    key = "columns" if wanted is not None else "skip_columns"
+    chosen = {_column_index(path, key, item, cells) for item in (wanted or skipped or [])}
+    if wanted is not None:
+        if time is not None and time in cells:
+            chosen.add(cells.index(time))
+        return sorted(chosen)
+    return [k for k in range(named) if k not in chosen]
+
+
+def _column_index(path: Path, key: str, item: str | int, cells: list[str]) -> int:
+    listing = ", ".join(f"{k}: {c!r}" if c else f"{k}: (unnamed)" for k, c in enumerate(cells))
+    if isinstance(item, int):
+        if item >= len(cells):
+            raise ChannelError(
+                f"{key}= holds the index {item}, but {path} has {len(cells)} column(s), "
+                f"0..{len(cells) - 1}: {listing}"
+            )
+        return item
+    found = [k for k, c in enumerate(cells) if c == item]
+    if not found:
+        raise ChannelError(
+            f"{key}= names the column {item!r}, which is not in the header of {path}; its "
+            f"columns are {listing}"
+        )
+    if len(found) > 1:
+        raise FileFormatError(
+            f"{key}= names the column {item!r}, but {path} has {len(found)} columns of that "
+            f"name (indices {', '.join(map(str, found))}): give the 0-based index instead"
+        )
+    return found[0]
+
+
+def _check_names(path: Path, cells: list[str], keep: list[int], lineno: int) -> None:
+    """Refuse an empty or repeated name among the columns read."""
+    for k in keep:
+        if not cells[k]:
+            raise FileFormatError(
+                f"{path}, line {lineno}, column {k + 1}: empty channel name; name the column "
+                f"in the header, or leave it out with skip_columns=[{k}] (0-based index)"
+            )
+    seen: dict[str, int] = {}
+    for k in keep:
+        if cells[k] in seen:
+            raise FileFormatError(
+                f"{path}, line {lineno}: channel name {cells[k]!r} is repeated (columns "
+                f"{seen[cells[k]] + 1} and {k + 1}); rename one, or leave one out with "
+                f"skip_columns=[{k}] (0-based index)"
+            )
+        seen[cells[k]] = k
 
 
 def _check_separator(path: Path, lines: list[str], header_at: int, delimiter: str,
@@ -315,96 +535,236 @@ def _is_number(text: str) -> bool:
 
 def _parse_header(
     path: Path, line: str, lineno: int, delimiter: str
-) -> tuple[list[str], dict[str, str]]:
+) -> tuple[list[str], list[str]]:
+    """Names and units of the header cells; an unnamed cell is ``""``."""
     cells = next(csv.reader([line], delimiter=delimiter))
     names: list[str] = []
-    units: dict[str, str] = {}
-    for col, cell in enumerate(cells, start=1):
+    units: list[str] = []
+    for cell in cells:
         match = _HEADER_CELL.match(cell)
         name = match.group("name") if match else ""
-        if not name:
-            raise FileFormatError(f"{path}, line {lineno}, column {col}: empty channel name")
-        try:
-            float(name)
-        except ValueError:
-            pass
-        else:
-            raise FileFormatError(
-                f"{path}, line {lineno}: the first row holds numbers ({cell!r}), expected a "
-                "header row of channel names"
-            )
-        if name in units:
-            raise FileFormatError(f"{path}, line {lineno}: channel name {name!r} is repeated")
+        if name:
+            try:
+                float(name)
+            except ValueError:
+                pass
+            else:
+                raise FileFormatError(
+                    f"{path}, line {lineno}: the first row holds numbers ({cell!r}), expected "
+                    "a header row of channel names"
+                )
         names.append(name)
-        units[name] = (match.group("unit") or "").strip() if match else ""
+        units.append((match.group("unit") or "").strip() if match and name else "")
     return names, units
 
 
+def _read_head(path: Path, skip_rows: int) -> tuple[list[str], int]:
+    """The lines up to the header and a window after it; the header's index.
+
+    The window reaches the first data line and at least
+    :data:`_PREAMBLE_WINDOW` lines past the header (or the end of the file):
+    enough to check the separator, the header and a preamble without
+    reading the data, which are streamed later.
+    """
+    lines: list[str] = []
+    header_at = first_row = None
+    try:
+        with path.open(encoding="utf-8-sig", newline=None) as f:
+            for line in f:
+                lines.append(line.rstrip("\r\n"))
+                k = len(lines) - 1
+                text = lines[-1]
+                if k < skip_rows or not text.strip() or text.lstrip().startswith("#"):
+                    continue
+                if header_at is None:
+                    header_at = k
+                elif first_row is None:
+                    first_row = k
+                if first_row is not None and k - header_at >= _PREAMBLE_WINDOW:
+                    break
+    except UnicodeDecodeError:
+        raise _not_utf8(path) from None
+    if skip_rows and skip_rows >= len(lines):
+        raise FileFormatError(
+            f"{path}: skip_rows={skip_rows} skips every line (the file has {len(lines)}); "
+            "set it to the number of lines before the header row"
+        )
+    if header_at is None:
+        raise FileFormatError(f"{path}: empty CSV file, expected a header row of channel names")
+    return lines, header_at
+
+
+def _not_utf8(path: Path) -> FileFormatError:
+    """The error for a file that is not UTF-8 text, with the first bad byte."""
+    decoder = codecs.getincrementaldecoder("utf-8")()
+    done = 0
+    with path.open("rb") as f:
+        while chunk := f.read(1 << 20):
+            try:
+                decoder.decode(chunk)
+            except UnicodeDecodeError as exc:
+                return FileFormatError(f"{path}: not a text CSV file (byte {done + exc.start} "
+                                       "is not UTF-8)")
+            done += len(chunk)
+    return FileFormatError(f"{path}: not a text CSV file (it ends inside a UTF-8 character)")
+
+
+class _Rows:
+    """The data lines of a CSV file, streamed from disk (never all in memory).
+
+    Blank and comment lines are dropped, a decimal comma becomes a point,
+    and with ``count`` the fewest and most delimiters on a line are kept:
+    when only some columns are converted, loadtxt does not see the others.
+    """
+
+    def __init__(self, path: Path, start: int, delimiter: str, decimal: str,
+                 count: bool) -> None:
+        self.path, self.start, self.delimiter = path, start, delimiter
+        self.comma, self.count = decimal == ",", count
+        self.n = self.lines = 0
+        self.fewest = self.most = -1
+
+    def __iter__(self) -> Iterator[str]:
+        self.n = self.lines = 0
+        fewest = most = -1
+        d = self.delimiter
+        for _, line in self.numbered():
+            if self.count:
+                c = line.count(d)
+                if c < fewest or fewest < 0:
+                    fewest = c
+                most = max(most, c)
+                self.fewest, self.most = fewest, most
+            self.n += 1
+            yield line
+
+    def numbered(self) -> Iterator[tuple[int, str]]:
+        """(line number, text) of each data line."""
+        with self.path.open(encoding="utf-8-sig", newline=None) as f:
+            for _ in range(self.start):
+                f.readline()
+            lineno = self.start
+            for line in f:
+                lineno += 1
+                self.lines = lineno
+                stripped = line.strip()
+                if not stripped or stripped[0] == "#":
+                    continue
+                yield lineno, line.replace(",", ".") if self.comma else line
+
+    def tail(self, n: int) -> list[tuple[int, str]]:
+        """The last ``n`` data lines (numbered), read from the end of the file."""
+        size = self.path.stat().st_size
+        step = 1 << 16
+        while True:
+            begin = max(0, size - step)
+            with self.path.open("rb") as f:
+                f.seek(begin)
+                chunk = f.read().decode("utf-8", errors="replace").lstrip("\ufeff")
+            lines = _LINE_END.split(chunk)  # as the text-mode reader splits, not splitlines
+            if begin:
+                lines = lines[1:]  # the first is partial
+            first = self.lines - len(lines) + 1  # number of the first line in the chunk
+            out = [(first + k, line.replace(",", ".") if self.comma else line)
+                   for k, line in enumerate(lines)
+                   if first + k > self.start and line.strip()
+                   and not line.lstrip().startswith("#")]
+            if len(out) > n or begin == 0:
+                return out[-n - 1:]
+            step *= 4
+
+
 def _parse_rows(
-    path: Path, lines: list[str], start: int, names: list[str], delimiter: str,
-    unterminated: bool,
+    path: Path, rows: _Rows, keep: list[int], width: int, cells: list[str],
 ) -> NDArray[np.float64]:
-    width = len(names)
-    rows = [
-        (k + 1, line)
-        for k, line in enumerate(lines[start:], start=start)
-        if line.strip() and not line.lstrip().startswith("#")
-    ]
-    if not rows:
-        raise FileFormatError(f"{path}: header but no data rows")
-    # Only a data line that ends the file without a line end can be cut short.
-    cut = unterminated and rows[-1][0] == len(lines)
+    """The kept columns of the data rows; every row must have ``width`` fields."""
+    every = keep == list(range(width))
     try:
         data = np.loadtxt(
-            io.StringIO("\n".join(line for _, line in rows)),
-            delimiter=delimiter,
+            rows,
+            delimiter=rows.delimiter,
             ndmin=2,
             dtype=float,
             comments=None,
             quotechar='"',
+            usecols=None if every else keep,
         )
-    except ValueError:
+    except ValueError:  # UnicodeDecodeError too: the walk below says where
         data = None
-    if data is not None and data.shape == (len(rows), width):
-        if cut:
-            _check_last_line(path, rows, names, delimiter)
+    if data is not None and data.shape == (rows.n, len(keep)) and (
+            every or rows.fewest == rows.most == width - 1):
+        if _unterminated(path):
+            _check_last_line(path, rows, cells)
         return data
-    # The fast parser failed: walk the rows to say where and what.
-    for lineno, line in rows:
-        cells = line.split(delimiter)
-        if len(cells) != width:
-            last = cut and lineno == rows[-1][0]
-            raise FileFormatError(
-                f"{path}, line {lineno}: {len(cells)} field(s), the header has {width}"
-                + (" (the last line, with no line end: the file looks truncated; copy it "
-                   "again or delete the partial line)" if last and len(cells) < width
-                   else " (truncated line?)" if len(cells) < width else "")
-            )
-        for col, cell in enumerate(cells, start=1):
-            try:
-                float(cell.strip().strip('"'))
-            except ValueError:
-                raise FileFormatError(
-                    f"{path}, line {lineno}, column {col}: {cell.strip()!r} is not a number"
-                ) from None
+    return _diagnose(path, rows, keep, width, cells)
+
+
+def _diagnose(path: Path, rows: _Rows, keep: list[int], width: int,
+              cells: list[str]) -> NDArray[np.float64]:
+    """The fast parser failed: walk the rows to say where and what."""
+    cut = _unterminated(path)
+    lines = rows.numbered()
+    try:
+        ahead = next(lines, None)
+        while ahead is not None:
+            (lineno, line), ahead = ahead, next(lines, None)
+            # the last data line, and the file's last line: rows.lines is final once read
+            last = cut and ahead is None and lineno == rows.lines
+            _check_row(path, lineno, line, rows.delimiter, keep, width, cells, last)
+    except UnicodeDecodeError:
+        raise _not_utf8(path) from None
     raise FileFormatError(f"{path}: unreadable numeric data")  # pragma: no cover
 
 
-def _check_last_line(
-    path: Path, rows: list[tuple[int, str]], names: list[str], delimiter: str
-) -> None:
+def _check_row(path: Path, lineno: int, line: str, delimiter: str, keep: list[int], width: int,
+               cells: list[str], last: bool) -> None:
+    """Raise naming the line and column if one data line is not ``width`` numbers."""
+    fields = line.rstrip("\r\n").split(delimiter)
+    if len(fields) != width:
+        raise FileFormatError(
+            f"{path}, line {lineno}: {len(fields)} field(s), the header has {width}"
+            + (" (the last line, with no line end: the file looks truncated; copy it "
+               "again or delete the partial line)" if last and len(fields) < width
+               else " (truncated line?)" if len(fields) < width else "")
+        )
+    for k in keep:
+        cell = fields[k]
+        try:
+            float(cell.strip().strip('"'))
+        except ValueError:
+            hint = "" if len(keep) == 1 or not cells[k] else (
+                f" (column {cells[k]!r}; if it holds text, leave it out with "
+                f"skip_columns=[{k}] or choose the columns to read with columns=[...])")
+            raise FileFormatError(
+                f"{path}, line {lineno}, column {k + 1}: {cell.strip()!r} is not a number"
+                + hint
+            ) from None
+
+
+def _unterminated(path: Path) -> bool:
+    """Whether the file's last line has no line end (it may be cut short)."""
+    with path.open("rb") as f:
+        f.seek(-1, os.SEEK_END)
+        return f.read(1) not in (b"\n", b"\r")
+
+
+def _check_last_line(path: Path, rows: _Rows, cells: list[str]) -> None:
     """Raise if the unterminated last line's last value looks cut short."""
-    if len(rows) <= _FORMAT_MIN:
+    tail = rows.tail(_FORMAT_WINDOW)
+    if not tail or tail[-1][0] != rows.lines:
+        return  # the file ends in a comment or blank line: no number was cut
+    if len(tail) <= _FORMAT_MIN:
         return  # too few lines above to know their format
-    lineno, line = rows[-1]
-    last = _cell(line, delimiter)
-    above = [_cell(text, delimiter) for _, text in rows[-1 - _FORMAT_WINDOW : -1]]
+    lineno, line = tail[-1]
+    last = _cell(line, rows.delimiter)
+    above = [_cell(text, rows.delimiter) for _, text in tail[:-1]]
     short = _shorter_than_format(last, above)
     if short is None:
         return
+    name = cells[-1] or "the last column"
     raise FileFormatError(
         f"{path}, line {lineno}: the last line has no line end and its last value "
-        f"{last!r} ({names[-1]!r}) is written shorter than the values above it ({short}): "
+        f"{last!r} ({name!r}) is written shorter than the values above it ({short}): "
         "the file looks truncated inside that number. If the line is complete, end the file "
         "with a newline; otherwise delete the line or copy the file again"
     )

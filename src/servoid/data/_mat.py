@@ -6,6 +6,10 @@ length), every real scalar and every string becomes an entry of
 example the EMPS benchmark file holds the vectors ``t``, ``qm``, ``qg``,
 ``vir`` and the scalars ``kp``, ``kv``, ``gtau``.
 
+A vector inside a struct (MATLAB's ``data.signals.y``) is named with dots,
+in ``variables``, ``time`` or ``roles``: only the fields named are read. A
+struct array or a cell array on the way is refused, naming the path.
+
 A file is untrusted input. v4 and v5 files are walked by
 :func:`~servoid.data._mat_check.check_mat` first, and scipy then reads only
 the variables that passed it: the ones asked for, and scalars and one-row
@@ -38,7 +42,7 @@ from ._columns import (
     library_errors,
 )
 from ._experiment import Experiment
-from ._mat_check import MatEntry, check_mat, format_bytes
+from ._mat_check import _KIND_WORDS, MatEntry, check_mat, format_bytes
 
 __all__ = ["DEFAULT_MAX_BYTES", "read_mat"]
 
@@ -65,9 +69,11 @@ def read_mat(
     path : path-like
         The file (v4, v5/v7 or v7.3).
     variables : sequence of str, optional
-        Vectors to load as channels; default all vectors in the file. Only
-        these and ``time`` are read, besides scalars and one-row strings
-        for ``notes``: damage elsewhere in the file does not matter.
+        Vectors to load as channels; default all top-level vectors in the
+        file. A field of a (nested) struct is named with dots:
+        ``"data.signals.y"``. Only these and ``time`` are read, besides
+        scalars and one-row strings for ``notes``: damage elsewhere in the
+        file does not matter.
     time : str, optional
         A vector of time stamps [s]; it gives ``dt`` and ``t0``.
     dt : float, optional
@@ -95,7 +101,8 @@ def read_mat(
         that does not fit), over the memory budget, or vectors of different
         lengths.
     ChannelError
-        A variable named in ``variables``, ``time`` or ``roles`` is missing.
+        A variable or struct field named in ``variables``, ``time`` or
+        ``roles`` is missing (the message lists what there is).
     ImportError
         A v7.3 file and h5py is not installed.
     """
@@ -134,13 +141,20 @@ def read_mat(
             )
         if name in listed:
             entry = listed[name]
+            fix = {"struct": f"name one of its fields with a dot, e.g. '{name}.<field>'",
+                   "cell": "servoid reads numeric vectors: store the signal as a numeric "
+                           "variable or struct field, not in a cell"}.get(
+                entry.kind, "name a numeric vector instead")
             raise FileFormatError(
                 f"{path}: variable {name!r} is {_KIND_WORDS[entry.kind]} of shape "
-                f"{entry.shape}, not a real vector; name a numeric vector instead"
+                f"{entry.shape}, not a real vector; {fix}"
             )
+        structs = [n for n, e in listed.items() if e.kind == "struct" and "." not in n]
+        hint = (f" (and the struct(s) {', '.join(structs)}: name a field with dots, e.g. "
+                f"'{structs[0]}.<field>')") if structs else ""
         raise ChannelError(
             f"variable {name!r} is not in {path}; its vectors are: "
-            f"{', '.join(_vector_names(vectors, listed)) or 'none'}"
+            f"{', '.join(_vector_names(vectors, listed)) or 'none'}{hint}"
         )
     used = {n: vectors[n] for n in chosen}
     stamps = vectors[time] if time is not None else None
@@ -153,8 +167,11 @@ def read_mat(
             f"{path}: vectors have different lengths ({sizes}); pass variables= to choose"
         )
     if not used:
+        structs = [n for n, e in listed.items() if e.kind == "struct"]
+        hint = (f"; the vectors of a struct are named with dots, e.g. '{structs[0]}.<field>' "
+                "(pass variables=)") if structs else ""
         raise FileFormatError(
-            f"{path}: no vectors to load (variables: {', '.join([*raw, *listed])})"
+            f"{path}: no vectors to load (variables: {', '.join([*raw, *listed])}){hint}"
         )
     if time is None and dt is None:
         raise DataError(
@@ -191,6 +208,7 @@ def _load_v4_v5(
         loaded = loadmat(path, appendmat=False, variable_names=load, squeeze_me=False,
                          chars_as_strings=True) if load else {}
     raw = {k: v for k, v in loaded.items() if not k.startswith("__")}
+    raw.update({n: e.value for n, e in entries.items() if e.value is not None})
     return raw, {n: e for n, e in entries.items() if n not in raw}
 
 
@@ -199,14 +217,6 @@ def _vector_names(vectors: dict[str, Any], listed: dict[str, MatEntry]) -> list[
     more = [n for n, e in listed.items()
             if e.kind == "numeric" and sum(d > 1 for d in e.shape) == 1]
     return [*vectors, *more]
-
-
-_KIND_WORDS = {
-    "numeric": "a numeric variable", "char": "text", "complex": "a complex array",
-    "sparse": "a sparse matrix", "cell": "a cell array", "struct": "a struct",
-    "object": "an object", "function": "a function handle", "opaque": "an opaque object",
-    "unknown": "of an unknown class",
-}
 
 
 def _is_hdf5(path: Path) -> bool:
@@ -247,14 +257,15 @@ def _load_v73(
     listed: dict[str, MatEntry] = {}
     with library_errors(path, "a MAT v7.3 (HDF5) file"), h5py.File(path, "r") as f:
         for name, obj in f.items():
-            if name.startswith("#") or not isinstance(obj, h5py.Dataset):
-                continue  # references, structs and cells
+            if name.startswith("#"):
+                continue  # what references point to
+            if not isinstance(obj, h5py.Dataset):
+                if isinstance(obj, h5py.Group):  # a struct: its fields are named with dots
+                    listed[name] = MatEntry(name, "struct", (1, 1))
+                continue
             shape = tuple(int(d) for d in reversed(obj.shape))  # MATLAB's order
-            kind: Any = "numeric" if obj.dtype.kind in "biuf" else "unknown"
-            cls = obj.attrs.get("MATLAB_class", b"")
-            cls = cls.decode(errors="replace") if isinstance(cls, bytes) else str(cls)
-            if cls == "char":
-                kind = "char"
+            kind: Any = _v73_kind(obj)
+            cls = _v73_class(obj)
             entry = MatEntry(name, kind, shape)
             note = entry.is_note and kind in ("numeric", "char")
             if wanted is not None and name not in wanted and not note:
@@ -281,4 +292,77 @@ def _load_v73(
                 out[name] = data.astype(bool)
             else:
                 out[name] = data
+        for name in sorted(n for n in wanted or () if "." in n):
+            _v73_field(path, f, name, max_bytes, out, listed)
     return out, listed
+
+
+def _v73_field(path: Path, f: Any, name: str, max_bytes: int, out: dict[str, Any],
+               listed: dict[str, MatEntry]) -> None:
+    """Read the struct field ``name`` (dotted) of a v7.3 file into ``out``."""
+    import h5py
+
+    parts = name.split(".")
+    node = f
+    for depth, part in enumerate(parts):
+        here = ".".join(parts[:depth])
+        if depth and not isinstance(node, h5py.Group):
+            kind = _v73_kind(node)
+            raise ChannelError(
+                f"{path}: {here!r} is {_KIND_WORDS.get(kind, kind)}, not a struct: it has no "
+                "fields to name with a dot"
+            )
+        if depth and any(_is_reference(node[k]) and _v73_class(node[k]) != "cell"
+                         for k in node if not k.startswith("#")):
+            raise FileFormatError(
+                f"{path}: {here!r} is a struct array; servoid reads fields of a 1×1 struct "
+                "only: save each element as its own struct (or the signals as numeric fields "
+                "of one struct)"
+            )
+        if part not in node or part.startswith("#"):
+            if depth == 0:
+                return  # not in the file: the reader lists what there is
+            fields = [k for k in node if not k.startswith("#")]
+            raise ChannelError(
+                f"variable {name!r} is not in {path}: the struct {here!r} has the field(s) "
+                f"{', '.join(fields) or '(none)'}"
+            )
+        node = node[part]
+    if isinstance(node, h5py.Group):
+        listed[name] = MatEntry(name, "struct", (1, 1))
+        return
+    shape = tuple(int(d) for d in reversed(node.shape))
+    kind = _v73_kind(node)
+    if kind != "numeric":
+        listed[name] = MatEntry(name, kind, shape)
+        return
+    nbytes = int(np.prod(shape, dtype=object)) * node.dtype.itemsize
+    if nbytes > max_bytes:
+        raise FileFormatError(
+            f"{path}: variable {name!r} declares shape {shape} of {node.dtype.itemsize}-byte "
+            f"values ({format_bytes(nbytes)}), over the {format_bytes(max_bytes)} budget: a "
+            "damaged file, or pass max_bytes= to read a variable this large"
+        )
+    out[name] = np.zeros((0, 0)) if node.attrs.get("MATLAB_empty", 0) else \
+        np.asarray(node[()]).T
+
+
+def _v73_class(node: Any) -> str:
+    cls = node.attrs.get("MATLAB_class", b"")
+    return cls.decode(errors="replace") if isinstance(cls, bytes) else str(cls)
+
+
+def _is_reference(node: Any) -> bool:
+    import h5py
+
+    return isinstance(node, h5py.Dataset) and h5py.check_dtype(ref=node.dtype) is not None
+
+
+def _v73_kind(node: Any) -> str:
+    """What a v7.3 dataset holds, in the words of :data:`_KIND_WORDS`."""
+    cls = _v73_class(node)
+    if cls in ("cell", "struct", "char"):
+        return cls
+    if _is_reference(node):
+        return "cell"
+    return "numeric" if node.dtype.kind in "biuf" else "unknown"

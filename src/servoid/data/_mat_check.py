@@ -35,6 +35,13 @@ Anything else (cells, structs, objects, sparse, complex, function handles,
 unknown classes) is listed with its class and shape but never loaded, so
 scipy never parses its body.
 
+* **v5 struct fields** (only the dotted paths asked for, ``data.signals.y``):
+  a 1×1 struct's field-name length and names, and each field's matrix tag
+  inside the struct, are walked down the path; the numeric field at its
+  end is checked like a wanted variable and decoded here, from the checked
+  bytes, so scipy never parses a struct. A struct array or a cell on the
+  way is an error naming the path.
+
 Walking checks structure, not values: a flipped bit inside the numbers of a
 vector is still read (MAT files carry no checksum outside zlib's).
 """
@@ -45,11 +52,13 @@ import mmap
 import struct
 import zlib
 from collections.abc import Collection
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
-from .._errors import FileFormatError
+import numpy as np
+
+from .._errors import ChannelError, FileFormatError
 
 __all__ = ["MAX_NAME_BYTES", "MatEntry", "check_mat", "format_bytes"]
 
@@ -65,6 +74,8 @@ Kind = Literal[
 
 # v5 data-type codes (miINT8 ...) with their item sizes, as in scipy's table.
 _MI_NUMERIC = {1: 1, 2: 1, 3: 2, 4: 2, 5: 4, 6: 4, 7: 4, 9: 8, 12: 8, 13: 8}
+_MI_DTYPE = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 9: "f8", 12: "i8",
+             13: "u8"}
 _MI_CHAR = {1: 1, 2: 1, 4: 2, 16: 1, 17: 2, 18: 4}  # int8, uint8, uint16, utf8/16/32
 _MI_INT8, _MI_INT32, _MI_UINT32 = 1, 5, 6
 _MI_MATRIX, _MI_COMPRESSED, _MI_UTF8 = 14, 15, 16
@@ -97,12 +108,16 @@ class MatEntry:
         MATLAB dimensions.
     loadable : bool
         Its data passed the full check: scipy may read it.
+    value : numpy.ndarray or None
+        A struct field's values, decoded by the walker (scipy does not
+        read fields); None for a top-level variable.
     """
 
     name: str
     kind: Kind
     shape: tuple[int, ...]
     loadable: bool = False
+    value: Any = field(default=None, compare=False, repr=False)
 
     @property
     def is_note(self) -> bool:
@@ -295,6 +310,7 @@ class _V5:
             )
         # As scipy decides it: 'IM' at byte 126 is little-endian, anything else big.
         self.order = "<" if bytes(data[126:128]) == b"IM" else ">"
+        self.fields: dict[str, MatEntry] = {}  # struct fields decoded on the way
 
     def walk(self, wanted: Collection[str] | None) -> dict[str, MatEntry]:
         data, size, pos = self.data, len(self.data), 128
@@ -328,6 +344,7 @@ class _V5:
                 entry = self._matrix(body, where, wanted, entries)
             if entry.name not in entries:
                 entries[entry.name] = entry
+        entries.update(self.fields)
         return entries
 
     def _check_level(self, entry: MatEntry, wanted: Collection[str] | None,
@@ -360,7 +377,8 @@ class _V5:
             raise FileFormatError(
                 f"{self.path}: {where} (compressed): {exc}: a damaged MAT file"
             ) from None
-        level = self._check_level(entry, wanted, entries)
+        paths = _paths_under(entry, wanted, entries)
+        level = "strict" if paths else self._check_level(entry, wanted, entries)
         if level == "none":
             return entry
         try:
@@ -372,6 +390,9 @@ class _V5:
             full = self._inflate(body, 8 + count, whole=True)
             cursor = _Cursor(memoryview(full), self.order, 8, len(full))
             _, flags = self._header(cursor)
+            if paths:
+                self._descend(cursor, entry, paths)
+                return entry
             self._data(cursor, entry, flags)
         except _DamagedError as exc:
             if level == "note":  # a damaged note nobody asked for is left out
@@ -430,6 +451,16 @@ class _V5:
             entry, flags = self._header(cursor)
         except _DamagedError as exc:
             raise FileFormatError(f"{self.path}: {where}: {exc}: a damaged MAT file") from None
+        paths = _paths_under(entry, wanted, entries)
+        if paths:
+            try:
+                self._descend(cursor, entry, paths)
+            except _DamagedError as exc:
+                raise FileFormatError(
+                    f"{self.path}: variable {entry.name!r} ({where}): {exc}: the struct is "
+                    "damaged"
+                ) from None
+            return entry
         level = self._check_level(entry, wanted, entries)
         if level == "none":
             return entry
@@ -475,3 +506,92 @@ class _V5:
                 f"{len(payload)} data bytes for shape {entry.shape} of "
                 f"{_MI_NUMERIC[mdtype]}-byte values ({n * _MI_NUMERIC[mdtype]} expected)"
             )
+
+    def _descend(self, cursor: _Cursor, entry: MatEntry, paths: list[str]) -> None:
+        """Decode the numeric fields at ``paths`` (dotted, under struct ``entry``)."""
+        start = cursor.pos
+        for path in paths:
+            cursor.pos = start
+            parts = path.split(".")
+            node, sub = entry, cursor
+            for depth, part in enumerate(parts[1:], start=1):
+                here = ".".join(parts[:depth])
+                fields = self._struct_fields(sub, node, here)
+                if part not in fields:
+                    raise ChannelError(
+                        f"variable {path!r} is not in {self.path}: the struct {here!r} has the "
+                        f"field(s) {', '.join(fields) or '(none)'}"
+                    )
+                lo, hi = fields[part]
+                sub = _Cursor(sub.buf, self.order, lo, hi)
+                name = ".".join(parts[: depth + 1])
+                if hi == lo:  # an empty field: a matrix tag of no bytes
+                    node = MatEntry(name, "numeric", (0, 0))
+                    flags = 0
+                    continue
+                field_entry, flags = self._header(sub)
+                node = MatEntry(name, field_entry.kind, field_entry.shape)
+            if node.kind != "numeric" or hi == lo:
+                self.fields[path] = node  # the reader says what it is
+                continue
+            self._data(_Cursor(sub.buf, self.order, sub.pos, sub.end), node, flags)
+            self.fields[path] = MatEntry(path, "numeric", node.shape, value=self._decode(
+                sub, node))
+
+    def _struct_fields(self, cursor: _Cursor, node: MatEntry,
+                       here: str) -> dict[str, tuple[int, int]]:
+        """Field name → byte range of its matrix body, for a 1×1 struct."""
+        if node.kind != "struct":
+            raise ChannelError(
+                f"{self.path}: {here!r} is {_KIND_WORDS.get(node.kind, node.kind)} of shape "
+                f"{node.shape}, not a struct: it has no fields to name with a dot"
+            )
+        if _prod(node.shape) != 1:
+            raise FileFormatError(
+                f"{self.path}: {here!r} is a struct array of shape {node.shape}; servoid reads "
+                "fields of a 1×1 struct only: save each element as its own struct (or the "
+                "signals as numeric fields of one struct)"
+            )
+        mdtype, payload = cursor.element("the field-name length")
+        if mdtype not in (_MI_INT32, _MI_UINT32) or len(payload) != 4:
+            raise _DamagedError("a field-name length that is not one int32")
+        (length,) = struct.unpack_from(self.order + "i", payload, 0)
+        mdtype, payload = cursor.element("the field names")
+        if mdtype not in (_MI_INT8, _MI_UTF8) or length <= 0 or len(payload) % length:
+            raise _DamagedError(f"field names of {len(payload)} bytes, not a multiple of "
+                                f"{length}")
+        raw = bytes(payload)
+        names = [raw[k: k + length].split(b"\0", 1)[0].decode("latin1")
+                 for k in range(0, len(raw), length)]
+        out: dict[str, tuple[int, int]] = {}
+        for name in names:
+            mdtype, count = cursor.u32s(f"the tag of field {name!r}")
+            if mdtype != _MI_MATRIX:
+                raise _DamagedError(f"field {name!r} has type code {mdtype}, not a matrix")
+            cursor.need(count, f"field {name!r}")
+            out.setdefault(name, (cursor.pos, cursor.pos + count))
+            cursor.pos += count + (-count % 8)
+        return out
+
+    def _decode(self, cursor: _Cursor, node: MatEntry) -> np.ndarray:
+        """The checked numeric data element after a field's header, as float64."""
+        mdtype, payload = cursor.element("the data")
+        values = np.frombuffer(payload, dtype=self.order + _MI_DTYPE[mdtype])
+        return values.reshape(node.shape, order="F").astype(float)
+
+
+_KIND_WORDS = {
+    "numeric": "a numeric array", "char": "text", "complex": "a complex array",
+    "sparse": "a sparse matrix", "cell": "a cell array", "struct": "a struct",
+    "object": "an object", "function": "a function handle", "opaque": "an opaque object",
+    "unknown": "of an unknown class",
+}
+
+
+def _paths_under(entry: MatEntry, wanted: Collection[str] | None,
+                 entries: dict[str, MatEntry]) -> list[str]:
+    """The dotted names asked for inside variable ``entry`` (first occurrence only)."""
+    if wanted is None or entry.name in entries:
+        return []
+    prefix = entry.name + "."
+    return sorted(w for w in wanted if w.startswith(prefix))

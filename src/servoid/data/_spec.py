@@ -11,7 +11,8 @@ Schema::
     file = "bench.tdms"       # required: the rig file, relative to this file; an array of
                               # files is an estimation set (segments never joined)
     format = "tdms"           # csv | tdms | mat; default from the extension
-    group = "Measurements"    # TDMS group; only for TDMS files
+    group = "Measurements"    # TDMS group; only for TDMS files (not needed when each source
+                              # is in one group only, or is named "group/channel")
     time = "t"                # time column / channel / variable [s]
     dt = 0.0002               # [s], > 0: when there is no time column or waveform timing
     max_bytes = 4294967296    # [bytes] the readers' memory budget, default 2 GiB: a larger
@@ -19,10 +20,15 @@ Schema::
     delimiter = ";"           # CSV only: field separator, default ","
     decimal = ","             # CSV only: decimal mark, default "." (needs delimiter != ",")
     time_unit = "ms"          # CSV only: unit of an unlabelled time column: s | ms | us
+    skip_rows = 3             # CSV only: lines of a logger's preamble before the header
+    columns = ["time", "AI0", 4]  # CSV only: the columns to read (header names or 0-based
+                              # indices; the time column is always read); or
+    skip_columns = ["status"] # CSV only: the columns not to read
     jitter = 0.01             # time stamps uniform within this fraction of the step (1e-3)
 
     [channels.y_r]            # required, at least one: the servoid channel name
-    source = "AI0"            # channel in the file; default the servoid name
+    source = "AI0"            # channel in the file; default the servoid name; a TDMS channel
+                              # of a group "g/AI0", a MAT struct field "run.signals.y"
     role = "r"                # r | u | y | side; default "side"
     gain = 0.0023             # value = gain·raw + offset; finite, non-zero; default 1
     offset = 0.0              # default 0
@@ -85,7 +91,8 @@ import numpy as np
 from .._atomic import atomic_path
 from .._checks import as_bool, as_path, type_error
 from .._errors import ChannelError, FileFormatError, OptionError, ServoidError, check_option
-from ._columns import existing_file
+from ._columns import MissingChannel, existing_file
+from ._csv import header_names
 from ._experiment import ROLES, Channel, Experiment, ExperimentSet, Role
 from ._io import FORMATS, Format, format_of, read_experiment
 from ._preprocess import decimate, lowpass, split
@@ -107,8 +114,9 @@ _DETRENDS: tuple[DetrendSpec, ...] = ("none", "mean", "linear")
 _TOP_KEYS = ("data", "channels", "preprocess", "split", "validation", "rig", "loop",
              "identify", "report")
 _DATA_KEYS = ("file", "format", "group", "time", "dt", "max_bytes", "jitter", "delimiter",
-              "decimal", "time_unit")
-_CSV_KEYS = ("delimiter", "decimal", "time_unit")
+              "decimal", "time_unit", "columns", "skip_columns", "skip_rows")
+_CSV_KEYS = ("delimiter", "decimal", "time_unit", "columns", "skip_columns", "skip_rows")
+_CSV_TEXT_KEYS = ("delimiter", "decimal", "time_unit")
 _CHANNEL_KEYS = ("source", "role", "gain", "offset", "unit", "limits")
 _VALIDATION_KEYS = ("file", "initial", "transient")
 _INITIALS = ("auto", "estimate", "zero", "measured")
@@ -129,14 +137,22 @@ _READER_WORDS = {
     "the file has no time information, pass dt [s]": "the file has no time information, set "
     "[data] dt [s]",
     "pass group= one of:": "set [data] group to one of:",
+    "(pass group= one of them)": "(set [data] group to one of them)",
     "pass time= a channel of time stamps": "set [data] time to a channel of time stamps",
     "pass variables= to choose": "map only vectors of one length in [channels]",
+    "(pass variables=)": "(as [channels.<name>] source)",
     "pass max_bytes= a larger budget": "raise [data] max_bytes",
     "pass max_bytes= to read": "raise [data] max_bytes to read",
     "pass max_bytes= if it is real": "raise [data] max_bytes if it is real",
     "pass delimiter=": "set [data] delimiter = ",
     "(pass jitter=)": "([data] jitter = <fraction of the step>)",
     "pass decimal=": "set [data] decimal = ",
+    "pass skip_rows=": "set [data] skip_rows = ",
+    "skip_rows=": "[data] skip_rows = ",
+    "skip_columns=[": "[data] skip_columns = [",
+    "skip_columns=": "[data] skip_columns",
+    "columns=[": "[data] columns = [",
+    "columns=": "[data] columns",
 }
 
 
@@ -294,7 +310,7 @@ class ExperimentSpec:
         Time-stamp tolerance as a fraction of the step (None: 1e-3).
     csv : mapping
         CSV reading options given in ``[data]``: ``delimiter``, ``decimal``,
-        ``time_unit``.
+        ``time_unit``, ``columns``, ``skip_columns``, ``skip_rows``.
     preprocess : PreprocessSpec
         Preprocessing steps.
     split : SplitSpec
@@ -327,7 +343,7 @@ class ExperimentSpec:
     files: tuple[str, ...] = ()
     max_bytes: int | None = None
     jitter: float | None = None
-    csv: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
+    csv: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     loop: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     identify: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     report: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
@@ -389,7 +405,10 @@ class ExperimentSpec:
         max_bytes = _optional(where, "max_bytes", data.get("max_bytes"),
                               lambda w, k, v: _integer(w, k, v, 1))
         jitter = _optional(where, "jitter", data.get("jitter"), _positive)
-        csv_options = {k: _string(where, k, data[k]) for k in _CSV_KEYS if k in data}
+        csv_options = {k: _csv_option(where, k, data[k]) for k in _CSV_KEYS if k in data}
+        if "columns" in csv_options and "skip_columns" in csv_options:
+            raise FileFormatError(f"{where}: give columns (the columns to read) or skip_columns "
+                                  "(the columns not to read), not both: remove one")
         if csv_options and fmt != "csv":
             raise FileFormatError(f"{where}: {', '.join(csv_options)} apply to CSV files only, "
                                   f"this is {fmt}")
@@ -466,7 +485,7 @@ class ExperimentSpec:
         for key in ("group", "time", "dt", "max_bytes", "jitter"):
             if getattr(self, key) is not None:
                 data[key] = getattr(self, key)
-        data.update(self.csv)
+        data.update({k: list(v) if isinstance(v, tuple) else v for k, v in self.csv.items()})
         channels: dict[str, Any] = {}
         for ch in self.channels:
             entry: dict[str, Any] = {"source": ch.source, "role": ch.role}
@@ -527,7 +546,9 @@ class ExperimentSpec:
         """
         path = self.data_path if path is None else Path(path)
         try:
-            raw = read_experiment(path, self.format, **self._reader_options())
+            raw = read_experiment(path, self.format, **self._reader_options(path))
+        except MissingChannel as exc:
+            raise self._missing(path, exc.name, exc.available) from None
         except ServoidError as exc:  # the readers advise Python keywords: name the TOML keys
             text = str(exc)
             for old, new in _READER_WORDS.items():
@@ -540,11 +561,7 @@ class ExperimentSpec:
             try:
                 src = raw.channel(ch.source)
             except ChannelError:
-                raise ChannelError(
-                    f"channel {ch.source!r} (servoid channel {ch.name!r}) is not in {path}"
-                    f"{' group ' + repr(self.group) if self.group else ''}; the file has: "
-                    f"{', '.join(raw.names)}"
-                ) from None
+                raise self._missing(path, ch.source, raw.names) from None
             calibrated = ch.gain * src.values + ch.offset
             unit = ch.unit
             if unit is None:
@@ -571,6 +588,27 @@ class ExperimentSpec:
         if detrend and pre.detrend != "none":
             exp = _detrend(exp, pre.detrend)
         return exp
+
+    def _missing(self, path: Path, source: str, available: tuple[str, ...]) -> ChannelError:
+        """The error for a channel the rig file lacks, in the experiment file's words."""
+        names = ", ".join(available) or "no numeric channels"
+        if source == self.time and all(c.source != source for c in self.channels):
+            return ChannelError(f"{self._origin}: [data] time = {source!r}: no such channel in "
+                                f"{path}; it has: {names}")
+        spec = next((c for c in self.channels if c.source == source), None)
+        if spec is None:  # not a channel of [channels]: say what the file has
+            return ChannelError(f"{self._origin}: {source!r} is not in {path}; it has: {names}")
+        hint = ""
+        if "columns" in self.csv:
+            hint = " (only the columns listed in [data] columns are read: add it there)"
+        elif "skip_columns" in self.csv:
+            hint = " (check [data] skip_columns)"
+        elif self.format == "tdms" and "/" not in source:
+            hint = " (a channel of another group is named 'group/channel')"
+        return ChannelError(
+            f"channel {source!r} (servoid channel {spec.name!r}) is not in {path}"
+            f"{' group ' + repr(self.group) if self.group else ''}; the file has: {names}{hint}"
+        )
 
     @property
     def _origin(self) -> str:
@@ -764,13 +802,22 @@ class ExperimentSpec:
         validations = tuple(_detrend(v, "offset", offsets=means) for v in validations)
         return (parts[0] if single else parts), validations
 
-    def _reader_options(self) -> dict[str, Any]:
+    def _reader_options(self, path: Path) -> dict[str, Any]:
         options: dict[str, Any] = {"dt": self.dt}
         if self.format == "csv":
             options["time"] = self.time if self.time is not None else "time"
             options.update(self.csv)
-        elif self.format == "tdms":
-            options.update(group=self.group, time=self.time)
+            if "columns" not in self.csv and "skip_columns" not in self.csv:
+                # Only the mapped columns are converted (memory on a wide logger file),
+                # when each is in the header once; else the reader reads all and says why.
+                needed = list(dict.fromkeys(c.source for c in self.channels))
+                names = header_names(path, delimiter=self.csv.get("delimiter", ","),
+                                     skip_rows=self.csv.get("skip_rows", 0))
+                if names is not None and all(names.count(n) == 1 for n in needed):
+                    options["columns"] = needed
+        elif self.format == "tdms":  # only the channels mapped are read
+            options.update(group=self.group, time=self.time,
+                           channels=list(dict.fromkeys(c.source for c in self.channels)))
         else:
             options.update(time=self.time, variables=sorted({c.source for c in self.channels}))
         if self.max_bytes is not None:
@@ -901,6 +948,27 @@ def _string(where: str, key: str, value: Any) -> str:
     if not isinstance(value, str) or not value:
         raise FileFormatError(f"{where} {key} must be a non-empty string, got {_kind(value)}")
     return value
+
+
+def _csv_option(where: str, key: str, value: Any) -> Any:
+    """A CSV reading option of ``[data]``, checked (lists become tuples)."""
+    if key in _CSV_TEXT_KEYS:
+        return _string(where, key, value)
+    if key == "skip_rows":
+        return _integer(where, key, value, 0)
+    example = '["time", "u", "y"] or [0, 1, 3]'
+    if not isinstance(value, (list, tuple)) or not value or not all(
+            isinstance(v, str) and v or isinstance(v, int) and not isinstance(v, bool) and v >= 0
+            for v in value):
+        raise FileFormatError(
+            f"{where} {key} must be a non-empty array of column names (as in the header) or "
+            f"0-based column indices (0 is the first column), e.g. {example}; got {_kind(value)}"
+        )
+    repeated = sorted({repr(v) for v in value if value.count(v) > 1})
+    if repeated:
+        raise FileFormatError(f"{where} {key} lists {', '.join(repeated)} more than once: "
+                              "remove the repeat")
+    return tuple(value)
 
 
 def _number(where: str, key: str, value: Any) -> float:

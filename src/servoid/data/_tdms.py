@@ -1,8 +1,11 @@
 """LabVIEW TDMS rig files, read and written with npTDMS.
 
-One group holds the channels of a run. Each channel carries the waveform
-properties ``wf_increment`` (sample period [s]), ``wf_start_offset`` (time of
-the first sample [s]) and ``unit_string``. servoid also writes
+One group holds the channels of a run, or several groups do (a logger
+that files each card or rate in its own group): channels are then named
+``"group/channel"``, or by their bare name when only one group has it.
+Each channel carries the waveform properties ``wf_increment`` (sample
+period [s]), ``wf_start_offset`` (time of the first sample [s]) and
+``unit_string``. servoid also writes
 ``servoid_role`` per channel and the experiment's simple notes as group
 properties; group properties read back become ``Experiment.notes``.
 
@@ -21,7 +24,7 @@ import io
 import logging
 import math
 import os
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -29,11 +32,12 @@ from typing import Any
 import numpy as np
 
 from .._atomic import atomic_path
-from .._checks import as_bool, as_path, as_str
-from .._errors import DataError, FileFormatError, OptionError
+from .._checks import as_bool, as_path, as_str, as_str_list
+from .._errors import ChannelError, DataError, FileFormatError, OptionError
 from ._columns import (
     DEFAULT_MAX_BYTES,
     TIME_TOLERANCE,
+    MissingChannel,
     RolesArg,
     build_experiment,
     check_max_bytes,
@@ -57,17 +61,19 @@ def read_tdms(
     roles: RolesArg = None,
     dt: float | None = None,
     time: str | None = None,
+    channels: Sequence[str] | None = None,
     max_bytes: int = DEFAULT_MAX_BYTES,
     jitter: float = TIME_TOLERANCE,
 ) -> Experiment:
-    """Read one group of a TDMS file into an Experiment.
+    """Read channels of one or more groups of a TDMS file.
 
     Parameters
     ----------
     path : path-like
         The file.
     group : str, optional
-        Group to read; may be omitted when the file has exactly one.
+        Group to read; may be omitted when the file has exactly one, or
+        when ``channels`` names the channels.
     roles : mapping of str to list of str, optional
         Role to channel names, e.g. ``{"r": ["AI0"], "y": ["AI1"]}``. Channels
         not mapped become side channels. Default: the ``servoid_role``
@@ -77,6 +83,11 @@ def read_tdms(
         otherwise it must agree with it.
     time : str, optional
         A channel of time stamps [s] to use instead of waveform properties.
+    channels : sequence of str, optional
+        The channels to read, each ``"group/channel"`` or a bare channel
+        name that only one group (or ``group``) has; the Experiment's
+        channels carry these names. Default: every numeric channel of the
+        group. Only these are read from the file.
     max_bytes : int
         Memory budget of one channel as float64 [bytes]; default 2 GiB. A
         channel declaring more values is refused before it is read.
@@ -87,19 +98,26 @@ def read_tdms(
     Returns
     -------
     Experiment
-        Named after the file stem; ``notes`` holds the group properties.
+        Named after the file stem; ``notes`` holds the group properties
+        (as ``"group/key"`` when channels of several groups are read).
 
     Raises
     ------
     FileFormatError
         Not a TDMS file, truncated, channels of unequal length or period.
     OptionError
-        ``group`` missing or not given when the file has several groups.
+        ``group`` missing or not given when the file has several groups
+        and ``channels`` is not given; a bare channel name that several
+        groups have.
+    ChannelError
+        A channel of ``channels`` or ``time`` is not in the file.
     DataError
         A channel over the memory budget `max_bytes`.
     """
     path = existing_file(path)
     dt = check_reader_options(dt=dt, roles=roles, names={"group": group, "time": time})
+    if channels is not None:
+        channels = as_str_list("channels", channels, min_length=1)
     max_bytes = check_max_bytes(max_bytes)
     with _truncation_watch() as warnings, library_errors(path, "TDMS"), \
             _BoundedReader(io.FileIO(path, "rb")) as file:
@@ -109,12 +127,29 @@ def read_tdms(
         groups = {g.name: g for g in tdms.groups()}
         if warnings:
             raise _damaged(path, warnings[0])
-        tdms_group = groups[_pick_group(path, list(groups), group)]
+        if channels is None:
+            tdms_group = groups[_pick_group(path, list(groups), group)]
+            chosen = [(ch.name, ch) for ch in tdms_group.channels() if _numeric(ch)]
+            used = [tdms_group]
+        else:
+            if not groups:
+                raise FileFormatError(f"{path}: no groups: an empty or truncated TDMS file")
+            scope = list(groups.values()) if group is None else \
+                [groups[_pick_group(path, list(groups), group)]]
+            wanted = [*channels, *([time] if time is not None and time not in channels else [])]
+            chosen = [(name, _resolve(path, name, groups, scope)) for name in wanted]
+            used = list({ch.group_name: groups[ch.group_name] for _, ch in chosen}.values())
+            tdms_group = used[0]
+        where = f"group {tdms_group.name!r}" if len(used) == 1 else \
+            f"groups {', '.join(repr(g.name) for g in used)}"
         columns: dict[str, np.ndarray] = {}
         props: dict[str, Mapping[str, Any]] = {}
-        for ch in tdms_group.channels():
-            if ch.data_type is None or ch.dtype is None or ch.dtype.kind not in "biuf":
-                continue  # timestamps and strings are not signals
+        for name, ch in chosen:
+            if not _numeric(ch):
+                raise FileFormatError(
+                    f"{path}: channel {name!r} holds {ch.dtype or 'untyped'} values, not numbers;"
+                    " name a numeric channel"
+                )
             if len(ch) > file.size:  # every stored value takes at least one byte
                 raise FileFormatError(
                     f"{path}: channel {ch.name!r} declares {len(ch)} values but the file has "
@@ -126,19 +161,23 @@ def read_tdms(
                     f"{8 * len(ch):,} bytes as float64, over the budget of {max_bytes:,} bytes; if "
                     "the file is what you meant to read, pass max_bytes= a larger budget"
                 )
-            columns[ch.name] = np.asarray(ch[:], dtype=float)
-            props[ch.name] = dict(ch.properties)
+            columns[name] = np.asarray(ch[:], dtype=float)
+            props[name] = dict(ch.properties)
         if warnings:
             raise _damaged(path, warnings[0])
-        notes = {k: _plain(v) for k, v in tdms_group.properties.items()}
+        if len(used) == 1:
+            notes = {k: _plain(v) for k, v in tdms_group.properties.items()}
+        else:
+            notes = {f"{g.name}/{k}": _plain(v) for g in used for k, v in g.properties.items()}
     if not columns:
         raise FileFormatError(f"{path}: group {tdms_group.name!r} has no numeric channels")
     lengths = {n: v.size for n, v in columns.items()}
     if len(set(lengths.values())) > 1:
         listed = ", ".join(f"{n}: {k}" for n, k in lengths.items())
         raise FileFormatError(
-            f"{path}: channels of group {tdms_group.name!r} have different lengths ({listed}); "
-            "the file may be truncated"
+            f"{path}: channels of {where} have different lengths ({listed}); "
+            + ("the file may be truncated" if len(used) == 1 else
+               "channels of one record must have one length: name channels of one rate")
         )
     stamps = None
     t0 = 0.0
@@ -232,13 +271,51 @@ def _pick_group(path: Path, names: list[str], group: str | None) -> str:
             raise FileFormatError(f"{path}: no groups: an empty or truncated TDMS file")
         raise OptionError(
             f"{path} has {len(names)} groups; pass group= one of: "
-            f"{', '.join(repr(n) for n in names)}"
+            f"{', '.join(repr(n) for n in names)} (or name each channel 'group/channel')"
         )
     if group not in names:
         raise OptionError(
-            f"{path} has no group {group!r}; it has: {', '.join(repr(n) for n in names)}"
+            f"{path} has no group {group!r}; it has: {', '.join(repr(n) for n in names)} "
+            "(pass group= one of them)"
         )
     return group
+
+
+def _numeric(ch: Any) -> bool:
+    """Whether a channel holds numbers (timestamps and strings are not signals)."""
+    return ch.data_type is not None and ch.dtype is not None and ch.dtype.kind in "biuf"
+
+
+def _resolve(path: Path, name: str, groups: Mapping[str, Any], scope: list[Any]) -> Any:
+    """The channel ``name`` (bare, or ``group/channel``) of the file.
+
+    A bare name is looked for in the groups of ``scope``; a name with a
+    ``/`` may also be split at any ``/`` into a group and a channel (names
+    may hold ``/`` themselves). Exactly one match is accepted.
+    """
+    found: dict[tuple[str, str], Any] = {}
+    for g in scope:
+        if name in g:
+            found[(g.name, name)] = g[name]
+    for k, c in enumerate(name):
+        if c == "/" and name[:k] in groups and name[k + 1:] in groups[name[:k]]:
+            found[(name[:k], name[k + 1:])] = groups[name[:k]][name[k + 1:]]
+    if len(found) == 1:
+        return next(iter(found.values()))
+    if found:
+        listed = ", ".join(repr(f"{g}/{c}") for g, c in found)
+        raise ChannelError(
+            f"{path}: channel {name!r} is in {len(found)} groups; name one as 'group/channel': "
+            f"{listed}"
+        )
+    if len(scope) == 1:
+        available = [c.name for c in scope[0].channels() if _numeric(c)]
+        where = f"group {scope[0].name!r} of {path}"
+    else:
+        available = [f"{g.name}/{c.name}" for g in scope for c in g.channels() if _numeric(c)]
+        where = str(path)
+    listing = ", ".join(available) or "no numeric channels"
+    raise MissingChannel(f"channel {name!r} is not in {where}; it has: {listing}", name, available)
 
 
 def _waveform_timing(
