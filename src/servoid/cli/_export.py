@@ -19,9 +19,11 @@ def add_export(commands: Any, json_flag: Callable[[argparse.ArgumentParser], Non
         description="Read the results.json of 'servoid identify' and write its model(s): "
         "--to mat (one MATLAB struct per model: num/den/Ts, A/B/C/D/Ts or idpoly's "
         "A/B/C/D/F/nk/Ts, plus InputDelay and type), --to json (a servoid model file, read "
-        "back with servoid.models.load_model) or --to python (a script that rebuilds the "
+        "back with servoid.load_model) or --to python (a script that rebuilds the "
         "model with python-control). A black-box method writes one model, G; the closed-loop "
-        "method writes each approach's continuous plant and closed loop.",
+        "method writes each approach's continuous plant and closed loop. A nonlinear model "
+        "(narx, hammerstein, wiener, hammerstein-wiener) goes --to json only: MATLAB and "
+        "python-control have no form for it.",
     )
     export.add_argument("results", type=Path, help="results.json written by servoid identify")
     export.add_argument("--to", required=True, choices=sorted(_SUFFIX),
@@ -57,27 +59,34 @@ def _run_report(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from .._atomic import atomic_path
-    from .._errors import DataError, OptionError
-    from ..models._file import model_record, record_text, write_mat
+    from .._errors import DataError, ModelError, OptionError
+    from ..models._file import RECORD_TYPES, record_text, write_mat
     from ..workflows import load_results
 
     loaded = load_results(args.results)
     models = loaded.models
     if not models:
-        from .._errors import ModelError
-
         method = loaded.data.get("method") or "this method"
         raise ModelError(
             f"{args.results} holds no model to export (written by {method}, whose result is "
             "not a transfer "
-            "function, state space or polynomial model); export works on the results of the "
-            "black-box methods (arx, oe, armax, bj, tf, n4sid, two-stage, cliv, indirect) and "
-            "of closedloop")
+            "function, state space, polynomial, NARX or block model); export works on the "
+            "results of the black-box methods (arx, oe, armax, bj, tf, n4sid, two-stage, cliv, "
+            "indirect), of closedloop and of the nonlinear methods (narx, hammerstein, wiener, "
+            "hammerstein-wiener)")
     if args.model is not None:
         if args.model not in models:
             raise OptionError(f"--model must be one of {', '.join(models)} (the models of "
                               f"{args.results}); got {args.model!r}")
         models = {args.model: models[args.model]}
+    nonlinear = [n for n, m in models.items() if type(m).__name__ in RECORD_TYPES]
+    if nonlinear and args.to != "json":
+        target = "MATLAB's tf/ss/idpoly" if args.to == "mat" else "python-control"
+        kinds = ", ".join(sorted({type(models[n]).__name__ for n in nonlinear}))
+        raise ModelError(
+            f"{args.results} holds a nonlinear model ({kinds}) and {target} has no form for "
+            f"it: use --to json, which writes a servoid model file, and read it back in Python "
+            f"with servoid.load_model(\"model.json\") to simulate or validate it")
     if args.to == "json" and len(models) > 1:
         raise OptionError(f"{args.results} holds {len(models)} models ({', '.join(models)}) and "
                           "a model file holds one: pick one with --model NAME, or write them "
@@ -95,9 +104,7 @@ def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
         write_mat(models, out, overwrite=args.overwrite)
     else:
         if args.to == "json":
-            record = {**model_record(next(iter(models.values()))), "covariance": None,
-                      "units": None}
-            text = record_text(record)
+            text = record_text(_json_record(next(iter(models.values())), loaded.data))
         else:
             text = _python(models, args.results)
         with atomic_path(out, args.overwrite) as tmp:
@@ -109,6 +116,22 @@ def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 
 # -- private ------------------------------------------------------------------------------
+
+
+def _json_record(model: Any, data: Mapping[str, Any]) -> dict[str, Any]:
+    """A model file's data, with the covariance the run kept."""
+    # a NarxModel's record holds its own covariance; a block model's sits in results.json
+    from ..models._file import model_record
+
+    record = model_record(model)
+    entry = data.get("model")
+    if record.get("covariance") is None and type(model).__name__ == "BlockModel" and \
+            isinstance(entry, Mapping) and entry.get("covariance") is not None:
+        record["covariance"] = entry["covariance"]
+        record["parameter_names"] = entry.get("parameter_names")
+    record.setdefault("covariance", None)
+    record["units"] = None
+    return record
 
 
 def _python(models: Mapping[str, Any], results: Path) -> str:

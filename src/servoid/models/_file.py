@@ -7,18 +7,35 @@ A model file is one JSON object::
      "delay": 0.0, "covariance": null, "units": null}
 
 ``"type"`` is ``"TransferFunction"`` (``num``, ``den``, ``delay``),
-``"StateSpace"`` (``A``, ``B``, ``C``, ``D`` as lists of rows) or
+``"StateSpace"`` (``A``, ``B``, ``C``, ``D`` as lists of rows),
 ``"PolynomialModel"`` (``a``, ``b``, ``nk``, ``c``, ``d``, ``f``,
-``noise_variance``, ``input_names``, ``output_name``).  Floats are written
-with ``repr``, so a model read back equals the one saved bit for bit.
-``"servoid_model"`` is the format version: a reader refuses a version it
-does not know rather than guess.
+``noise_variance``, ``input_names``, ``output_name``), or one of the
+nonlinear models:
+
+- ``"NarxModel"``: ``terms`` (each a list of ``[signal, lag]`` factors,
+  signal 0 the output, i ≥ 1 input i; ``[]`` the constant),
+  ``coefficients``, ``noise_variance``, ``input_names``, ``output_name``,
+  ``input_units``, ``output_unit``, ``term_names`` (readable labels, not
+  read back) and ``covariance`` (the coefficients', or null);
+- ``"BlockModel"``: ``structure``, ``offset``, ``input_nonlinearity`` and
+  ``output_nonlinearity`` (null or ``{"kind": ..., "parameters": {name:
+  value}}``, plus ``breakpoints`` for a piecewise-linear shape) and
+  ``linear``, the linear block as a nested model record.
+
+Every file ends with ``covariance`` (null or a square matrix; with
+``parameter_names`` when saved from an Estimate) and ``units``.  Floats are
+written with ``repr``, so a model read back equals the one saved bit for
+bit.  ``"servoid_model"`` is the format version: a reader refuses a version
+it does not know rather than guess.
 """
 
 from __future__ import annotations
 
+import importlib
 import json
 import re
+import sys
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -32,9 +49,11 @@ from .._errors import (
     DataError,
     FileFormatError,
     MissingFileError,
+    ModelError,
     OptionError,
     OptionTypeError,
     ServoidError,
+    ServoidWarning,
 )
 from ._polynomial import PolynomialModel
 from ._statespace import StateSpace
@@ -42,6 +61,7 @@ from ._transfer import TransferFunction
 
 __all__ = [
     "FORMAT_VERSION",
+    "RECORD_TYPES",
     "export_mat",
     "load_model",
     "model_from_record",
@@ -53,12 +73,24 @@ __all__ = [
 
 FORMAT_VERSION = 1
 _TYPES = ("TransferFunction", "StateSpace", "PolynomialModel")
+#: Model types defined outside ``servoid.models``: ``"type"`` → ``"module:Class"``.  They
+#: import ``models``, so this module imports them only when a file of their type is written
+#: or read (no import cycle).  Each class gives ``to_record()`` (its data without the header:
+#: format version, type, dt) and a classmethod ``from_record(data)`` (the whole file's data,
+#: raising KeyError for a missing key and a ServoidError for bad values); a new model type
+#: plugs in with one line here.  A model that holds user code (the grey-box ODE model runs the
+#: user's Python functions) must store a reference to that code, not the code, and its loader
+#: must not run it without the caller's consent (the CLI's ``--allow-code``).
+RECORD_TYPES: dict[str, str] = {
+    "NarxModel": "servoid.nonlinear._narx_model:NarxModel",
+    "BlockModel": "servoid.nonlinear._block:BlockModel",
+}
 _MATLAB_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,62}")
 Model = TransferFunction | StateSpace | PolynomialModel
 
 
 def save_model(
-    model: Model,
+    model: Any,
     path: str | Path,
     *,
     overwrite: bool = False,
@@ -72,15 +104,19 @@ def save_model(
 
     Parameters
     ----------
-    model : TransferFunction, StateSpace or PolynomialModel
-        The model; its discretisation method, prewarp and delay are kept.
+    model : model or Estimate
+        A TransferFunction, StateSpace or PolynomialModel (its
+        discretisation method, prewarp and delay are kept), a NarxModel or
+        a BlockModel; or an :class:`~servoid.estimate.Estimate`, whose
+        model is written with its covariance and parameter names.
     path : str or pathlib.Path
         The file to write (``.json`` by convention); its folder must exist.
     overwrite : bool
         Replace an existing file; otherwise an existing file is an error.
     covariance : array_like or None
         Square covariance matrix of the estimated parameters, stored as is
-        for other tools (MATLAB, a report); finite values only.
+        for other tools (MATLAB, a report); finite values only.  Default:
+        the Estimate's, or a NarxModel's own (read back with the model).
     units : mapping of str to str or None
         Units to record, e.g. ``{"u": "V", "y": "mm"}``.
 
@@ -88,6 +124,15 @@ def save_model(
     -------
     pathlib.Path
         The file written.
+
+    Raises
+    ------
+    OptionTypeError
+        For an object that is no model a file can hold (a measured
+        FrequencyResponseData).
+    ModelError
+        For a BlockModel with a user StaticFunction: a file holds numbers,
+        not code (the message says what to save instead).
 
     Examples
     --------
@@ -99,9 +144,27 @@ def save_model(
     >>> back.num.tolist(), back.den.tolist(), back.delay
     ([20.0], [1.0, 10.0], 0.01)
     """
+    names = None
+    if _is_estimate(model):
+        names = [str(n) for n in model.names]
+        if covariance is None and model.covariance is not None:
+            if np.all(np.isfinite(model.covariance)):
+                covariance = model.covariance
+            else:
+                warnings.warn("the estimate's covariance has non-finite entries (a parameter "
+                              "the data do not determine): the model file is written without "
+                              "it", ServoidWarning, stacklevel=2)
+        model = model.model
     record = model_record(model)
-    record["covariance"] = None if covariance is None else _covariance(covariance)
+    if covariance is not None:
+        record["covariance"] = _covariance(covariance)
+    record.setdefault("covariance", None)
+    if names is not None:
+        record["parameter_names"] = names
     record["units"] = None if units is None else _units(units)
+    kind = record["type"]
+    if kind in RECORD_TYPES:  # the file must read back: e.g. a covariance of the wrong shape
+        _record_class(kind).from_record(record)
     path = as_path("path", path)
     text = record_text(record)
     with atomic_path(path, overwrite) as tmp:
@@ -109,7 +172,7 @@ def save_model(
     return path
 
 
-def load_model(path: str | Path) -> Model:
+def load_model(path: str | Path) -> Any:
     """Read a model written by :func:`save_model`.
 
     Parameters
@@ -119,10 +182,10 @@ def load_model(path: str | Path) -> Model:
 
     Returns
     -------
-    TransferFunction, StateSpace or PolynomialModel
-        The model, equal to the one saved (same floats).  The file's
-        ``covariance`` and ``units`` are for other tools; read them from
-        the JSON if needed.
+    TransferFunction, StateSpace, PolynomialModel, NarxModel or BlockModel
+        The model, equal to the one saved (same floats).  A NarxModel
+        gets its covariance back; otherwise the file's ``covariance`` and
+        ``units`` are for other tools: read them from the JSON if needed.
 
     Raises
     ------
@@ -189,7 +252,16 @@ def export_mat(model: Model, path: str | Path, *, name: str = "G",
 
 
 def model_record(model: object) -> dict[str, Any]:
-    """A model as the plain data of a model file (no covariance, no units)."""
+    """A model as the plain data of a model file.
+
+    The caller adds ``units`` and, but for a NarxModel (whose record holds
+    its own), ``covariance``.
+    """
+    header = {"servoid_model": FORMAT_VERSION, "type": type(model).__name__}
+    if not isinstance(model, (TransferFunction, StateSpace, PolynomialModel)):
+        kind = type(model).__name__
+        if kind in RECORD_TYPES and isinstance(model, _record_class(kind)):
+            return {**header, "dt": model.dt, **model.to_record()}  # type: ignore[attr-defined]
     if isinstance(model, TransferFunction):
         body = {"num": _floats(model.num), "den": _floats(model.den), "delay": model.delay}
     elif isinstance(model, StateSpace):
@@ -202,13 +274,12 @@ def model_record(model: object) -> dict[str, Any]:
                 "output_name": model.output_name}
     else:
         raise OptionTypeError(
-            f"model must be a TransferFunction, StateSpace or PolynomialModel, got "
-            f"{type(model).__name__}; a model file holds a parametric model (a measured "
-            "FrequencyResponseData is data: keep it with its experiment)"
+            f"model must be a TransferFunction, StateSpace, PolynomialModel, NarxModel or "
+            f"BlockModel, got {type(model).__name__}; a model file holds a parametric model (a "
+            "measured FrequencyResponseData is data: keep it with its experiment)"
         )
-    return {"servoid_model": FORMAT_VERSION, "type": type(model).__name__, "dt": model.dt,
-            "method": getattr(model, "method", None), "prewarp": getattr(model, "prewarp", None),
-            **body}
+    return {**header, "dt": model.dt, "method": getattr(model, "method", None),
+            "prewarp": getattr(model, "prewarp", None), **body}
 
 
 def record_text(record: Mapping[str, Any]) -> str:
@@ -217,7 +288,7 @@ def record_text(record: Mapping[str, Any]) -> str:
                                for k, v in record.items()) + "\n}\n"
 
 
-def model_from_record(data: object, *, where: str) -> Model:
+def model_from_record(data: object, *, where: str) -> Any:
     """The model a model file's data describe; ``where`` names the file in errors."""
     fix = "write it again with servoid.models.save_model"
     if not isinstance(data, Mapping) or "servoid_model" not in data:
@@ -231,10 +302,15 @@ def model_from_record(data: object, *, where: str) -> Model:
             f"for a newer one) and {fix}"
         )
     kind = data.get("type")
-    if kind not in _TYPES:
-        listed = ", ".join(repr(t) for t in _TYPES)
-        raise FileFormatError(f"{where}: \"type\" must be one of {listed}, got {kind!r}; {fix}")
+    if kind not in _TYPES and kind not in RECORD_TYPES:
+        listed = ", ".join(repr(t) for t in (*_TYPES, *RECORD_TYPES))
+        raise FileFormatError(f"{where}: \"type\" must be one of {listed}, got {kind!r} (a "
+                              f"model type this servoid does not know: read the file with the "
+                              f"servoid that wrote it, pip install -U servoid for a newer one); "
+                              f"{fix}")
     try:
+        if kind in RECORD_TYPES:
+            return _record_class(kind).from_record(data)
         common = {"dt": data["dt"], "method": data.get("method"), "prewarp": data.get("prewarp")}
         if kind == "TransferFunction":
             return TransferFunction(_arr(data, "num"), _arr(data, "den"), **common,
@@ -277,6 +353,12 @@ def write_mat(models: Mapping[str, Model], path: Path, *, overwrite: bool = Fals
 
 
 def _mat_struct(model: object) -> dict[str, Any]:
+    if type(model).__name__ in RECORD_TYPES:
+        raise ModelError(
+            f"a {type(model).__name__} has no MATLAB form (tf, ss and idpoly are linear): write "
+            "it as a servoid model file instead, save_model(model, \"model.json\") (from the "
+            "command line: servoid export RESULTS.json --to json), and read it back with "
+            "servoid.load_model")
     if not isinstance(model, (TransferFunction, StateSpace, PolynomialModel)):
         raise OptionTypeError(
             f"model must be a TransferFunction, StateSpace or PolynomialModel, got "
@@ -295,6 +377,22 @@ def _mat_struct(model: object) -> dict[str, Any]:
             "D": np.array(model.d), "F": _rows(list(model.f or ())),
             "nk": np.array(model.nk, dtype=float), "Ts": ts,
             "NoiseVariance": model.noise_variance, "InputDelay": 0.0, "Method": ""}
+
+
+def _record_class(kind: str) -> Any:
+    """The class a ``RECORD_TYPES`` entry names, imported on first use."""
+    module, name = RECORD_TYPES[kind].split(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def _is_estimate(value: object) -> bool:
+    # estimate imports models, so not at module level; and an Estimate exists only once
+    # servoid.estimate is loaded, so a plain model never pays for that import
+    if "servoid.estimate" not in sys.modules:
+        return False
+    from ..estimate import Estimate
+
+    return isinstance(value, Estimate)
 
 
 def _rows(polys: list[np.ndarray]) -> np.ndarray:

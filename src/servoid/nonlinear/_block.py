@@ -16,6 +16,7 @@ No noise model: every predictor is the simulation.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
 
@@ -217,6 +218,57 @@ class BlockModel:
         c = fit_state(self, num, den, uu, yy)
         return _run(self, num, den, uu, c)[2], 0, "estimate"
 
+    # -- model file ------------------------------------------------------------------------
+    def to_record(self) -> dict[str, Any]:
+        """The model as the plain data of a model file.
+
+        Everything but the file's header (format version, type, ``dt``):
+        the structure, the offset, each static block
+        (:meth:`StaticNonlinearity.to_record`) and the linear block as a
+        nested model record.  Floats are written with ``repr``, so the
+        model reads back bit for bit.
+
+        Raises
+        ------
+        ModelError
+            When a static block is a user :class:`StaticFunction`: a model
+            file holds numbers, not code (the message says what to do).
+        """
+        from ..models._file import model_record
+
+        return {
+            "structure": self.structure, "offset": self.offset,
+            "input_nonlinearity": _shape_record(self.input_nonlinearity),
+            "output_nonlinearity": _shape_record(self.output_nonlinearity),
+            "linear": model_record(self.linear),
+        }
+
+    @classmethod
+    def from_record(cls, data: Mapping[str, Any]) -> BlockModel:
+        """Rebuild the model from a model file's data (:meth:`to_record`).
+
+        Parameters
+        ----------
+        data : mapping
+            The file's content: ``dt`` and the keys :meth:`to_record` writes.
+
+        Raises
+        ------
+        KeyError
+            A required key is missing (the model file reader names it).
+        DataError, ModelError, FileFormatError
+            Values that make no model.
+        """
+        from ..models._file import model_from_record
+
+        shapes = []
+        for key in ("input_nonlinearity", "output_nonlinearity"):
+            value = data.get(key)
+            shapes.append(None if value is None else StaticNonlinearity.from_record(value))
+        linear = model_from_record(data["linear"], where="the linear block")
+        return cls(data["structure"], linear, data["dt"], input_nonlinearity=shapes[0],
+                   output_nonlinearity=shapes[1], offset=data.get("offset", 0.0))
+
 
 def fit_state(model: BlockModel, num: NDArray[np.float64], den: NDArray[np.float64],
               u: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -255,6 +307,10 @@ def _run(model: BlockModel, num: NDArray[np.float64], den: NDArray[np.float64],
         x = x + free_response(den, c, u.size)
     y = x if g is None else g._f(x, g.parameters)
     return v, x, y + model.offset
+
+
+def _shape_record(shape: StaticNonlinearity | None) -> dict[str, Any] | None:
+    return None if shape is None else shape.to_record()
 
 
 def _input(u: ArrayLike) -> NDArray[np.float64]:

@@ -10,7 +10,7 @@ validation compares with a record.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
@@ -276,7 +276,54 @@ class NarxModel:
             "names": list(self.names), "coefficients": self.coefficients.tolist(),
             "std": [None if np.isnan(s) else float(s) for s in self.std],
             "noise_variance": self.noise_variance, "max_lag": self.max_lag,
+            "output_unit": self.output_unit, "input_units": list(self.input_units),
+            "covariance": None if self.covariance is None else self.covariance.tolist(),
         }
+
+    def to_record(self) -> dict[str, Any]:
+        """The model as the plain data of a model file.
+
+        Everything but the file's header (format version, type, ``dt``):
+        terms, coefficients, covariance, noise variance, names, units, and
+        the readable term labels (for other tools; not read back).  Floats
+        are Python floats, so JSON writes their ``repr`` and
+        :meth:`from_record` gets the model back bit for bit.
+        """
+        return {
+            "terms": [[list(f) for f in t] for t in self.terms],
+            "term_names": list(self.names),
+            "coefficients": self.coefficients.tolist(),
+            "noise_variance": self.noise_variance,
+            "input_names": list(self.input_names), "output_name": self.output_name,
+            "input_units": list(self.input_units), "output_unit": self.output_unit,
+            "covariance": None if self.covariance is None else self.covariance.tolist(),
+        }
+
+    @classmethod
+    def from_record(cls, data: Mapping[str, Any]) -> NarxModel:
+        """Rebuild the model from a model file's data (:meth:`to_record`).
+
+        Parameters
+        ----------
+        data : mapping
+            The file's content: ``dt`` and the keys :meth:`to_record` writes.
+
+        Raises
+        ------
+        KeyError
+            A required key is missing (the model file reader names it).
+        DataError
+            Values that make no model.
+        """
+        terms = data["terms"]
+        if not isinstance(terms, list):
+            raise DataError(f"terms must be a list of terms, got {terms!r}")
+        return cls(terms, data["coefficients"], data["dt"], covariance=data.get("covariance"),
+                   noise_variance=data.get("noise_variance", 0.0),
+                   input_names=_listed(data, "input_names", ("u",)),
+                   output_name=data.get("output_name", "y"),
+                   output_unit=data.get("output_unit", ""),
+                   input_units=_listed(data, "input_units", ()))
 
     def __str__(self) -> str:
         parts = [f"{c:+.6g}" + ("" if not t else f"·{n}")
@@ -372,6 +419,13 @@ def _check_terms(terms: object, n_inputs: int) -> tuple[Term, ...]:
     if len(set(out)) != len(out):
         raise ModelError("terms holds the same term twice; list each term once")
     return tuple(out)
+
+
+def _listed(data: Mapping[str, Any], key: str, default: tuple[str, ...]) -> tuple[str, ...]:
+    value = data.get(key)
+    if value is None:
+        return default
+    return _str_tuple(key, value)
 
 
 def _str_tuple(name: str, value: object) -> tuple[str, ...]:

@@ -21,7 +21,7 @@ two breakpoints on the way); the constructors do.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -98,6 +98,58 @@ class StaticNonlinearity:
             New parameters in the order of :attr:`names`.
         """
         return self._with(self._theta(theta))
+
+    def to_record(self) -> dict[str, Any]:
+        """The shape as plain data for a model file.
+
+        ``{"kind": ..., "parameters": {name: value}}``; a piecewise-linear
+        shape adds its ``breakpoints``.  Floats are Python floats, so JSON
+        writes their ``repr`` and :meth:`from_record` gets them back bit
+        for bit.
+        """
+        return {"kind": self.kind,
+                "parameters": dict(zip(self.names, self.parameters.tolist(), strict=True))}
+
+    @staticmethod
+    def from_record(data: object) -> StaticNonlinearity:
+        """Rebuild a library shape from :meth:`to_record`'s data.
+
+        Parameters
+        ----------
+        data : mapping
+            ``{"kind": ..., "parameters": {name: value}}`` (and
+            ``breakpoints`` for ``"piecewise-linear"``).
+
+        Raises
+        ------
+        DataError
+            For a record that makes no shape (unknown kind, parameters
+            missing, misnamed or out of their range).
+        """
+        if not isinstance(data, Mapping) or not isinstance(data.get("parameters"), Mapping):
+            raise DataError(f"a static block must be a table with \"kind\" and \"parameters\" "
+                            f"(name → value), got {data!r}")
+        kind = data.get("kind")
+        if kind == StaticFunction.kind:
+            raise ModelError(StaticFunction.unstorable)
+        check_option("kind", kind, SHAPES)
+        params = data["parameters"]
+        values = list(params.values())
+        arity = _ARITY.get(str(kind))
+        if arity is not None and len(values) != arity:
+            raise DataError(f"a {kind} has {arity} parameter(s), got {len(values)}: {dict(params)}")
+        if kind == "piecewise-linear":
+            if "breakpoints" not in data:
+                raise DataError("a piecewise-linear shape needs its \"breakpoints\"")
+            shape: StaticNonlinearity = PiecewiseLinear(data["breakpoints"], values)
+        elif kind == "polynomial":
+            shape = Polynomial(values)
+        else:
+            shape = _BY_KIND[str(kind)](*values)
+        if shape.names != tuple(params):
+            raise DataError(f"the {kind}'s parameters must be named {list(shape.names)}, got "
+                            f"{list(params)}")
+        return shape
 
     def __call__(self, x: ArrayLike) -> NDArray[np.float64]:
         return self.evaluate(x)
@@ -404,6 +456,10 @@ class PiecewiseLinear(StaticNonlinearity):
     def _df(self, x: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
         return self._basis(x)
 
+    def to_record(self) -> dict[str, Any]:
+        """The shape as plain data, its breakpoints included."""
+        return {**super().to_record(), "breakpoints": [float(b) for b in self.breakpoints]}
+
     def _with(self, theta: NDArray[np.float64]) -> PiecewiseLinear:
         return _unchecked(self, slopes=tuple(float(v) for v in theta))
 
@@ -575,6 +631,26 @@ class StaticFunction(StaticNonlinearity):
             cols.append((self._f(x, up) - self._f(x, down)) / (2 * h))
         return np.column_stack(cols)
 
+    #: Why a user function cannot go into a model file, and what to do instead.
+    unstorable: ClassVar[str] = (
+        "a model with a user StaticFunction cannot be written to a model file: the file holds "
+        "numbers, not Python code. Keep the function in your own module and save the rest: "
+        "save_model(model.linear, path) for the linear block and the function's parameters "
+        "(model.input_nonlinearity.parameters / output_nonlinearity.parameters) beside it, "
+        "then rebuild the BlockModel with the same StaticFunction; or fit a library shape "
+        "(\"piecewise-linear\" or \"polynomial\" can follow most curves), which a model file "
+        "holds")
+
+    def to_record(self) -> dict[str, Any]:
+        """Refused: a user function is code, not data.
+
+        Raises
+        ------
+        ModelError
+            Always, with what to do instead.
+        """
+        raise ModelError(self.unstorable)
+
     def _with(self, theta: NDArray[np.float64]) -> StaticFunction:
         return _unchecked(self, parameters0=tuple(float(v) for v in theta))
 
@@ -620,6 +696,12 @@ def from_data(kind: str, x: NDArray[np.float64], *, degree: int = 3,
 
 
 # -- private ---------------------------------------------------------------------------------
+
+#: The library shapes by kind, and how many parameters the fixed-size ones take.
+_BY_KIND: dict[str, Any] = {"deadzone": DeadZone, "saturation": Saturation, "abs": AbsoluteValue,
+                            "power": SignedPower}
+_ARITY = {"deadzone": 2, "saturation": 2, "abs": 1, "power": 1}
+
 
 
 def _breakpoints(obj: Any, what: str) -> None:

@@ -149,6 +149,9 @@ class BlockResult(Displayed):
                 "input_nonlinearity": _shape_dict(model.input_nonlinearity),
                 "output_nonlinearity": _shape_dict(model.output_nonlinearity),
                 "linear": model_dict(model.linear),
+                # for servoid export --to json: the model file keeps the covariance
+                "parameter_names": list(self.estimate.names),
+                "covariance": np.asarray(self.estimate.covariance).tolist(),
             },
             "validation": self.validation.summary(),
             "validations": [v.summary() for v in self.validations],

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from .._checks import as_path, read_json
-from .._errors import FileFormatError, OutputExistsError
+from .._errors import FileFormatError, OutputExistsError, ServoidError
 from ._common import sha256
 from ._summary import RecordSummary, summarise
 
@@ -39,9 +39,12 @@ class Results:
     data : mapping
         Its whole content.
     models : mapping
-        Name → model (``G`` for a black-box method; ``<approach>_plant``
-        and ``<approach>_closed_loop`` for the closed-loop method); empty
-        when the method's result is not a model servoid can rebuild.
+        Name → model (``G`` for a black-box method, a NarxModel for
+        ``narx``, a BlockModel for ``hammerstein``, ``wiener`` and
+        ``hammerstein-wiener``; ``<approach>_plant`` and
+        ``<approach>_closed_loop`` for the closed-loop method); empty when
+        the method's result is not a model servoid can rebuild.  Each
+        replays on a new record: ``validate(results.models["G"], record)``.
     summary : RecordSummary
         Parameters with std and 95 % intervals, validation fit, verdicts.
     """
@@ -58,6 +61,17 @@ class Results:
 
 def load_results(path: str | Path) -> Results:
     """Read a ``results.json`` back into models and parameters.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The ``results.json`` that ``servoid identify`` wrote.
+
+    Returns
+    -------
+    Results
+        Its models (rebuilt with the floats of the file, so bit for bit
+        the ones the run fitted), parameters and verdicts.
 
     Raises
     ------
@@ -151,15 +165,49 @@ def _from_model_dict(model: Mapping[str, Any], path: Path, variance: object) -> 
                       dt=model.get("dt"), c=model.get("c"), d=model.get("d"),
                       f=tuple(model.get("f") or ()),
                       noise_variance=variance if isinstance(variance, float) else 0.0)
+    if kind == "narx":
+        return _build(path, "model", "NarxModel", terms=model.get("terms"),
+                      coefficients=model.get("coefficients"), dt=model.get("dt"),
+                      covariance=_finite_matrix(model.get("covariance")),
+                      noise_variance=model.get("noise_variance", 0.0),
+                      input_names=tuple(model.get("inputs") or ("u",)),
+                      output_name=model.get("output", "y"),
+                      output_unit=model.get("output_unit", ""),
+                      input_units=tuple(model.get("input_units") or ()))
+    if kind == "block":
+        from ..nonlinear import StaticNonlinearity
+
+        linear = model.get("linear")
+        fields: dict[str, Any] = {
+            "structure": model.get("structure"), "dt": model.get("dt"),
+            "offset": model.get("offset", 0.0),
+            "linear": _from_model_dict(linear, path, None) if isinstance(linear, Mapping)
+            else None}
+        for key in ("input_nonlinearity", "output_nonlinearity"):
+            shape = model.get(key)
+            try:
+                fields[key] = None if shape is None else StaticNonlinearity.from_record(shape)
+            except ServoidError as exc:
+                raise FileFormatError(f"{path}: model.{key} is not a valid static block ({exc}); "
+                                      f"the file is damaged: {_FIX}") from None
+        return _build(path, "model", "BlockModel", **fields)
     return None
 
 
-def _build(path: Path, where: str, kind: str, **fields: Any) -> Any:
-    from .. import models
-    from .._errors import FileFormatError, ServoidError
+def _finite_matrix(value: object) -> object:
+    """A covariance as written, or None when results.json nulled a non-finite entry."""
+    if isinstance(value, list) and any(
+            not isinstance(row, list) or any(v is None for v in row) for row in value):
+        return None
+    return value
 
+
+def _build(path: Path, where: str, kind: str, **fields: Any) -> Any:
+    from .. import models, nonlinear
+
+    home = nonlinear if kind in ("NarxModel", "BlockModel") else models
     try:
-        return getattr(models, kind)(**fields)
+        return getattr(home, kind)(**fields)
     except (ServoidError, TypeError, ValueError) as exc:
         raise FileFormatError(f"{path}: {where} is not a valid {kind} ({exc}); the file is "
                               f"damaged: {_FIX}") from None
