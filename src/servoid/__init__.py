@@ -13,6 +13,7 @@ from ._errors import (
     OutputExistsError,
     ServoidError,
     ServoidWarning,
+    SimulationDivergedError,
 )
 
 __version__ = "0.1.0"
@@ -32,6 +33,7 @@ __all__ = [
     "OutputExistsError",
     "ServoidError",
     "ServoidWarning",
+    "SimulationDivergedError",
     "__version__",
     "load_model",
     "load_results",

@@ -36,6 +36,7 @@ __all__ = [
     "OutputExistsError",
     "ServoidError",
     "ServoidWarning",
+    "SimulationDivergedError",
     "check_option",
 ]
 
@@ -77,6 +78,20 @@ class IdentifiabilityError(ServoidError, ValueError):
 
 class ModelError(ServoidError, ValueError):
     """A model cannot perform the operation asked of it."""
+
+
+class SimulationDivergedError(ModelError):
+    """A model's free run left every finite number on a record.
+
+    ``sample`` is the first sample whose simulated value is not finite.
+    """
+
+    def __init__(self, message: str, sample: int) -> None:
+        super().__init__(message)
+        self.sample = int(sample)
+
+    def __reduce__(self) -> tuple[object, ...]:  # picklable (Dask ships errors between processes)
+        return (type(self), (str(self), self.sample))
 
 
 class ConvergenceError(ServoidError, RuntimeError):

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import as_bool, as_float, as_int, type_error
-from .._errors import DataError, ModelError, check_option
+from .._errors import DataError, ModelError, SimulationDivergedError, check_option
 from .._lazy import signal as sps
 from ..data import Experiment
 from ..data._experiment import check_experiment
@@ -271,6 +271,7 @@ def validate(
     else:
         y_sim, first, initial_used = simulate_model(model, y, u, initial=initial,
                                                     transient=transient)
+    _check_finite_run(y_sim, first, model, experiment)
     if max_lag is None:
         max_lag = _default_max_lag(y.size, first, experiment.name)
     if has_noise_model(model):
@@ -377,6 +378,20 @@ def simulate_from_data(
             y_sim[m:] = sps.lfilter([1.0], a, v[m:], zi=zi)[0]
         return y_sim, m
     return np.asarray(model.simulate(u if u.shape[1] > 1 else u[:, 0]), dtype=float), 0
+
+
+def _check_finite_run(y_sim: NDArray[np.float64], first: int, model: Any,
+                      experiment: Experiment) -> None:
+    """Refuse, by its own error, a simulation that diverged on the record."""
+    bad = np.flatnonzero(~np.isfinite(y_sim[first:]))
+    if bad.size:
+        k = first + int(bad[0])
+        label = f" {experiment.name!r}" if experiment.name else ""
+        raise SimulationDivergedError(
+            f"the free run of the {type(model).__name__} diverges on the validation "
+            f"record{label} at sample {k} (t = {k * experiment.dt:.6g} s): the model is unstable "
+            "in simulation there, whatever its one-step fit; try a lower order or degree, or "
+            "validate on a record within the estimation data's range", k)
 
 
 def _default_max_lag(n: int, first: int, name: str) -> int:
