@@ -31,6 +31,10 @@ plain numba RLS loop
     θ += q·e/d, P −= qqᵀ/d), no normalisation, guard, covariance or checks.
 fit_oe
     ``fit_oe(exp, 2, 2, 1)`` (OE(2,2)).
+fit_tf_greybox
+    The same OE(2,2) as a grey-box transfer function: θ = (b0, b1, p1, p2),
+    ``G = (b0 z + b1)/((z − p1)(z − p2))``, from θ₀ = (0.4, 0.2, 0.8, 0.6);
+    from 1e5 samples it takes the streamed Gauss–Newton.
 validate ARX / validate OE
     ``validate(estimate, exp)`` of the fitted ARX(2,2,1) / OE(2,2,1) on its
     own record (the same work as on fresh data): simulation, 5-step
@@ -40,6 +44,17 @@ residual_analysis
 read csv / tdms / mat
     ``read_experiment`` of the record (time, u, y) written by ``write_csv``,
     ``write_tdms`` and ``scipy.io.savemat`` (v5, uncompressed), with roles.
+Experiment copy / Experiment no-copy
+    ``Experiment.from_arrays(dt, u=u, y=y)`` with the default ``copy=True``
+    and with ``copy=False`` (read-only views of the caller's arrays).
+
+Stated memory
+-------------
+The estimators these cells run state their memory in a ``Memory: about
+k N × 8 bytes beyond the record`` line of their docstring. Each cell whose
+call is one such function (``STATED``) compares its ΔRSS with that
+statement: *ok* when ΔRSS <= 1.25·k·N·8 bytes + 4 MB (page and allocator
+granularity), else *over* (``extra.stated_mb``, ``extra.memory``).
 
 Measurement (in the child)
 --------------------------
@@ -55,7 +70,9 @@ numba's on-disk cache). Then the resident high-water mark is reset
 ``MALLOC_MMAP_THRESHOLD_`` fixed at 128 KiB, so the large arrays the first
 call freed are returned to the system rather than reused unseen. Then k
 timed calls (median, best; k = 7 up to 1e5, 5 at 1e6, 3 at 1e7), garbage
-collector off. *peak RSS* (``extra.peak_rss_mb``, the note) is
+collector off; the process CPU time of each (``time.process_time``,
+``extra.cpu_median_ms``) is recorded too, a steadier measure than wall time
+when other work shares the cores. *peak RSS* (``extra.peak_rss_mb``, the note) is
 ``resource.getrusage(RUSAGE_SELF).ru_maxrss`` at the end: the whole process
 — interpreter, numpy/scipy/numba, the inputs, every call. ``extra.growth_*``
 holds the factor per decade of N: median time (and ΔRSS) at N over N/10.
@@ -70,7 +87,10 @@ under load), which would swamp the millisecond cells.
 residual cells with ``_rls.py``, ``_residuals.py`` and ``_metrics.py`` as
 committed at REV (default ``HEAD``) loaded in place of the working tree's —
 a before/after comparison on the same machine; those rows carry
-``[REV]`` in their method.
+``[REV]`` in their method. ``--before-tree REV`` runs every selected cell
+a second time, right after the first, on the whole ``src/`` tree of REV
+(``git archive``, put first on the child's ``PYTHONPATH``): back-to-back
+before/after pairs under the same load.
 """
 
 from __future__ import annotations
@@ -107,13 +127,27 @@ METHODS = (
     "Φ + fit_rls",
     "plain numba RLS loop",
     "fit_oe",
+    "fit_tf_greybox",
     "validate ARX",
     "validate OE",
     "residual_analysis",
     "read csv",
     "read tdms",
     "read mat",
+    "Experiment copy",
+    "Experiment no-copy",
 )
+#: Cells whose call is one documented function: (module, qualified name) whose docstring
+#: holds the "Memory: about k N × 8 bytes" statement the cell's ΔRSS is checked against.
+STATED = {
+    "fit_arx": ("servoid.estimate", "fit_arx"),
+    "fit_rls": ("servoid.estimate", "fit_rls"),
+    "fit_oe": ("servoid.estimate", "fit_oe"),
+    "fit_tf_greybox": ("servoid.estimate", "fit_tf_greybox"),
+    "validate ARX": ("servoid.validate", "validate"),
+    "validate OE": ("servoid.validate", "validate"),
+    "residual_analysis": ("servoid.validate", "residual_analysis"),
+}
 _BLAS_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 # Linux carries the resident high-water mark of the process that execs into the new program
 # (a child forked from this runner would report the runner's RSS as its own ru_maxrss): each
@@ -136,17 +170,27 @@ def run(quick: bool) -> list[Result]:
 
 
 def measure(
-    sizes: list[int], before: bool, rev: str = "HEAD", methods: tuple[str, ...] = METHODS
+    sizes: list[int], before: bool, rev: str = "HEAD", methods: tuple[str, ...] = METHODS,
+    tree: tuple[str, str] | None = None,
 ) -> list[Result]:
-    """Run every cell in a fresh process and add the growth factors per decade."""
+    """Run every cell in a fresh process and add the growth factors per decade.
+
+    ``tree`` = (label, src directory): each cell runs a second time, right
+    after the first, with that tree first on the child's PYTHONPATH.
+    """
     rows: list[Result] = []
     with tempfile.TemporaryDirectory(prefix="servoid-scaling-") as tmp:
         for n in sizes:
             files = _write_files(Path(tmp), n)
             for method in methods:
-                variants = [False, True] if before and method in BEFORE else [False]
-                for old in variants:
-                    rows.append(_cell(method, n, files, rev if old else None))
+                variants: list[tuple[str | None, tuple[str, str] | None]] = [(None, None)]
+                if before and method in BEFORE:
+                    variants.append((rev, None))
+                if tree is not None:
+                    variants.append((None, tree))
+                for old, src in variants:
+                    rows.append(_cell(method, n, files, old, src))
+                    _check_memory(rows[-1])
                     r = rows[-1]
                     print(
                         f"#   {r.method:32s} N={n:>8d}  median {r.median_ms:10.2f} ms  "
@@ -164,6 +208,8 @@ def measure(
 def render(payload: dict[str, object]) -> str:
     """Markdown: median time and ΔRSS per method (rows) and N (columns), growth per decade."""
     rows = [Result(**r) for r in payload["results"]]  # type: ignore[union-attr]
+    for r in rows:  # against the statements of the code as it is now
+        _check_memory(r)
     sizes = sorted({r.n for r in rows})
     methods = sorted({r.method for r in rows}, key=_order)
     cell = {(r.method, r.n): r for r in rows}
@@ -177,6 +223,7 @@ def render(payload: dict[str, object]) -> str:
     out = []
     for title, key, unit in (
         ("median time", "median_ms", "ms"),
+        ("median CPU time of the process (where recorded)", "cpu", "ms"),
         ("ΔRSS of one call", "rss_mb", "MB"),
         ("peak RSS of the process", "peak", "MB"),
     ):
@@ -194,11 +241,31 @@ def render(payload: dict[str, object]) -> str:
                     vals.append(None)
                 elif key == "peak":
                     vals.append(r.extra.get("peak_rss_mb"))
+                elif key == "cpu":
+                    vals.append(r.extra.get("cpu_median_ms"))
                 else:
                     vals.append(getattr(r, key))
             last = [v for v in vals if v is not None and not math.isnan(v)]
+            if key == "cpu" and not last:  # rows measured before CPU time was recorded
+                continue
             growth = f"{last[-1] / last[-2]:.1f}×" if len(last) >= 2 and last[-2] > 0 else "—"
             out.append(f"| {m} | " + " | ".join(fmt(v, unit) for v in vals) + f" | {growth} |")
+        out.append("")
+    checked = [m for m in methods if any("memory" in cell[m, n].extra
+                                         for n in sizes if (m, n) in cell)]
+    if checked:
+        out += ["**ΔRSS against the docstring's Memory line** (ok: ≤ 1.25 × stated + 4 MB)",
+                "", f"| method | {head} |", "|---|" + "---|" * len(sizes)]
+        for m in checked:
+            vals = []
+            for n in sizes:
+                r = cell.get((m, n))
+                if r is None or "memory" not in r.extra:
+                    vals.append("—")
+                else:
+                    vals.append(f"{fmt(r.rss_mb, 'MB')} / {fmt(r.extra['stated_mb'], 'MB')} "
+                                f"{r.extra['memory']}")
+            out.append(f"| {m} | " + " | ".join(vals) + " |")
         out.append("")
     return "\n".join(out)
 
@@ -220,12 +287,38 @@ def _write_files(tmp: Path, n: int) -> dict[str, str]:
     return {k: str(v) for k, v in paths.items()}
 
 
-def _cell(method: str, n: int, files: dict[str, str], before: str | None) -> Result:
+def _stated_factor(method: str) -> float | None:
+    """k of the "Memory: about k N × 8 bytes" line of the cell's function, or None."""
+    import importlib
+    import re
+
+    where = STATED.get(method.split(" [")[0])
+    if where is None:
+        return None
+    doc = getattr(importlib.import_module(where[0]), where[1]).__doc__ or ""
+    found = re.search(r"Memory: about ([0-9.]+) N × 8 bytes", " ".join(doc.split()))
+    return float(found.group(1)) if found else None
+
+
+def _check_memory(r: Result) -> None:
+    """extra.stated_mb and extra.memory (ok/over): ΔRSS against the docstring's statement."""
+    k = _stated_factor(r.method)
+    if k is None or r.rss_mb is None or math.isnan(r.median_ms):
+        return
+    stated = k * r.n * 8 / 2**20
+    r.extra["stated_mb"] = round(stated, 3)
+    r.extra["memory"] = "ok" if r.rss_mb <= 1.25 * stated + 4.0 else "over"
+
+
+def _cell(method: str, n: int, files: dict[str, str], before: str | None,
+          tree: tuple[str, str] | None = None) -> Result:
     spec = json.dumps({"method": method, "n": n, "files": files, "before": before})
     # a fixed mmap threshold: every large array is mapped and unmapped on its own, so the
     # resident high-water mark of a repeated call is that call's (glibc otherwise raises the
     # threshold after the first free and serves the next call from memory it already holds)
     env = {**os.environ, "MALLOC_MMAP_THRESHOLD_": "131072"}
+    if tree is not None:
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [tree[1], env.get("PYTHONPATH")]))
     for var in _BLAS_VARS:  # one BLAS thread unless the caller chose (run.py --blas-threads)
         env.setdefault(var, "1")
     proc = subprocess.run(
@@ -243,7 +336,7 @@ def _cell(method: str, n: int, files: dict[str, str], before: str | None) -> Res
         env=env,
         check=False,
     )
-    label = method + (f" [{before}]" if before else "")
+    label = method + (f" [{before}]" if before else "") + (f" [{tree[0]}]" if tree else "")
     if proc.returncode != 0:
         tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
         return Result(
@@ -277,15 +370,18 @@ def _cell(method: str, n: int, files: dict[str, str], before: str | None) -> Res
             "import_rss_mb": out["import_rss_mb"],
             "setup_rss_mb": out["setup_rss_mb"],
             "times_ms": [round(t, 4) for t in times],
+            # CPU time of the process per call: less disturbed than wall time when other
+            # work shares the two cores (it still counts cache and frequency effects)
+            "cpu_median_ms": round(float(np.median(out["cpu_ms"])), 4),
             **out.get("extra", {}),
         },
     )
 
 
-def _order(method: str) -> tuple[int, int]:
-    """Sort key: the METHODS order, a ``[REV]`` row after its own."""
+def _order(method: str) -> tuple[int, bool, str]:
+    """Sort key: the METHODS order, ``[REV]`` rows after their own (by label)."""
     base = method.split(" [")[0]
-    return (METHODS.index(base) if base in METHODS else len(METHODS), " [" in method)
+    return (METHODS.index(base) if base in METHODS else len(METHODS), " [" in method, method)
 
 
 def _growth(rows: list[Result]) -> None:
@@ -320,6 +416,14 @@ def _experiment(u, y, name):  # type: ignore[no-untyped-def]
     from servoid.data import Experiment
 
     return Experiment.from_arrays(1e-3, u=u, y=y, name=name)
+
+
+def _greybox_model(theta):  # type: ignore[no-untyped-def]
+    """G = (b0 z + b1)/((z − p1)(z − p2)) at dt = 1 ms: the OE(2,2) of the data, as a grey box."""
+    from servoid.models import TransferFunction
+
+    b0, b1, p1, p2 = theta
+    return TransferFunction([b0, b1], [1.0, -(p1 + p2), p1 * p2], 1e-3)
 
 
 def _lagged_phi(u, y):  # type: ignore[no-untyped-def]
@@ -434,14 +538,18 @@ def _child(spec: dict[str, object]) -> dict[str, object]:
         call_kb = max(_status_kb("VmHWM") - before_kb, 0)
         repeats = 7 if n <= 10**5 else (5 if n <= 10**6 else 3)
         times = []
+        cpu = []
         gc.disable()
         for _ in range(repeats):
+            c0 = time.process_time()
             t0 = time.perf_counter()
             call()
             times.append((time.perf_counter() - t0) * 1e3)
+            cpu.append((time.process_time() - c0) * 1e3)
         gc.enable()
     return {
         "times_ms": times,
+        "cpu_ms": cpu,
         "first_ms": first_ms,
         "call_rss_mb": call_kb / 1024,
         "import_rss_mb": import_kb / 1024,
@@ -463,6 +571,11 @@ def _call_for(method, n, files, est, val, read_experiment, extra):  # type: igno
         extra["file_mb"] = round(os.path.getsize(path) / 2**20, 2)
         return lambda: read_experiment(path, **kw)
     u, y_arx, y_oe = _signals(n)
+    if method.startswith("Experiment "):
+        from servoid.data import Experiment
+
+        copy = method == "Experiment copy"
+        return lambda: Experiment.from_arrays(1e-3, u=u, y=y_arx, name="x", copy=copy)
     if method == "numpy lagged-dot ARX":
         return lambda: _numpy_arx(u, y_arx)
     if method == "fit_rls":
@@ -486,6 +599,9 @@ def _call_for(method, n, files, est, val, read_experiment, extra):  # type: igno
     oe = _experiment(u, y_oe, "oe")
     if method == "fit_oe":
         return lambda: est.fit_oe(oe, 2, 2, 1)
+    if method == "fit_tf_greybox":
+        return lambda: est.fit_tf_greybox(oe, _greybox_model, [0.4, 0.2, 0.8, 0.6],
+                                          ["b0", "b1", "p1", "p2"])
     if method == "validate OE":
         model = est.fit_oe(oe, 2, 2, 1)
         extra["residuals_white"] = bool(val.validate(model, oe).residuals.is_white)
@@ -506,6 +622,13 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         metavar="REV",
         help="also run the RLS/validation cells on the sources committed at REV (default HEAD)",
+    )
+    parser.add_argument(
+        "--before-tree",
+        default=None,
+        metavar="REV",
+        help="also run every selected cell on the whole src/ tree of REV (git archive), "
+        "each right after its own",
     )
     parser.add_argument(
         "--sizes",
@@ -558,7 +681,22 @@ def main(argv: list[str] | None = None) -> int:
             text=True,
             check=True,
         ).stdout.strip()
-    rows = measure(sizes, before=rev is not None, rev=rev or "HEAD", methods=tuple(args.methods))
+    tree = None
+    tree_dir = None
+    if args.before_tree:
+        label = subprocess.run(
+            ["git", "-C", str(HERE), "rev-parse", "--short", args.before_tree],
+            capture_output=True, text=True, check=True,
+        ).stdout.strip()
+        tree_dir = tempfile.TemporaryDirectory(prefix="servoid-before-")
+        archive = subprocess.run(["git", "-C", str(HERE.parent), "archive", label, "src"],
+                                 capture_output=True, check=True).stdout
+        subprocess.run(["tar", "-x", "-C", tree_dir.name], input=archive, check=True)
+        tree = (label, str(Path(tree_dir.name) / "src"))
+    rows = measure(sizes, before=rev is not None, rev=rev or "HEAD", methods=tuple(args.methods),
+                   tree=tree)
+    if tree_dir is not None:
+        tree_dir.cleanup()
     try:
         machine["load_average_end"] = [round(x, 2) for x in os.getloadavg()]
     except OSError:

@@ -114,6 +114,14 @@ def fit_arx(
         An input is constant, or the regressor is rank deficient.
     DataError
         Too few samples for the orders, or a missing channel.
+
+    Notes
+    -----
+    Memory: about 1 N × 8 bytes beyond the record on the Gram route (one
+    float copy of a channel in the checks; the residuals are computed on
+    first access, 8·N bytes more); the QR route, taken when the Gram
+    matrix is ill-conditioned, adds the N × (na + Σnb) regressor matrix.
+    Checked by ``benchmarks/bench_scaling.py``.
     """
     check_option("input", input, ("u", "r"))
     check_option("method", method, ("auto", "qr", "gram"))

@@ -59,6 +59,7 @@ from ._arx import _warn_if_unstable
 from ._covariance import COVARIANCES, Covariance, parameter_covariance, resolve
 from ._diagnostics import MAX_STARTS
 from ._estimate import Estimate
+from ._oe_kernel import StreamProblem
 from ._pem_orders import PemOrders, Polys, SignalData, check_record, prepare
 from ._pem_predictor import Problem, initial_sizes
 from ._pem_start import iv_start, random_start, stabilize
@@ -190,6 +191,16 @@ def fit_pem(
     ConvergenceError
         The prediction errors overflow at the start, or the search cannot
         lower the cost although the gradient is not small.
+
+    Notes
+    -----
+    Memory: about 3 N × 8 bytes beyond the record without C and D and
+    with ``initial="zero"``: the prediction errors and their gradient are
+    streamed (:mod:`servoid.estimate._oe_kernel`), and what remains is the
+    instrumental-variable start and the residuals of the robust covariance.
+    A noise model (C, D) or ``initial="estimate"`` runs the buffered
+    predictor instead: about (10 + 4·n_inputs) N × 8 bytes of padded
+    signals, kept for the whole search.
     """
     return _fit(data, na, nb, nc, nd, nf, nk, "pem", input=input, output=output,
                 initial=initial, init=init, multistart=multistart, rng=rng,
@@ -235,6 +246,11 @@ def fit_oe(
     -------
     Estimate
         Method ``"oe"``; parameters per input ``b0…, f1…``.
+
+    Notes
+    -----
+    Memory: about 3 N × 8 bytes beyond the record (``initial="zero"``:
+    streamed passes; see :func:`fit_pem`).  Time is linear in N.
     """
     return _fit(data, 0, nb, 0, 0, nf, nk, "oe", input=input, output=output,
                 initial=initial, init=init, multistart=multistart, rng=rng,
@@ -370,7 +386,7 @@ def _fit(
     label = repr(orders) + (f" with {n_ic} initial values per segment" if n_ic else "")
     n_rows = check_record(label, n_par + n_ic * len(sd.y), sd, start, orders.max_lag)
     names = orders.names(sd.inputs)
-    problem = Problem(orders, sd, start, estimate_ic)
+    problem = _problem(orders, sd, start, estimate_ic)
     floor = n_rows * (_PREDICTION_FLOOR * sd.y_rms) ** 2
 
     if init is None:
@@ -436,7 +452,7 @@ def _fit(
 
     def residuals() -> NDArray[np.float64]:
         # a fresh predictor, so the estimate does not keep the search's buffers alive
-        return Problem(orders, sd, start, estimate_ic).residuals(theta_best)
+        return _problem(orders, sd, start, estimate_ic).residuals(theta_best)
 
     options: dict[str, Any] = {
         **orders.as_options(),
@@ -478,6 +494,14 @@ def _fit(
         residual_function=residuals,
         model_function=model_at,
     )
+
+
+def _problem(orders: PemOrders, sd: SignalData, start: int,
+             estimate_ic: bool) -> Problem | StreamProblem:
+    """The streamed pass for noise-free structures from rest, else the buffered predictor."""
+    if StreamProblem.supports(orders, estimate_ic):
+        return StreamProblem(orders, sd, start)
+    return Problem(orders, sd, start, estimate_ic)
 
 
 def _default_start(orders: PemOrders, sd: SignalData, start: int,

@@ -198,9 +198,11 @@ def fit_rls(
 
     Notes
     -----
+    Memory: about 0 N × 8 bytes beyond the record (Φ and y): O(n²).
+
     Time is linear in N: about 20 ms for N = 10⁶ and n = 4 on one core of
     the reference machine, 2–3 ms of it the Gram pass
-    (``benchmarks/bench_scaling.py``). Peak memory
+    (``benchmarks/bench_scaling.py``, which checks the memory line). Peak memory
     beyond the inputs is O(n²) — nothing of the record's size — plus
     8·N·(n + 1) bytes with ``history`` and 16·N bytes with ``residuals``
     (and a float64 copy of ``phi`` or ``y`` if they are not float64

@@ -7,6 +7,17 @@ or, with bounds, by a trust-region reflective method, in transformed
 coordinates (``log`` keeps a parameter positive and makes steps relative),
 from the given start and ``multistart`` random ones (the lowest cost wins).
 
+Long records (100 000 samples or more, no bounds, ``solver="auto"``) take
+a streamed Gauss–Newton instead (:mod:`servoid.estimate._tf_greybox_stream`):
+G read in q⁻¹ is an OE model B/F, so JᵀJ and Jᵀr follow from the exact
+coefficient gradient summed in one compiled pass and the small matrix
+∂(B, F)/∂θ; the N × n Jacobian, its copies and the n + 1 simulations per
+finite-difference Jacobian are never made.  The covariance then uses JᵀJ
+(white) or the Gram matrix of J's columns filtered by the residuals' AR
+model, from one more compiled pass (robust), and the
+identifiability checks a square root of JᵀJ in place of J (they read J
+only through JᵀJ).
+
 Covariance (``covariance=``), from the solver's finite-difference Jacobian
 J at the optimum, mapped back to θ:
 
@@ -57,6 +68,7 @@ from ._covariance import (
     bootstrap_covariance,
     least_squares_covariance,
     resolve,
+    sandwich_covariance,
 )
 from ._diagnostics import (
     MAX_STARTS,
@@ -66,12 +78,17 @@ from ._diagnostics import (
     weakest_parameters,
 )
 from ._estimate import Estimate
+from ._tf_greybox_stream import stream_filtered_gram, stream_least_squares, stream_residuals
 
 __all__ = ["fit_tf_greybox"]
 
 Transform = Literal["none", "log"]
 Solver = Literal["auto", "lm", "trf"]
 
+#: Records at least this long (samples in the criterion) are fitted by the streamed
+#: Gauss–Newton when ``solver="auto"`` and there are no bounds: MINPACK's N × n Jacobian
+#: and its copies took 24× the record at 1e7 samples.
+_STREAM_MIN_SAMPLES = 100_000
 _PENALTY = 1e100  # residual for a diverged simulation: finite, so LM rejects the step
 #: Costs within this multiple of N·(rms y)² are rounding: two starts there are at one minimum.
 _COST_FLOOR = 1e-24
@@ -126,7 +143,10 @@ def fit_tf_greybox(
         settle the simulation (initial conditions are not estimated).
     solver : {"auto", "lm", "trf"}
         ``"lm"`` = Levenberg–Marquardt (no bounds); ``"auto"`` picks "lm"
-        without bounds and "trf" with them.
+        without bounds and "trf" with them — except on records of 100 000
+        samples or more without bounds, where it runs a streamed
+        Gauss–Newton (module notes) and reports ``options["solver"] =
+        "gauss-newton"``.
     max_nfev : int, optional
         Limit on residual evaluations per start (default: 200·(n + 1)).
     tol : float
@@ -178,6 +198,16 @@ def fit_tf_greybox(
         identifiability check (correlation, near-null direction, std above
         the value or below the noise floor, a non-quadratic cost, local
         minima).
+
+    Notes
+    -----
+    Memory: about 5 N × 8 bytes beyond the record on the streamed path
+    (100 000 samples or more, no bounds, ``solver="auto"``): the residual
+    vectors of the identifiability checks; the normal equations are summed
+    in one compiled pass and no N × n Jacobian exists.  MINPACK and the
+    trust-region solver (shorter records, bounds, or an explicit
+    ``solver``) hold the N × n Jacobian and its working copies: about
+    (6n + 6) N × 8 bytes.
     """
     check_option("input", input, ("u", "r"))
     check_option("solver", solver, ("auto", "lm", "trf"))
@@ -230,6 +260,11 @@ def fit_tf_greybox(
     _check_model(model_fn(theta0), dt)
     measured = [y for _, y in records]
 
+    # long records without bounds: Gauss–Newton on streamed normal equations (no N × n
+    # Jacobian, no finite-difference simulations); see _tf_greybox_stream
+    streamed = solver == "auto" and chosen == "lm" and n_res >= _STREAM_MIN_SAMPLES
+    budget = max_nfev if max_nfev is not None else 200 * (n + 1)
+
     def to_theta(z: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.where(is_log, np.exp(np.where(is_log, z, 0.0)), z)
 
@@ -241,13 +276,20 @@ def fit_tf_greybox(
     def raw_residuals(theta: NDArray[np.float64],
                       ys: Sequence[NDArray[np.float64]] = measured) -> NDArray[np.float64]:
         with np.errstate(all="ignore"):
-            parts = [(y - yh)[start:] for y, yh in zip(ys, simulate(theta), strict=True)]
+            if streamed:  # one compiled pass per segment into the residual array itself
+                parts = stream_residuals(model_fn, records, start, theta, ys)
+            else:
+                parts = [(y - yh)[start:] for y, yh in zip(ys, simulate(theta), strict=True)]
             out = parts[0] if len(parts) == 1 else np.concatenate(parts)
         out[~np.isfinite(out)] = np.nan
         return out
 
     def solve(z_start: NDArray[np.float64],
               ys: Sequence[NDArray[np.float64]] = measured) -> optimize.OptimizeResult:
+        if streamed:
+            return stream_least_squares(model_fn, to_theta, records, start, z_start, tol,
+                                        budget, None if ys is measured else ys)
+
         def residuals(z: NDArray[np.float64]) -> NDArray[np.float64]:
             out = raw_residuals(to_theta(z), ys)
             out[np.isnan(out)] = _PENALTY
@@ -287,17 +329,28 @@ def fit_tf_greybox(
     res = results[k_best]
     assert res is not None
     z = res.x
-    r = np.asarray(res.fun)
     theta = to_theta(z)
-    # the solver's forward-difference Jacobian at x̂ (relative step √ε): accurate to ~1e-8,
-    # ample for a covariance, and it saves 2n simulations
-    jac = np.asarray(res.jac)
     dof = max(n_res - n, 1)
-    sigma2 = float(r @ r) / dof
     cuts = np.cumsum(sizes)[:-1]
     d = np.where(is_log, theta, 1.0)  # dθ/dz
-    cov_result = least_squares_covariance("white" if kind == "bootstrap" else kind,
-                                          [np.split(jac, cuts)], [np.split(r, cuts)], dof)
+    if streamed:
+        # J itself is never formed: a square root R of JᵀJ (RᵀR = JᵀJ) stands in for it in
+        # the rank and identifiability checks, which read J only through JᵀJ
+        r = raw_residuals(theta)
+        jac = _gram_root(res.jtj)
+        sigma2 = float(r @ r) / dof
+        gram = stream_filtered_gram(model_fn, to_theta, records, start, z, np.ones(n))
+        cov_result = sandwich_covariance("white" if kind == "bootstrap" else kind, res.jtj,
+                                         sigma2, dof, lambda: np.split(r, cuts), gram,
+                                         gram_bread=True)
+    else:
+        r = np.asarray(res.fun)
+        # the solver's forward-difference Jacobian at x̂ (relative step √ε): accurate to ~1e-8,
+        # ample for a covariance, and it saves 2n simulations
+        jac = np.asarray(res.jac)
+        sigma2 = float(r @ r) / dof
+        cov_result = least_squares_covariance("white" if kind == "bootstrap" else kind,
+                                              [np.split(jac, cuts)], [np.split(r, cuts)], dof)
     if cov_result.singular:
         weak = weakest_parameters(jac, names)
         raise IdentifiabilityError(
@@ -357,7 +410,7 @@ def fit_tf_greybox(
             "bounds": None if bounds is None else [np.asarray(b, float).tolist() for b in bounds],
             "theta0": theta0.tolist(),
             "start": start,
-            "solver": chosen,
+            "solver": "gauss-newton" if streamed else chosen,
             "nfev": int(res.nfev),
             "cost": float(res.cost),
             "optimality": float(res.optimality),
@@ -371,6 +424,12 @@ def fit_tf_greybox(
         units=units,
         residual_function=residual_function,
     )
+
+
+def _gram_root(jtj: NDArray[np.float64]) -> NDArray[np.float64]:
+    """R (n × n) with RᵀR = JᵀJ: same column norms and right singular vectors as J."""
+    lam, vec = np.linalg.eigh(0.5 * (jtj + jtj.T))
+    return np.sqrt(np.clip(lam, 0.0, None))[:, None] * vec.T
 
 
 def _bounds(

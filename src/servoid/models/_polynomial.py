@@ -289,6 +289,14 @@ class PolynomialModel:
         """
         uu = as_input_matrix(u, self.n_inputs, owner=f"{_OWNER}.simulate")
         den, nums = self._common_denominator()
+        if y_init is None and u_init is None:
+            # from rest: one compiled pass per input into one array (no lfilter buffers)
+            from ._kernels import filter_into
+
+            y = np.zeros(uu.shape[0])
+            for i, num in enumerate(nums):
+                filter_into(num, den, uu[:, i], y, i > 0)
+            return y
         lag = max(den.size, *(x.size for x in nums)) - 1
         yi = _past("y_init", y_init, 1, lag)[:, 0]
         ui = _past("u_init", u_init, self.n_inputs, lag)
@@ -333,7 +341,9 @@ class PolynomialModel:
         yy = as_array("y", y, finite=False)
         if yy.shape != (uu.shape[0],):
             raise DataError(f"y must have shape ({uu.shape[0]},) like u, got {yy.shape}")
-        if not np.all(np.isfinite(yy)):
+        from ._kernels import all_finite, filter_into
+
+        if not all_finite(np.ascontiguousarray(yy, dtype=np.float64).ravel()):
             raise DataError("y must be finite")
         if horizon is None or horizon == math.inf:
             return self.simulate(uu)
@@ -352,11 +362,13 @@ class PolynomialModel:
         fk = signal.lfilter(self.c, ad, pulse)  # first k impulse-response terms of H
         rest = _padd(self.c, -np.convolve(fk, ad))
         rest[: min(k, rest.size)] = 0.0  # zero by construction of F_k; drop the rounding
-        yhat = signal.lfilter(rest, self.c, yy)
+        # one compiled pass per filter, each adding into ŷ (lfilter allocated per term)
+        yhat = np.empty(yy.size)
+        filter_into(rest, self.c, yy, yhat, False)
         fkd = np.convolve(fk, self.d)
         for i in range(self.n_inputs):
             num = np.convolve(fkd, np.concatenate([np.zeros(self.nk[i]), self.b[i]]))
-            yhat += signal.lfilter(num, np.convolve(self.c, self.f[i]), uu[:, i])  # type: ignore[index]
+            filter_into(num, np.convolve(self.c, self.f[i]), uu[:, i], yhat, True)  # type: ignore[index]
         return yhat
 
     def residuals(self, y: ArrayLike, u: ArrayLike) -> NDArray[np.float64]:
@@ -374,7 +386,9 @@ class PolynomialModel:
         ndarray, shape (N,)
             The residuals ε(t).
         """
-        return as_array("y", y, finite=False) - self.predict(y, u, 1)
+        yy = as_array("y", y, finite=False)
+        out = self.predict(yy, u, 1)
+        return np.subtract(yy, out, out=out)  # in place: no second N-sample array
 
     # -- conversion -------------------------------------------------------
     def transfer_function(self, input: int = 0) -> TransferFunction:

@@ -132,6 +132,31 @@ def relative_error(y: ArrayLike, y_hat: ArrayLike) -> float | NDArray[np.float64
 
 
 
+def metric_set(y: ArrayLike, y_hat: ArrayLike) -> dict[str, float]:
+    """Fit %, NRMSE, RMSE, VAF and relative error from one set of sums.
+
+    The same values (bit for bit) and warnings as the five functions, for
+    one output column, with two passes over the data instead of ten.
+    """
+    y, y_hat = _pair(y, y_hat)
+    sums = _sums(y, y_hat, centred=True)
+    spread = np.sqrt(sums.spread2)
+    _warn_degenerate(spread, "the normalised error")
+    _warn_degenerate(sums.spread2, "VAF")
+    if np.any(~(sums.power > 0)):
+        warnings.warn("the relative error is undefined for an all-zero measured output",
+                      ServoidWarning, stacklevel=2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = np.sqrt(sums.error2) / spread
+        return {
+            "fit_percent": float(100.0 * (1.0 - e[0])),
+            "nrmse": float(e[0]),
+            "rmse": float(np.sqrt(sums.error2 / sums.n)[0]),
+            "vaf": float((100.0 * (1.0 - sums.error_spread2 / sums.spread2))[0]),
+            "relative_error": float((100.0 * np.sqrt(sums.error2) / np.sqrt(sums.power))[0]),
+        }
+
+
 @numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"}, error_model="numpy")
 def _column_sums(y, y_hat, mean_y, mean_d, block):  # type: ignore[no-untyped-def]  # pragma: no cover
     # rows: Σy, Σd, Σd², Σ(y − mean_y)², Σ(d − mean_d)², d = y − ŷ; per column of (N, k).

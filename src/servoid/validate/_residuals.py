@@ -131,6 +131,9 @@ def residual_analysis(
 
     Notes
     -----
+    Memory: about 2 N × 8 bytes beyond the inputs with one input (the
+    centred residuals and input; 8·N bytes more per further input).
+
     Time O(N·M·(1 + n_inputs²)), memory O(N·(1 + n_inputs)) for the centred
     copies (8 bytes per sample and signal): about 25 ms for N = 10⁶, M = 25
     and one input with white residuals on the reference machine

@@ -25,7 +25,6 @@ from numpy.typing import NDArray
 
 from .._checks import as_array, as_float, type_error
 from .._errors import DataError, ModelError, check_option
-from .._lazy import signal as sps
 
 __all__ = ["INITIALS", "INTERSAMPLES", "Initial", "Intersample", "Replayable", "discrete_model",
            "has_noise_model", "is_arx", "is_replayable", "simulate_model"]
@@ -33,6 +32,8 @@ __all__ = ["INITIALS", "INTERSAMPLES", "Initial", "Intersample", "Replayable", "
 Initial = Literal["auto", "estimate", "zero", "measured"]
 Intersample = Literal["zoh", "foh", "bandlimited"]
 INITIALS: tuple[Initial, ...] = ("auto", "estimate", "zero", "measured")
+#: Fraction of its peak below which an impulse response has died out (free responses).
+_DECAYED = 1e-20
 INTERSAMPLES: tuple[Intersample, ...] = ("zoh", "foh", "bandlimited")
 
 
@@ -184,8 +185,12 @@ def simulate_model(
     free = _free_responses(model, y.size)
     if free.shape[1] == 0:
         return forced, int(transient), "estimate"
-    x0, *_ = np.linalg.lstsq(free, y - forced, rcond=None)
-    return forced + free @ x0, int(transient), "estimate"
+    rows = free.shape[0]  # the free responses vanish (below 1e-20 of their peak) after these
+    x0, *_ = np.linalg.lstsq(free, y[:rows] - forced[:rows], rcond=None)
+    if not forced.flags.writeable:  # a model may hand out a read-only result
+        forced = forced.copy()
+    forced[:rows] += free @ x0
+    return forced, int(transient), "estimate"
 
 
 def check_signals(y: object, u: object) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -199,7 +204,16 @@ def check_signals(y: object, u: object) -> tuple[NDArray[np.float64], NDArray[np
 
 
 def _free_responses(model: Any, n: int) -> NDArray[np.float64]:
-    """Return (N, n_states) independent free responses of the model's output."""
+    """Return (T, n_states) independent free responses of the model's output.
+
+    For a transfer function or polynomial model the free responses are the
+    lags 0…n−1 of the impulse response h of 1/den (the state ``zi = e_j`` of
+    ``lfilter``'s transposed direct form starts h at lag j).  They are cut
+    at T <= N samples once h has stayed below 1e-20 of its peak for n
+    samples: the rows after T would change neither the least-squares fit
+    nor the simulation in double precision, and a stable model then costs
+    O(T·n) instead of an N × n matrix.  A state-space model keeps all N rows.
+    """
     from ..models import StateSpace
 
     if isinstance(model, StateSpace):
@@ -208,15 +222,19 @@ def _free_responses(model: Any, n: int) -> NDArray[np.float64]:
         cols = [np.asarray(model.simulate(zero, x0=np.eye(states)[j]), dtype=float)
                 for j in range(states)]
         return np.column_stack(cols) if cols else np.empty((n, 0))
+    from ._kernels import decay_length, impulse
+
     den = _denominator(model)
     order = den.size - 1
-    impulse_free = np.zeros(n)
-    cols = []
+    if order == 0:
+        return np.empty((n, 0))
+    den = np.ascontiguousarray(den / den[0])  # lfilter normalises by a[0]; zi is taken as is
+    rows = int(decay_length(den, n, _DECAYED))
+    h = impulse(den, rows)
+    free = np.zeros((rows, order))
     for j in range(order):
-        zi = np.zeros(order)
-        zi[j] = 1.0
-        cols.append(sps.lfilter([1.0], den, impulse_free, zi=zi)[0])
-    return np.column_stack(cols) if cols else np.empty((n, 0))
+        free[j:, j] = h[: rows - j]
+    return free
 
 
 def _denominator(model: Any) -> NDArray[np.float64]:
