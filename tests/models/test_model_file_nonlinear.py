@@ -224,9 +224,9 @@ def test_a_newer_version_or_an_unknown_type_is_refused(tmp_path, model):
     path.write_text(json.dumps({**data, "servoid_model": 2}), encoding="utf-8")
     with pytest.raises(FileFormatError, match=r"m\.json has format version 2.*reads version 1"):
         load_model(path)
-    path.write_text(json.dumps({**data, "type": "OdeModel"}), encoding="utf-8")
-    with pytest.raises(FileFormatError, match=r"must be one of .*'NarxModel', 'BlockModel', got "
-                                              r"'OdeModel'.*does not know"):
+    path.write_text(json.dumps({**data, "type": "VolterraModel"}), encoding="utf-8")
+    with pytest.raises(FileFormatError, match=r"must be one of .*'NarxModel', 'BlockModel', "
+                                              r"'OdeModel', got 'VolterraModel'.*does not know"):
         load_model(path)
 
 

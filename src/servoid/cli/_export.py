@@ -22,8 +22,10 @@ def add_export(commands: Any, json_flag: Callable[[argparse.ArgumentParser], Non
         "back with servoid.load_model) or --to python (a script that rebuilds the "
         "model with python-control). A black-box method writes one model, G; the closed-loop "
         "method writes each approach's continuous plant and closed loop. A nonlinear model "
-        "(narx, hammerstein, wiener, hammerstein-wiener) goes --to json only: MATLAB and "
-        "python-control have no form for it.",
+        "(narx, hammerstein, wiener, hammerstein-wiener) and a grey-box ODE (greybox) go "
+        "--to json only: MATLAB and python-control have no form for them. Writing a grey-box "
+        "model's file runs no code: it names the Python file (path and SHA-256), which "
+        "servoid.load_model runs only with allow_code=True.",
     )
     export.add_argument("results", type=Path, help="results.json written by servoid identify")
     export.add_argument("--to", required=True, choices=sorted(_SUFFIX),
@@ -40,11 +42,16 @@ def add_export(commands: Any, json_flag: Callable[[argparse.ArgumentParser], Non
         "report", help="write the report of a run again",
         description="Write report.html, the figures and results.json of a run again from the "
         "experiment file it names, after checking that every input is byte-for-byte the one "
-        "the run read (the SHA-256 in its manifest.json); a changed input is refused.",
+        "the run read (the SHA-256 in its manifest.json); a changed input is refused. "
+        "The identification runs again, so a grey-box run (method = \"greybox\") needs "
+        "--allow-code, and its Python model file must be unchanged too.",
     )
     report.add_argument("results", type=Path, help="results.json written by servoid identify")
     report.add_argument("--out", type=Path,
                         help="folder for the new report (default: the run's own folder)")
+    report.add_argument("--allow-code", action="store_true",
+                        help="let a grey-box run's Python model file run again (method = "
+                        "\"greybox\"); check the file first")
     json_flag(report)
     report.set_defaults(run=_run_report)
 
@@ -52,7 +59,7 @@ def add_export(commands: Any, json_flag: Callable[[argparse.ArgumentParser], Non
 def _run_report(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..workflows import rerender
 
-    result = rerender(args.results, args.out)
+    result = rerender(args.results, args.out, allow_code=args.allow_code)
     return ({"files": [str(f) for f in result.files]},
             f"{result}\nwritten: {result.folder}")
 
@@ -62,9 +69,16 @@ def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from .._errors import DataError, ModelError, OptionError
     from ..models._file import RECORD_TYPES, record_text, write_mat
     from ..workflows import load_results
+    from ..workflows._results import greybox_record
 
-    loaded = load_results(args.results)
-    models = loaded.models
+    # a grey-box run: its model file is written from the record, without running its code
+    record = greybox_record(args.results)
+    if record is None:
+        loaded = load_results(args.results)
+        models: dict[str, Any] = dict(loaded.models)
+        data = loaded.data
+    else:
+        models, data = {"G": record}, {}
     if not models:
         method = loaded.data.get("method") or "this method"
         raise ModelError(
@@ -73,20 +87,21 @@ def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
             "function, state space, polynomial, NARX or block model); export works on the "
             "results of the black-box methods (arx, oe, armax, bj, tf, n4sid, two-stage, cliv, "
             "indirect), of closedloop and of the nonlinear methods (narx, hammerstein, wiener, "
-            "hammerstein-wiener)")
+            "hammerstein-wiener, greybox)")
     if args.model is not None:
         if args.model not in models:
             raise OptionError(f"--model must be one of {', '.join(models)} (the models of "
                               f"{args.results}); got {args.model!r}")
         models = {args.model: models[args.model]}
-    nonlinear = [n for n, m in models.items() if type(m).__name__ in RECORD_TYPES]
+    nonlinear = [n for n, m in models.items() if _kind(m) in RECORD_TYPES]
     if nonlinear and args.to != "json":
         target = "MATLAB's tf/ss/idpoly" if args.to == "mat" else "python-control"
-        kinds = ", ".join(sorted({type(models[n]).__name__ for n in nonlinear}))
+        kinds = ", ".join(sorted({_kind(models[n]) for n in nonlinear}))
+        consent = ", allow_code=True" if record is not None else ""  # it runs the user's file
         raise ModelError(
             f"{args.results} holds a nonlinear model ({kinds}) and {target} has no form for "
             f"it: use --to json, which writes a servoid model file, and read it back in Python "
-            f"with servoid.load_model(\"model.json\") to simulate or validate it")
+            f"with servoid.load_model(\"model.json\"{consent}) to simulate or validate it")
     if args.to == "json" and len(models) > 1:
         raise OptionError(f"{args.results} holds {len(models)} models ({', '.join(models)}) and "
                           "a model file holds one: pick one with --model NAME, or write them "
@@ -104,24 +119,32 @@ def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
         write_mat(models, out, overwrite=args.overwrite)
     else:
         if args.to == "json":
-            text = record_text(_json_record(next(iter(models.values())), loaded.data))
+            text = record_text(_json_record(next(iter(models.values())), data))
         else:
             text = _python(models, args.results)
         with atomic_path(out, args.overwrite) as tmp:
             tmp.write_text(text, encoding="utf-8")
-    names = ", ".join(f"{n} ({type(m).__name__})" for n, m in models.items())
+    names = ", ".join(f"{n} ({_kind(m)})" for n, m in models.items())
     return ({"results": str(args.results), "to": args.to, "file": str(out),
-             "models": {n: type(m).__name__ for n, m in models.items()}},
+             "models": {n: _kind(m) for n, m in models.items()}},
             f"wrote {out}: {names}")
 
 
 # -- private ------------------------------------------------------------------------------
 
 
+def _kind(model: Any) -> str:
+    """A model's type name; a grey-box model stays its record (its code is not run)."""
+    return str(model["type"]) if isinstance(model, dict) else type(model).__name__
+
+
 def _json_record(model: Any, data: Mapping[str, Any]) -> dict[str, Any]:
     """A model file's data, with the covariance the run kept."""
     # a NarxModel's record holds its own covariance; a block model's sits in results.json
     from ..models._file import model_record
+
+    if isinstance(model, dict):  # a grey-box model's record, complete with its covariance
+        return {**model, "units": None}
 
     record = model_record(model)
     entry = data.get("model")

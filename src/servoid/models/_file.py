@@ -20,7 +20,10 @@ nonlinear models:
 - ``"BlockModel"``: ``structure``, ``offset``, ``input_nonlinearity`` and
   ``output_nonlinearity`` (null or ``{"kind": ..., "parameters": {name:
   value}}``, plus ``breakpoints`` for a piecewise-linear shape) and
-  ``linear``, the linear block as a nested model record.
+  ``linear``, the linear block as a nested model record;
+- ``"OdeModel"``: a fitted grey-box ODE, as a reference to the user's
+  Python file (absolute path, SHA-256, function names) with its numbers;
+  read back only with ``allow_code=True`` and an unchanged file.
 
 Every file ends with ``covariance`` (null or a square matrix; with
 ``parameter_names`` when saved from an Estimate) and ``units``.  Floats are
@@ -44,7 +47,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._atomic import atomic_path
-from .._checks import as_array, as_path, read_json
+from .._checks import as_array, as_bool, as_path, read_json
 from .._errors import (
     DataError,
     FileFormatError,
@@ -84,6 +87,7 @@ _TYPES = ("TransferFunction", "StateSpace", "PolynomialModel")
 RECORD_TYPES: dict[str, str] = {
     "NarxModel": "servoid.nonlinear._narx_model:NarxModel",
     "BlockModel": "servoid.nonlinear._block:BlockModel",
+    "OdeModel": "servoid.estimate._ode_model:OdeModel",
 }
 _MATLAB_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,62}")
 Model = TransferFunction | StateSpace | PolynomialModel
@@ -106,8 +110,9 @@ def save_model(
     ----------
     model : model or Estimate
         A TransferFunction, StateSpace or PolynomialModel (its
-        discretisation method, prewarp and delay are kept), a NarxModel or
-        a BlockModel; or an :class:`~servoid.estimate.Estimate`, whose
+        discretisation method, prewarp and delay are kept), a NarxModel,
+        a BlockModel or a grey-box OdeModel (a reference to its Python
+        file, never the code); or an :class:`~servoid.estimate.Estimate`, whose
         model is written with its covariance and parameter names.
     path : str or pathlib.Path
         The file to write (``.json`` by convention); its folder must exist.
@@ -132,7 +137,8 @@ def save_model(
         FrequencyResponseData).
     ModelError
         For a BlockModel with a user StaticFunction: a file holds numbers,
-        not code (the message says what to save instead).
+        not code (the message says what to save instead); for an OdeModel
+        whose functions are not defined in a Python file.
 
     Examples
     --------
@@ -164,7 +170,11 @@ def save_model(
     record["units"] = None if units is None else _units(units)
     kind = record["type"]
     if kind in RECORD_TYPES:  # the file must read back: e.g. a covariance of the wrong shape
-        _record_class(kind).from_record(record)
+        cls = _record_class(kind)
+        if getattr(cls, "runs_code", False):  # checked without running the user's code
+            cls.check_record(record)
+        else:
+            cls.from_record(record)
     path = as_path("path", path)
     text = record_text(record)
     with atomic_path(path, overwrite) as tmp:
@@ -172,30 +182,43 @@ def save_model(
     return path
 
 
-def load_model(path: str | Path) -> Any:
+def load_model(path: str | Path, *, allow_code: bool = False) -> Any:
     """Read a model written by :func:`save_model`.
 
     Parameters
     ----------
     path : str or pathlib.Path
         A servoid model file.
+    allow_code : bool
+        Let a grey-box ODE model run the user's Python file its record
+        names (checked first against the SHA-256 recorded at the fit);
+        without it such a file is refused and nothing runs.
 
     Returns
     -------
-    TransferFunction, StateSpace, PolynomialModel, NarxModel or BlockModel
-        The model, equal to the one saved (same floats).  A NarxModel
-        gets its covariance back; otherwise the file's ``covariance`` and
-        ``units`` are for other tools: read them from the JSON if needed.
+    TransferFunction, StateSpace, PolynomialModel, NarxModel, BlockModel or OdeModel
+        The model, equal to the one saved (same floats).  A NarxModel and
+        an OdeModel get their covariance back; otherwise the file's
+        ``covariance`` and ``units`` are for other tools: read them from
+        the JSON if needed.
 
     Raises
     ------
     MissingFileError
-        When no file exists at `path`.
+        When no file exists at `path` (or a grey-box model's Python file
+        is gone).
     FileFormatError
         For a file that is not JSON, not a servoid model file, of another
         format version, or with coefficients that make no model.
+    OptionError
+        A grey-box ODE model without ``allow_code=True`` (its Python file
+        is named; nothing runs).
+    ModelError
+        A grey-box model's Python file changed since the fit (both SHA-256
+        are named).
     """
     path = as_path("path", path)
+    allow_code = as_bool("allow_code", allow_code)
     if not path.is_file():
         raise MissingFileError(f"model file {path}: no such file; check the path (relative "
                                f"paths are taken from {Path.cwd()})")
@@ -204,7 +227,7 @@ def load_model(path: str | Path) -> Any:
     except FileFormatError as exc:
         raise FileFormatError(f"{exc}; the file is damaged: write it again with "
                               "servoid.models.save_model") from None
-    return model_from_record(data, where=f"model file {path}")
+    return model_from_record(data, where=f"model file {path}", allow_code=allow_code)
 
 
 def export_mat(model: Model, path: str | Path, *, name: str = "G",
@@ -288,8 +311,12 @@ def record_text(record: Mapping[str, Any]) -> str:
                                for k, v in record.items()) + "\n}\n"
 
 
-def model_from_record(data: object, *, where: str) -> Any:
-    """The model a model file's data describe; ``where`` names the file in errors."""
+def model_from_record(data: object, *, where: str, allow_code: bool = False) -> Any:
+    """The model a model file's data describe; ``where`` names the file in errors.
+
+    ``allow_code`` lets a model that calls the user's code (``runs_code``)
+    run it; such a class checks its own record and asks for consent.
+    """
     fix = "write it again with servoid.models.save_model"
     if not isinstance(data, Mapping) or "servoid_model" not in data:
         raise FileFormatError(f"{where} is not a servoid model file (no \"servoid_model\" "
@@ -308,6 +335,8 @@ def model_from_record(data: object, *, where: str) -> Any:
                               f"model type this servoid does not know: read the file with the "
                               f"servoid that wrote it, pip install -U servoid for a newer one); "
                               f"{fix}")
+    if kind in RECORD_TYPES and getattr(_record_class(kind), "runs_code", False):
+        return _record_class(kind).from_record(data, allow_code=allow_code, where=where)
     try:
         if kind in RECORD_TYPES:
             return _record_class(kind).from_record(data)

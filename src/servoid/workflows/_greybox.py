@@ -72,7 +72,9 @@ class GreyboxResult(IdentificationResult):
     The fields are those of
     :class:`~servoid.workflows.IdentificationResult`; the estimate's model
     is the fitted ODE (it replays itself on each validation record), and
-    ``results.json`` describes it by its functions, states and values.
+    ``results.json`` describes it by its functions, states and values, with
+    its model file (``model.model_file``) for ``load_results`` and
+    ``servoid export``.
     """
 
     def to_dict(self) -> dict[str, Any]:
@@ -123,12 +125,13 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     modules: dict[Path, Any] = {}
     rhs, path = load_function(rhs_ref, base, model_key, modules)
     measure: Any = 0
-    out_source, out_hash = "", ""
+    out_source, out_hash, out_cache = "", "", ""
     if options["output_function"] is not None:
         out_key = f"{_WHERE} output_function"
         out_ref = parse_ref(options["output_function"], out_key)
         measure, out_path = load_function(out_ref, base, out_key, modules)
         out_source, out_hash = f"{out_ref.file}:{out_ref.function}", sha256(out_path)
+        out_cache = f"{out_path}:{out_ref.function}"  # as a saved model's loader keys it
     theta0 = np.array([p.value for p in params])
     u = np.ascontiguousarray(estimation.signal("u"), dtype=float).reshape(
         estimation.n_samples, -1)
@@ -136,7 +139,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                          state_upper=upper, input_lower=u_lower, input_upper=u_upper,
                          source=f"{rhs_ref.file}:{rhs_ref.function}", output_source=out_source,
                          path=path, compile=options["compile"],
-                         cache_key=(str(path), sha256(path), rhs_ref.function, out_source,
+                         cache_key=(str(path), sha256(path), rhs_ref.function, out_cache,
                                     out_hash))
     if system.n_outputs != 1:
         raise OptionError(f"{_WHERE} output_function = \"{options['output_function']}\" returns "

@@ -7,6 +7,11 @@ standard deviations and intervals. :func:`rerender` writes the report of a
 results folder again from the run's own experiment file, after checking
 that every input is byte-for-byte the one the run read (its manifest's
 SHA-256), so the new report describes the same data.
+
+A grey-box run (``method = "greybox"``) holds a model that calls the user's
+Python file: it is rebuilt, and the run re-rendered, only with
+``allow_code=True`` (``--allow-code``), and only while that file still has
+the SHA-256 recorded at the fit.
 """
 
 from __future__ import annotations
@@ -18,12 +23,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .._checks import as_path, read_json
-from .._errors import FileFormatError, OutputExistsError, ServoidError
+from .._checks import as_bool, as_path, read_json
+from .._errors import FileFormatError, OptionError, OutputExistsError, ServoidError
 from ._common import sha256
 from ._summary import RecordSummary, summarise
 
-__all__ = ["Results", "load_results", "rerender"]
+__all__ = ["Results", "greybox_record", "load_results", "rerender"]
 
 _FIX = "write it again with servoid identify"
 
@@ -41,7 +46,8 @@ class Results:
     models : mapping
         Name → model (``G`` for a black-box method, a NarxModel for
         ``narx``, a BlockModel for ``hammerstein``, ``wiener`` and
-        ``hammerstein-wiener``; ``<approach>_plant`` and
+        ``hammerstein-wiener``, an OdeModel for ``greybox``;
+        ``<approach>_plant`` and
         ``<approach>_closed_loop`` for the closed-loop method); empty when
         the method's result is not a model servoid can rebuild.  Each
         replays on a new record: ``validate(results.models["G"], record)``.
@@ -59,13 +65,17 @@ class Results:
                 f"models {', '.join(self.models) or 'none'}>")
 
 
-def load_results(path: str | Path) -> Results:
+def load_results(path: str | Path, *, allow_code: bool = False) -> Results:
     """Read a ``results.json`` back into models and parameters.
 
     Parameters
     ----------
     path : str or pathlib.Path
         The ``results.json`` that ``servoid identify`` wrote.
+    allow_code : bool
+        Let a grey-box run's model run the user's Python file it names
+        (checked first against the SHA-256 recorded at the fit); without
+        it the results of a grey-box run are refused and nothing runs.
 
     Returns
     -------
@@ -79,14 +89,54 @@ def load_results(path: str | Path) -> Results:
         No such file.
     FileFormatError
         Not JSON, not a servoid results file, or a model in it is damaged.
+    OptionError
+        A grey-box run without ``allow_code=True`` (the message names its
+        Python file).
+    ModelError
+        A grey-box run whose Python file changed since (both SHA-256 named).
     """
     path = as_path("results file", path)
+    allow_code = as_bool("allow_code", allow_code)
     data = read_json(path, "results file")
-    models = _models(data, path)
+    models = _models(data, path, allow_code)
     return Results(path, data, models, summarise(data))
 
 
-def rerender(results: str | Path, out: str | Path | None = None) -> Any:
+def greybox_record(path: str | Path) -> dict[str, Any] | None:
+    """A grey-box run's model file data, read without running any code.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A ``results.json``.
+
+    Returns
+    -------
+    dict or None
+        The servoid model file of the fitted ODE (what
+        :func:`servoid.models.save_model` writes for it), checked; None
+        when the run is not a grey-box run (or predates saved grey-box
+        models).
+    """
+    path = as_path("results file", path)
+    data = read_json(path, "results file")
+    _check_results(data, path)
+    model = data.get("model")
+    record = model.get("model_file") if isinstance(model, Mapping) and \
+        model.get("type") == "greybox_ode" else None
+    if not isinstance(record, Mapping):
+        return None
+    from ..estimate._ode_model import OdeModel
+
+    if record.get("type") != "OdeModel":
+        raise FileFormatError(f"{path}: model.model_file is not the record of an OdeModel; the "
+                              f"file is damaged: {_FIX}")
+    OdeModel.check_record(record, where=f"results file {path}")
+    return dict(record)
+
+
+def rerender(results: str | Path, out: str | Path | None = None, *,
+             allow_code: bool = False) -> Any:
     """Write a run's report again from its unchanged inputs.
 
     Parameters
@@ -96,20 +146,37 @@ def rerender(results: str | Path, out: str | Path | None = None) -> Any:
     out : path, optional
         Folder for the new report and results; default the run's own folder
         (its files are replaced).
+    allow_code : bool
+        Let a grey-box run execute its Python model file again (the
+        identification is re-run); without it such a run is refused.
 
     Raises
     ------
+    OptionError
+        A grey-box run without ``allow_code=True`` (its file is named).
     OutputExistsError
-        An input changed since the run (the message names it): run
-        ``servoid identify`` instead.
+        An input changed since the run (the message names it; for a
+        grey-box run the Python file too): run ``servoid identify``
+        instead.
     """
     from ._run import MANIFEST, identify
 
-    loaded = load_results(results)
-    source = loaded.data.get("experiment_file") or loaded.data.get("campaign_file")
+    allow_code = as_bool("allow_code", allow_code)
+    path = as_path("results file", results)
+    data = read_json(path, "results file")
+    _check_results(data, path)
+    source = data.get("experiment_file") or data.get("campaign_file")
     if not source:
-        raise FileFormatError(f"{loaded.path} does not name its experiment file; {_FIX}")
-    manifest_path = loaded.path.parent / MANIFEST
+        raise FileFormatError(f"{path} does not name its experiment file; {_FIX}")
+    code = _code_files(data)
+    if data.get("method") == "greybox" and not allow_code:
+        listed = " and ".join(sorted({str(f) for f, _ in code})) or \
+            "the file its [identify] model names"
+        raise OptionError(
+            f"{path} is a run of method = \"greybox\", whose model is Python code ({listed}), "
+            "and re-rendering runs the identification again: check the file, then run servoid "
+            "report with --allow-code (allow_code=True in servoid.workflows.rerender)")
+    manifest_path = path.parent / MANIFEST
     try:
         manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
         inputs = manifest["inputs"]
@@ -117,25 +184,47 @@ def rerender(results: str | Path, out: str | Path | None = None) -> Any:
         raise FileFormatError(f"{manifest_path} is missing or damaged, so the inputs of this run "
                               f"cannot be checked; {_FIX}") from None
     for entry in inputs:
-        path = Path(entry["path"])
-        if not path.is_file() or sha256(path) != entry["sha256"]:
+        read = Path(entry["path"])
+        if not read.is_file() or sha256(read) != entry["sha256"]:
             raise OutputExistsError(
-                f"{path} is not the file this run read (missing or changed since): the report "
+                f"{read} is not the file this run read (missing or changed since): the report "
                 f"would describe other data; run servoid identify {source} instead")
-    folder = loaded.path.parent if out is None else as_path("out", out)
-    return identify(source, folder, overwrite=True, allow_outside=True)
+    for file, digest in code:  # the model code is an input the manifest does not list
+        if not file.is_file() or sha256(file) != digest:
+            raise OutputExistsError(
+                f"{file} is not the model file this run fitted (missing or changed since its "
+                f"SHA-256 {digest}): the report would describe other code; run servoid "
+                f"identify {source} --allow-code instead")
+    folder = path.parent if out is None else as_path("out", out)
+    return identify(source, folder, overwrite=True, allow_outside=True, allow_code=allow_code)
 
 
-def _models(data: object, path: Path) -> dict[str, Any]:
-    """Name → servoid model of every model a results file holds."""
+def _check_results(data: object, path: Path) -> None:
     if not isinstance(data, Mapping) or "servoid_version" not in data:
         raise FileFormatError(f"{path} is not a results.json of servoid identify (no "
                               f"\"servoid_version\"); give the results.json of a run")
+
+
+def _code_files(data: Mapping[str, Any]) -> list[tuple[Path, str]]:
+    """The Python files a grey-box run's model calls, with their recorded SHA-256."""
+    model = data.get("model")
+    record = model.get("model_file") if isinstance(model, Mapping) else None
+    if not isinstance(record, Mapping):
+        return []
+    return [(Path(record[file]), record[digest])
+            for file, digest in (("model_file", "model_sha256"), ("output_file", "output_sha256"))
+            if isinstance(record.get(file), str) and isinstance(record.get(digest), str)]
+
+
+def _models(data: object, path: Path, allow_code: bool = False) -> dict[str, Any]:
+    """Name → servoid model of every model a results file holds."""
+    _check_results(data, path)
+    assert isinstance(data, Mapping)
     models: dict[str, Any] = {}
     if isinstance(data.get("model"), Mapping):
         estimate = data.get("estimate")
         variance = estimate.get("noise_variance") if isinstance(estimate, Mapping) else None
-        model = _from_model_dict(data["model"], path, variance)
+        model = _from_model_dict(data["model"], path, variance, allow_code)
         if model is not None:
             models["G"] = model
     approaches = data.get("approaches")
@@ -151,8 +240,16 @@ def _models(data: object, path: Path) -> dict[str, Any]:
     return models
 
 
-def _from_model_dict(model: Mapping[str, Any], path: Path, variance: object) -> Any:
+def _from_model_dict(model: Mapping[str, Any], path: Path, variance: object,
+                     allow_code: bool = False) -> Any:
     kind = model.get("type")
+    if kind == "greybox_ode":
+        record = model.get("model_file")
+        if not isinstance(record, Mapping):
+            return None  # a run that predates saved grey-box models: nothing to rebuild
+        from ..models._file import model_from_record
+
+        return model_from_record(record, where=f"results file {path}", allow_code=allow_code)
     if kind == "transfer_function":
         return _build(path, "model", "TransferFunction", num=model.get("num"),
                       den=model.get("den"), dt=model.get("dt"), delay=model.get("delay", 0.0))
