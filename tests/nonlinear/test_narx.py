@@ -255,7 +255,7 @@ def record():
     ({"na": 10, "nb": 10, "degree": 3}, OptionError, "1,771 candidate terms"),
     ({"na": 300, "nb": 300, "degree": 1}, DataError, "need more than 601 equations"),
     ({"criterion": "mdl"}, OptionError, "criterion"),
-    ({"tolerance": 1.5}, DataError, "tolerance must lie in"),
+    ({"tolerance": 1.5}, OptionError, "tolerance must lie in"),
     ({"max_terms": 0}, DataError, "max_terms must be >= 1"),
     ({"output": "force"}, ChannelError, "force"),
 ])

@@ -5,8 +5,8 @@ a Hammerstein model has no g, a Wiener model no f.  The model replays
 itself on a new record (:class:`servoid.validate.Replayable`):
 
 - Hammerstein: the output is linear in the linear block's initial state,
-  which is fitted by least squares (free responses of the denominator),
-  as :mod:`servoid.validate` does for linear models.
+  which :func:`servoid.validate.simulate_model` fits by least squares on
+  the static block's output, as for any linear model.
 - Wiener and Hammerstein–Wiener: the state passes through g, so it is
   fitted by a short nonlinear least-squares search (the model held fixed,
   from rest as the start).
@@ -210,11 +210,18 @@ class BlockModel:
         if initial == "zero" or order == 0:
             return _run(self, num, den, uu, np.zeros(order))[2], 0, "zero" if initial == "zero" \
                 else "estimate"
-        if self.output_nonlinearity is None:  # linear in the state
-            forced = _run(self, num, den, uu, np.zeros(order))[2]
-            free = free_responses(den, yy.size)
-            c, *_ = np.linalg.lstsq(free, yy - forced, rcond=None)
-            return forced + free @ c, 0, "estimate"
+        if self.output_nonlinearity is None:
+            # linear in the state: the linear block on v = f(u), its initial state fitted by
+            # least squares exactly as validate does for a linear model
+            from ..models import c2d
+            from ..validate import simulate_model
+
+            f = self.input_nonlinearity
+            assert f is not None
+            lin = self.linear if self.linear.dt is not None else c2d(self.linear, self.dt, "zoh")
+            x, _, _ = simulate_model(lin, yy - self.offset, f._f(uu, f.parameters),
+                                     initial="estimate")
+            return x + self.offset, 0, "estimate"
         c = fit_state(self, num, den, uu, yy)
         return _run(self, num, den, uu, c)[2], 0, "estimate"
 

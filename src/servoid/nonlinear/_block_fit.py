@@ -45,7 +45,6 @@ from .._errors import (
     IdentifiabilityError,
     ModelError,
     OptionError,
-    OptionTypeError,
     ServoidWarning,
     check_option,
 )
@@ -57,6 +56,7 @@ from ..estimate._channels import output_name
 from ._block import STRUCTURES, BlockModel, Structure
 from ._block_linear import LinearBlock, free_response
 from ._block_start import hammerstein_start, wiener_start
+from ._block_units import parameter_units
 from ._static import StaticNonlinearity, as_nonlinearity, from_data
 
 __all__ = ["LINEARS", "fit_block", "fit_hammerstein", "fit_hammerstein_wiener", "fit_wiener"]
@@ -66,6 +66,8 @@ LINEARS: tuple[Linear, ...] = ("oe", "tf")
 Shape = StaticNonlinearity | str
 #: Fewest samples that must reach each side of a breakpoint for it to be determined.
 MIN_REGION_SAMPLES = 5
+#: Cost reduction per parameter [σ̂²] below which a fit is chance (derived in _estimate).
+_CHANCE_PER_PARAMETER = 10.0
 
 
 def fit_block(
@@ -75,12 +77,12 @@ def fit_block(
     input_nonlinearity: Shape | None = None,
     output_nonlinearity: Shape | None = None,
     linear: Linear = "oe",
-    nb: int = 2,
-    nf: int = 2,
-    nk: int = 1,
-    n_poles: int = 2,
+    nb: int | None = None,
+    nf: int | None = None,
+    nk: int | None = None,
+    n_poles: int | None = None,
     n_zeros: int | None = None,
-    degree: int = 3,
+    degree: int | None = None,
     breakpoints: Sequence[float] | None = None,
     offset: bool = False,
     input: Literal["u", "r"] = "u",
@@ -110,16 +112,20 @@ def fit_block(
     linear : {"oe", "tf"}
         The linear block: discrete B/F with orders `nb`, `nf`, `nk`, or a
         continuous transfer function with `n_poles`, `n_zeros` (ZOH).
-    nb, nf, nk : int
-        B coefficients (>= 1), F order (>= 0) and delay [samples] (>= 0).
-    n_poles, n_zeros : int
-        Orders of the continuous transfer function (n_zeros default
-        n_poles − 1).
-    degree : int
-        Degree of a ``"polynomial"`` given by name.
+    nb, nf, nk : int, optional
+        For ``linear = "oe"``: B coefficients (>= 1, default 2), F order
+        (>= 0, default 2) and delay [samples] (>= 0, default 1).  A
+        continuous block refuses them.
+    n_poles, n_zeros : int, optional
+        For ``linear = "tf"``: orders of the continuous transfer function
+        (default 2 poles, n_zeros default n_poles − 1).  A discrete block
+        refuses them.
+    degree : int, optional
+        Degree of a ``"polynomial"`` given by name (default 3); refused
+        when no shape is a polynomial given by name.
     breakpoints : sequence of float, optional
         Breakpoints of a ``"piecewise-linear"`` given by name (default:
-        quantiles of the block's input).
+        quantiles of the block's input); refused when no shape is one.
     offset : bool
         Fit a constant output offset.
     input : {"u", "r"}
@@ -146,8 +152,11 @@ def fit_block(
     ------
     IdentifiabilityError
         A breakpoint the block's input never crosses, a model that
-        explains no more of the output than chance, or parameters the
-        data cannot separate.
+        explains no more of the output than chance, parameters the
+        data cannot separate, or a free-scale shape before or after an
+        integrating linear block (G(1) = 1 cannot hold).
+    OptionError
+        A keyword the chosen linear block or shape does not use.
     """
     check_option("structure", structure, STRUCTURES)
     check_option("linear", linear, LINEARS)
@@ -156,13 +165,15 @@ def fit_block(
     if not isinstance(offset, bool):
         raise type_error("offset", offset, "true or false")
     shapes = _shapes(structure, input_nonlinearity, output_nonlinearity)
-    nb = as_int("nb", nb, minimum=1, maximum=50)
-    nf = as_int("nf", nf, minimum=0, maximum=50)
-    nk = as_int("nk", nk, minimum=0, maximum=10000)
-    n_poles = as_int("n_poles", n_poles, minimum=1, maximum=20)
+    _unused(linear, shapes, nb=nb, nf=nf, nk=nk, n_poles=n_poles, n_zeros=n_zeros,
+            degree=degree, breakpoints=breakpoints)
+    nb = as_int("nb", 2 if nb is None else nb, minimum=1, maximum=50)
+    nf = as_int("nf", 2 if nf is None else nf, minimum=0, maximum=50)
+    nk = as_int("nk", 1 if nk is None else nk, minimum=0, maximum=10000)
+    n_poles = as_int("n_poles", 2 if n_poles is None else n_poles, minimum=1, maximum=20)
     n_zeros = n_poles - 1 if n_zeros is None else as_int("n_zeros", n_zeros, minimum=0,
                                                          maximum=n_poles)
-    degree = as_int("degree", degree, minimum=1, maximum=12)
+    degree = as_int("degree", 3 if degree is None else degree, minimum=1, maximum=12)
     if breakpoints is not None:
         breakpoints = as_float_list("breakpoints", breakpoints, min_length=1)
         if any(b <= a for a, b in itertools.pairwise(breakpoints)):
@@ -185,6 +196,8 @@ def fit_block(
     n_states = lin.order if initial == "estimate" else 0
     problem = _Problem(structure, lin, offset, pairs, n_states)
     f0, g0, theta_lin, d0 = _start(problem, f_spec, g_spec, degree, breakpoints)
+    if lin.unit_gain:
+        _check_not_integrating(lin, theta_lin, "start")
     problem.set_shapes(f0, g0)
     if problem.n_free + n_states * len(pairs) >= n_total - 1:
         raise DataError(f"{problem.n_free} parameters cannot be fitted to {n_total} samples; "
@@ -193,17 +206,39 @@ def fit_block(
                       g0.parameters if g0 else np.empty(0), d0)
     p_hat, nfev, status = _search(problem, p0, max_iter, tol)
     p_hat = _normalise_sign(problem, p_hat)
+    if lin.unit_gain:
+        _check_not_integrating(lin, p_hat[problem.nf_: problem.nf_ + lin.size], "fit")
+    discrete = linear == "oe"
     return _estimate(problem, p_hat, nfev, status, names, {
-        "structure": structure, "linear": linear, "nb": nb, "nf": nf, "nk": nk, "n_poles": n_poles,
-        "n_zeros": n_zeros, "degree": degree, "offset": offset, "input": input, "initial": initial,
+        "structure": structure, "linear": linear, "nb": nb if discrete else None,
+        "nf": nf if discrete else None, "nk": nk if discrete else None,
+        "n_poles": None if discrete else n_poles, "n_zeros": None if discrete else n_zeros,
+        "degree": degree, "offset": offset, "input": input, "initial": initial,
         "max_iter": max_iter, "tol": tol,
         "input_nonlinearity": f0.kind if f0 else None,
         "output_nonlinearity": g0.kind if g0 else None,
         "unit_gain": lin.unit_gain})
 
 
-def fit_hammerstein(data: Experiment | ExperimentSet, nonlinearity: Shape, nb: int = 2,
-                    nf: int = 2, nk: int = 1, **options: Any) -> Estimate:
+def fit_hammerstein(
+    data: Experiment | ExperimentSet,
+    nonlinearity: Shape,
+    nb: int | None = None,
+    nf: int | None = None,
+    nk: int | None = None,
+    *,
+    linear: Linear = "oe",
+    n_poles: int | None = None,
+    n_zeros: int | None = None,
+    degree: int | None = None,
+    breakpoints: Sequence[float] | None = None,
+    offset: bool = False,
+    input: Literal["u", "r"] = "u",
+    output: str | None = None,
+    initial: Literal["estimate", "zero"] = "estimate",
+    max_iter: int = 200,
+    tol: float = 1e-10,
+) -> Estimate:
     """Fit a Hammerstein model y = G(q)·f(u) + e.
 
     Parameters
@@ -212,22 +247,42 @@ def fit_hammerstein(data: Experiment | ExperimentSet, nonlinearity: Shape, nb: i
         Record(s).
     nonlinearity : StaticNonlinearity or str
         f: a shape (its parameters are the start) or a library name.
-    nb, nf, nk : int
-        Orders of the linear block B/F and its delay [samples].
-    **options
-        Any other keyword of :func:`fit_block` (``linear``, ``offset``, …).
+    nb, nf, nk : int, optional
+        Orders of a discrete linear block B/F and its delay [samples]
+        (default 2, 2, 1).
+    linear, n_poles, n_zeros, degree, breakpoints, offset, input, output, initial, max_iter, tol
+        As for :func:`fit_block`.
 
     Returns
     -------
     Estimate
         See :func:`fit_block`.
     """
-    return fit_block(data, "hammerstein", input_nonlinearity=nonlinearity, nb=nb, nf=nf, nk=nk,
-                     **_only(options, "input_nonlinearity", "output_nonlinearity"))
+    return fit_block(data, "hammerstein", input_nonlinearity=nonlinearity, linear=linear,
+                     nb=nb, nf=nf, nk=nk, n_poles=n_poles, n_zeros=n_zeros, degree=degree,
+                     breakpoints=breakpoints, offset=offset, input=input, output=output,
+                     initial=initial, max_iter=max_iter, tol=tol)
 
 
-def fit_wiener(data: Experiment | ExperimentSet, nonlinearity: Shape, nb: int = 2,
-               nf: int = 2, nk: int = 1, **options: Any) -> Estimate:
+def fit_wiener(
+    data: Experiment | ExperimentSet,
+    nonlinearity: Shape,
+    nb: int | None = None,
+    nf: int | None = None,
+    nk: int | None = None,
+    *,
+    linear: Linear = "oe",
+    n_poles: int | None = None,
+    n_zeros: int | None = None,
+    degree: int | None = None,
+    breakpoints: Sequence[float] | None = None,
+    offset: bool = False,
+    input: Literal["u", "r"] = "u",
+    output: str | None = None,
+    initial: Literal["estimate", "zero"] = "estimate",
+    max_iter: int = 200,
+    tol: float = 1e-10,
+) -> Estimate:
     """Fit a Wiener model y = g(G(q)·u) + e.
 
     Parameters
@@ -236,23 +291,43 @@ def fit_wiener(data: Experiment | ExperimentSet, nonlinearity: Shape, nb: int = 
         Record(s).
     nonlinearity : StaticNonlinearity or str
         g: a shape (its parameters are the start) or a library name.
-    nb, nf, nk : int
-        Orders of the linear block B/F and its delay [samples].
-    **options
-        Any other keyword of :func:`fit_block`.
+    nb, nf, nk : int, optional
+        Orders of a discrete linear block B/F and its delay [samples]
+        (default 2, 2, 1).
+    linear, n_poles, n_zeros, degree, breakpoints, offset, input, output, initial, max_iter, tol
+        As for :func:`fit_block`.
 
     Returns
     -------
     Estimate
         See :func:`fit_block`.
     """
-    return fit_block(data, "wiener", output_nonlinearity=nonlinearity, nb=nb, nf=nf, nk=nk,
-                     **_only(options, "input_nonlinearity", "output_nonlinearity"))
+    return fit_block(data, "wiener", output_nonlinearity=nonlinearity, linear=linear,
+                     nb=nb, nf=nf, nk=nk, n_poles=n_poles, n_zeros=n_zeros, degree=degree,
+                     breakpoints=breakpoints, offset=offset, input=input, output=output,
+                     initial=initial, max_iter=max_iter, tol=tol)
 
 
-def fit_hammerstein_wiener(data: Experiment | ExperimentSet, input_nonlinearity: Shape,
-                           output_nonlinearity: Shape, nb: int = 2, nf: int = 2, nk: int = 1,
-                           **options: Any) -> Estimate:
+def fit_hammerstein_wiener(
+    data: Experiment | ExperimentSet,
+    input_nonlinearity: Shape,
+    output_nonlinearity: Shape,
+    nb: int | None = None,
+    nf: int | None = None,
+    nk: int | None = None,
+    *,
+    linear: Linear = "oe",
+    n_poles: int | None = None,
+    n_zeros: int | None = None,
+    degree: int | None = None,
+    breakpoints: Sequence[float] | None = None,
+    offset: bool = False,
+    input: Literal["u", "r"] = "u",
+    output: str | None = None,
+    initial: Literal["estimate", "zero"] = "estimate",
+    max_iter: int = 200,
+    tol: float = 1e-10,
+) -> Estimate:
     """Fit a Hammerstein–Wiener model y = g(G(q)·f(u)) + e.
 
     Parameters
@@ -261,10 +336,11 @@ def fit_hammerstein_wiener(data: Experiment | ExperimentSet, input_nonlinearity:
         Record(s).
     input_nonlinearity, output_nonlinearity : StaticNonlinearity or str
         f and g: shapes or library names.
-    nb, nf, nk : int
-        Orders of the linear block B/F and its delay [samples].
-    **options
-        Any other keyword of :func:`fit_block`.
+    nb, nf, nk : int, optional
+        Orders of a discrete linear block B/F and its delay [samples]
+        (default 2, 2, 1).
+    linear, n_poles, n_zeros, degree, breakpoints, offset, input, output, initial, max_iter, tol
+        As for :func:`fit_block`.
 
     Returns
     -------
@@ -272,8 +348,10 @@ def fit_hammerstein_wiener(data: Experiment | ExperimentSet, input_nonlinearity:
         See :func:`fit_block`.
     """
     return fit_block(data, "hammerstein-wiener", input_nonlinearity=input_nonlinearity,
-                     output_nonlinearity=output_nonlinearity, nb=nb, nf=nf, nk=nk,
-                     **_only(options, "input_nonlinearity", "output_nonlinearity"))
+                     output_nonlinearity=output_nonlinearity, linear=linear, nb=nb, nf=nf,
+                     nk=nk, n_poles=n_poles, n_zeros=n_zeros, degree=degree,
+                     breakpoints=breakpoints, offset=offset, input=input, output=output,
+                     initial=initial, max_iter=max_iter, tol=tol)
 
 
 # -- the problem -------------------------------------------------------------------------------
@@ -395,20 +473,29 @@ def _free_scale(shape: Shape) -> bool:
     return bool(shape.free_scale)
 
 
-def _only(options: dict[str, Any], *refused: str) -> dict[str, Any]:
-    """The wrappers' extra keywords: fit_block's, except those the wrapper sets itself."""
-    import inspect
+def _unused(linear: str, shapes: tuple[Shape | None, Shape | None], **given: Any) -> None:
+    """Refuse a keyword the chosen linear block or shapes would silently ignore."""
+    other = {"oe": ("n_poles", "n_zeros"), "tf": ("nb", "nf", "nk")}[linear]
+    for key in other:
+        if given[key] is not None:
+            takes = ("n_poles and n_zeros (a continuous block)" if linear == "tf" else
+                     "nb, nf and nk (a discrete block)")
+            raise OptionError(
+                f"{key} = {given[key]!r} is not used by linear = \"{linear}\", which takes "
+                f"{takes}; leave {key} out, or choose linear = "
+                f"\"{'oe' if linear == 'tf' else 'tf'}\""
+                + (" (a discrete block with its delay)" if key == "nk" else ""))
+    named = [s for s in shapes if isinstance(s, str)]
+    for key, kind in (("degree", "polynomial"), ("breakpoints", "piecewise-linear")):
+        if given[key] is not None and kind not in named:
+            raise OptionError(
+                f"{key} is for a \"{kind}\" shape given by name, and no shape here is one "
+                f"(shapes: {', '.join(_shape_name(s) for s in shapes if s is not None)}); "
+                f"leave {key} out")
 
-    valid = [k for k in inspect.signature(fit_block).parameters
-             if k not in ("data", "structure", "nb", "nf", "nk", *refused)]
-    for key in options:
-        if key not in valid:
-            if key in refused or key == "structure":
-                raise OptionError(f"{key} is set by this function itself; use fit_block to set "
-                                  "it freely")
-            raise OptionTypeError(f"unexpected keyword {key!r}; the keywords are "
-                                  f"{', '.join(valid)}")
-    return options
+
+def _shape_name(shape: Shape) -> str:
+    return f"\"{shape}\"" if isinstance(shape, str) else type(shape).__name__
 
 
 def _records(data: object, role: str, output: str | None
@@ -564,10 +651,14 @@ def _estimate(problem: _Problem, p: NDArray[np.float64], nfev: int, status: str,
     y_all = np.concatenate([y for _, y in problem.pairs])
     baseline = float(np.sum((y_all - y_all.mean()) ** 2)) if problem.offset else float(
         y_all @ y_all)
-    # Fitting noise alone lowers the cost by about σ² per parameter for a linear model; free
-    # breakpoints search like change points and take a few times more (≈ 3σ² each seen on
-    # records of noise alone), so 10σ² per parameter separates chance from a response.
-    if baseline - sse < 10.0 * n_all * sigma2:
+    # Is the fit more than noise? If the output did not respond at all, y = e (white, σ²),
+    # and the reduction baseline − sse of a least-squares fit of d parameters entering
+    # linearly is σ²·χ²_d. P(χ²_d > 10d) is 1.6e-3 for d = 1, 5e-5 for d = 2 and below
+    # 1e-6 from d = 3 (scipy.stats.chi2.sf): a false alarm is rare. Breakpoints and centres
+    # enter nonlinearly and are searched like change points, which buys chance more than
+    # one χ²_1 each (≈ 3σ² seen on records of noise alone), still inside the 10σ² budget;
+    # and a real response explains orders of magnitude more. Initial states count (n_all).
+    if baseline - sse < _CHANCE_PER_PARAMETER * n_all * sigma2:
         raise IdentifiabilityError(
             "the fitted model explains no more of the output than chance "
             f"({baseline - sse:.3g} of {baseline:.3g}): the output does not respond to the input "
@@ -606,7 +697,7 @@ def _estimate(problem: _Problem, p: NDArray[np.float64], nfev: int, status: str,
     def model_function(t: NDArray[np.float64]) -> BlockModel:
         return problem.model(np.concatenate([t, tail]))
 
-    units = _units(problem, names)
+    units = parameter_units(problem.f, problem.g, problem.lin, problem.offset, names)
     return Estimate(
         model=model, parameters=theta, names=labels, covariance=covariance,
         noise_variance=sigma2, n_samples=n, method=problem.structure, status=status,
@@ -615,18 +706,32 @@ def _estimate(problem: _Problem, p: NDArray[np.float64], nfev: int, status: str,
         units=units, residual_function=lambda: r.copy(), model_function=model_function)
 
 
-def _units(problem: _Problem, names: dict[str, Any]) -> tuple[str, ...]:
-    u_unit, y_unit = names.get("input_unit", ""), names.get("output_unit", "")
-    out: list[str] = []
-    for shape, unit in ((problem.f, u_unit), (None, ""), (problem.g, "")):
-        if shape is None:
-            continue
-        out += [unit if shape.kind in ("deadzone", "saturation", "abs") else ""] * \
-            shape.parameters.size
-    f_units = out[: problem.nf_]
-    g_units = out[problem.nf_:]
-    offset = [y_unit] if problem.offset else []
-    return (*f_units, *([""] * problem.lin.size), *g_units, *offset)
+#: |F(1)| / Σ|f_i| below which a linear block counts as integrating (see below).
+_INTEGRATING = 1e-3
+
+
+def _check_not_integrating(lin: LinearBlock, theta: NDArray[np.float64], when: str) -> None:
+    """Refuse the convention G(1) = 1 on a linear block with a pole at z = 1.
+
+    With a free-scale shape the static gain G(1) = B(1)/F(1) is fixed to 1
+    by B(1) = F(1).  A pole p near 1 makes F(1) ∝ (1 − p) vanish, so the
+    shape's coefficients carry the block's gain 1/(1 − p): the product is
+    right but the coefficients are huge and their intervals meaningless.
+    |F(1)|/Σ|f_i| < 1e-3 is a pole within about 1e-3 of z = 1, a time
+    constant over a thousand samples: on any record of usual length that
+    is an integrator.
+    """
+    _num, den = lin.polynomials(theta)
+    size = float(np.sum(np.abs(den)))
+    ratio = abs(float(den.sum())) / size if size else 0.0
+    if ratio < _INTEGRATING:
+        raise IdentifiabilityError(
+            f"the linear block integrates (a pole at z ≈ 1: its denominator at z = 1 is "
+            f"{ratio:.2g} of its size, after the {when}), so its static gain is infinite and "
+            "the scale convention of a free-scale shape (polynomial, piecewise-linear, a user "
+            "function), linear static gain G(1) = 1, cannot hold: the shape's coefficients "
+            "would carry the integrator's gain. Use a unit-slope shape (deadzone, saturation, "
+            "abs, power) so the linear block keeps the gain")
 
 
 def _check_regions(problem: _Problem, p: NDArray[np.float64]) -> None:

@@ -163,7 +163,7 @@ def fit_narx(
     degree = as_int("degree", degree, minimum=1)
     tolerance = as_float("tolerance", tolerance)
     if not 0.0 < tolerance < 1.0:
-        raise DataError(f"tolerance must lie in (0, 1) (the unexplained share of Σy² at which "
+        raise OptionError(f"tolerance must lie in (0, 1) (the unexplained share of Σy² at which "
                         f"the ERR selection stops), e.g. 0.01, got {tolerance:g}")
     base = _base_variables(na, nbs, nks)
     n_candidates = math.comb(len(base) + degree, degree)
@@ -271,7 +271,7 @@ def candidate_terms(na: int, nb: int | Sequence[int], nk: int | Sequence[int] = 
         ``(signal, lag)`` factors (signal 0 = output).
     """
     na = as_int("na", na, minimum=0)
-    n_inputs = len(nb) if isinstance(nb, (list, tuple)) else 1
+    n_inputs = len(nb) if _is_sequence(nb) else 1  # type: ignore[arg-type]
     nbs = _per_input("nb", nb, n_inputs, minimum=1)
     nks = _per_input("nk", nk, n_inputs, minimum=0)
     degree = as_int("degree", degree, minimum=1)
@@ -492,8 +492,13 @@ def _units(terms: Sequence[Term], model: NarxModel) -> tuple[str, ...]:
     return tuple(out)
 
 
+def _is_sequence(value: object) -> bool:
+    """A list, tuple or array of one value per input (what fit_narx takes for nb, nk)."""
+    return isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim > 0)
+
+
 def _per_input(name: str, value: object, n_inputs: int, minimum: int) -> tuple[int, ...]:
-    if isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim):
+    if _is_sequence(value):
         values = list(value)
     elif isinstance(value, (str, bytes)) or value is None:
         raise type_error(name, value, "an integer or one integer per input")

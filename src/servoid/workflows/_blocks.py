@@ -9,18 +9,17 @@ with its ±2σ band.
 
 from __future__ import annotations
 
-import warnings
+import dataclasses
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .. import __version__
 from .._checks import as_float_list
-from .._errors import DataError, ServoidError, ServoidWarning
+from .._errors import DataError, OptionError, ServoidError
 from ..data import Experiment, ExperimentSpec
 from ..estimate import Estimate
 from ..nonlinear import (
@@ -34,22 +33,12 @@ from ..nonlinear import (
     StaticNonlinearity,
     fit_block,
 )
-from ..report import Figure, Page, Section, new_figure, plot_residuals, plot_validation, save_figure
-from ..validate import ValidationReport, validate
+from ..report import Figure, Section, new_figure, save_figure
 from ._arx import HORIZON, OUTPUT, ROLE
-from ._common import (
-    keyed,
-    parameter_table,
-    read_truth,
-    report_options,
-    sha256,
-    spec_inputs,
-    validation_section,
-)
-from ._lti import model_dict
+from ._common import keyed, parameter_table, warnings_as_notes
+from ._lti import IdentificationResult, lti_result, model_dict
 from ._options import boolean, choice, integer, number, optional
 from ._registry import FigureWriter, Method, Option
-from ._summary import Displayed
 
 __all__ = ["HAMMERSTEIN", "HAMMERSTEIN_WIENER", "WIENER", "BlockResult"]
 
@@ -73,142 +62,51 @@ class StaticCurve:
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class BlockResult(Displayed):
+class BlockResult(IdentificationResult):
     """A block-oriented model identified from an experiment file, validated.
+
+    The fields are those of
+    :class:`~servoid.workflows.IdentificationResult` (``method`` is
+    ``"hammerstein"``, ``"wiener"`` or ``"hammerstein-wiener"``; the
+    estimate's model a :class:`~servoid.nonlinear.BlockModel`), and:
 
     Attributes
     ----------
-    spec : ExperimentSpec
-        The experiment file.
-    method : str
-        ``"hammerstein"``, ``"wiener"`` or ``"hammerstein-wiener"``.
-    estimate : Estimate
-        The model (a :class:`~servoid.nonlinear.BlockModel`) with covariance.
-    validations : tuple of ValidationReport
-        One per validation record.
-    title : str
-        The structure in words.
     curves : tuple of StaticCurve
-        The static blocks with their bands.
-    notes : tuple of str
-        Verdicts and warnings in words.
-    truth : mapping or None
-        Known parameter values by name (``[report] truth``).
-    folder, files
-        Where the results were written.
+        The static blocks over their input's range, with their bands.
     """
 
-    spec: ExperimentSpec
-    method: str
-    estimate: Estimate
-    validations: tuple[ValidationReport, ...]
-    title: str
     curves: tuple[StaticCurve, ...] = ()
-    notes: tuple[str, ...] = ()
-    truth: Mapping[str, float] | None = None
-    folder: Path | None = None
-    files: tuple[Path, ...] = field(default=())
-
-    @property
-    def validation(self) -> ValidationReport:
-        """Validation on the first validation record."""
-        return self.validations[0]
-
-    def __str__(self) -> str:
-        est = self.estimate
-        o = est.options
-        lines = [(f"{self.title}: output {o['output']} from {', '.join(o['inputs'])} "
-                 f"({o['input']}); {est.parameters.size} parameters on {est.n_samples} samples, "
-                 f"σ̂² = {est.noise_variance:.4g}")]
-        truth = self.truth or {}
-        lines += [line + (f"   truth {truth[name]:.6g}" if name in truth else "")
-                  for name, line in zip(est.names, str(est).splitlines()[1:], strict=True)]
-        lines += [f"  {v}" for v in self.validations]
-        lines += [f"  note: {n}" for n in self.notes]
-        if self.folder:
-            lines.append(f"  report: {self.folder / 'report.html'}")
-        return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
-        """Everything in ``results.json``."""
+        """Everything in ``results.json``, the model described by its blocks."""
+        out = super().to_dict()
         model = self.estimate.model
-        return {
-            "servoid_version": __version__,
-            "method": self.method,
-            "experiment_file": str(self.spec.source) if self.spec.source else None,
-            "data_file": str(self.spec.data_path),
-            "data_sha256": sha256(self.spec.data_path),
-            "data_files": [{"path": str(p), "sha256": sha256(p)} for p in self.spec.data_paths],
-            "validation_files": [{"path": str(p), "sha256": sha256(p)}
-                                 for p in self.spec.validation_paths],
-            "structure": self.title,
-            "estimate": self.estimate.to_dict(),
-            "model": {
-                "type": "block", "structure": model.structure, "dt": model.dt,
-                "offset": model.offset,
-                "input_nonlinearity": _shape_dict(model.input_nonlinearity),
-                "output_nonlinearity": _shape_dict(model.output_nonlinearity),
-                "linear": model_dict(model.linear),
-                # for servoid export --to json: the model file keeps the covariance
-                "parameter_names": list(self.estimate.names),
-                "covariance": np.asarray(self.estimate.covariance).tolist(),
-            },
-            "validation": self.validation.summary(),
-            "validations": [v.summary() for v in self.validations],
-            "truth": dict(self.truth) if self.truth else None,
-            "notes": list(self.notes),
+        out["model"] = {
+            "type": "block", "structure": model.structure, "dt": model.dt,
+            "offset": model.offset,
+            "input_nonlinearity": _shape_dict(model.input_nonlinearity),
+            "output_nonlinearity": _shape_dict(model.output_nonlinearity),
+            "linear": model_dict(model.linear),
+            # for servoid export --to json: the model file keeps the covariance
+            "parameter_names": list(self.estimate.names),
+            "covariance": np.asarray(self.estimate.covariance).tolist(),
         }
-
-    def inputs(self) -> tuple[Path, ...]:
-        """Every file the run read."""
-        return spec_inputs(self.spec)
+        return out
 
     def figures(self) -> dict[str, FigureWriter]:
         """Validation and residual plots per record, the static curves."""
-        out: dict[str, FigureWriter] = {}
-        for k, v in enumerate(self.validations):
-            suffix = "" if k == 0 else f"-{k + 1}"
-            out[f"validation{suffix}.png"] = partial(_plot_validation, v)
-            out[f"residuals{suffix}.png"] = partial(_plot_residuals, v)
+        out = super().figures()
         if self.curves:
             out["static.png"] = partial(_plot_curves, self.curves, self.title)
         return out
 
-    def page(self, files: Mapping[str, Path]) -> Page:
-        """The report page."""
-        spec, est = self.spec, self.estimate
-        o = est.options
-        data_files = ", ".join(f"{p.name} (sha256 {sha256(p)[:16]}…)" for p in spec.data_paths)
-        val_files = ", ".join(p.name for p in spec.validation_paths)
-        experiment = Section("Experiment", paragraphs=(
-            (f"Estimation data: {data_files}; input {', '.join(o['inputs'])} ({o['input']}), "
-            f"output {o['output']}."),
-            (f"Validation records: {val_files}." if val_files else
-             "Validation: the held-back part of the record ([split])."),
-        ))
+    def _model_section(self, files: Mapping[str, Path]) -> Section:
         figures = (Figure.from_file(files["static.png"], "Fitted static curve(s) over the range "
                                     "their input covers, with ±2σ bands from the covariance"),) \
             if "static.png" in files else ()
-        model = Section("Model", paragraphs=(_model_text(self),),
-                        tables=(parameter_table(est),), figures=figures)
-        sections = [experiment, model]
-        for k, v in enumerate(self.validations):
-            suffix = "" if k == 0 else f"-{k + 1}"
-            section = validation_section(v, files[f"validation{suffix}.png"],
-                                         files[f"residuals{suffix}.png"])
-            title = section.title + (f": {v.experiment}" if v.experiment else "")
-            sections.append(Section(title, section.paragraphs, section.tables, section.figures))
-        sections.append(Section("Notes", paragraphs=self.notes or
-                                ("The validation data do not reject the model.",)))
-        name = spec.source.name if spec.source else "experiment"
-        return Page(
-            title=f"Identification report: {name}",
-            subtitle=f"{self.title} with parameter uncertainty, validated on data not used for "
-                     "fitting",
-            sections=tuple(sections),
-            meta=(("servoid", __version__), ("experiment file", str(spec.source or "")),
-                  ("data file", ", ".join(str(p) for p in spec.data_paths))),
-        )
+        return Section("Model", paragraphs=(_model_text(self),),
+                       tables=(parameter_table(self.estimate),), figures=figures)
 
 
 def run(structure: str, spec: ExperimentSpec, options: Mapping[str, Any],
@@ -217,54 +115,75 @@ def run(structure: str, spec: ExperimentSpec, options: Mapping[str, Any],
     estimation, validations = spec.records()
     first = estimation if isinstance(estimation, Experiment) else estimation[0]
     role = options["input"]
-    settings: dict[str, Any] = {}
-    for side in ("input", "output"):
-        key = f"{side}_nonlinearity"
-        if key in options:
-            settings[key] = _shape(options, side)
-            # one shape per side can be free-scale (two are refused), so the side whose shape
-            # uses them hands its breakpoints or degree on
-            if settings[key] == "piecewise-linear" and options[f"{side}_breakpoints"] is not None:
-                settings["breakpoints"] = options[f"{side}_breakpoints"]
-            if settings[key] == "polynomial":
-                settings["degree"] = options[f"{side}_degree"]
+    settings = _settings(options, set(spec.identify))
     with keyed({"nb": "[identify] nb", "nf": "[identify] nf", "nk": "[identify] nk",
                 "n_poles": "[identify] n_poles", "n_zeros": "[identify] n_zeros",
-                "max_iter": "[identify] max_iter", "tol": "[identify] tol"}):
+                "max_iter": "[identify] max_iter", "tol": "[identify] tol"}), \
+            warnings_as_notes() as notes:
         estimate = fit_block(
-            estimation, structure, linear=options["linear"], nb=options["nb"], nf=options["nf"],
-            nk=options["nk"], n_poles=options["n_poles"], n_zeros=options["n_zeros"],
-            offset=options["offset"], input=role, output=options["output"],
-            initial=options["initial"], max_iter=options["max_iter"], tol=options["tol"],
-            **settings)
-    output = estimate.options["output"]
-    with keyed({"transient": "[validation] transient", "horizon": "[identify] horizon",
-                "initial": "[validation] initial"}):
-        reports = tuple(
-            validate(estimate, v, input=role, output=output, horizon=options["horizon"],
-                     initial=spec.validation.initial, transient=spec.validation.transient,
-                     limits=spec.limits(output))
-            for v in validations)
-    notes: list[str] = []
+            estimation, structure, offset=options["offset"], input=role,
+            output=options["output"], initial=options["initial"],
+            max_iter=options["max_iter"], tol=options["tol"], **settings)
     if estimate.status != "ok":
         notes.append(f"the search ended with status: {estimate.status}")
-    for report in reports:
-        notes += [f"{report.experiment or 'validation'}: {n}" for n in report.notes()]
-    for note in notes:
-        warnings.warn(note, ServoidWarning, stacklevel=4)
     o = estimate.options
     orders = (f"nb = {o['nb']}, nf = {o['nf']}, nk = {o['nk']}" if o["linear"] == "oe" else
-              f"continuous, {o['n_poles']} poles, {o['n_zeros']} zeros")
+              f"continuous, {o['n_poles']} poles, {o['n_zeros']} zeros"
+              + (f", delay {o['nk']} samples" if o["nk"] else ""))
     shapes = " / ".join(s for s in (o["input_nonlinearity"], o["output_nonlinearity"]) if s)
     title = f"{_TITLES[structure]} ({shapes}; {orders})"
-    if truth is None:
-        truth = _truth_from_spec(spec, estimate.names)
-    return BlockResult(spec, structure, estimate, reports, title,
-                       _curves(estimate, first.signal(role)[:, 0]), tuple(notes),
-                       {k: v for k, v in (truth or {}).items() if k in estimate.names} or None)
+    result = lti_result(spec, structure, estimate, title, validations, options,
+                        notes=list(dict.fromkeys(notes)), truth=truth, modal=False,
+                        result_type=BlockResult,
+                        extra={"curves": _curves(estimate, first.signal(role)[:, 0])})
+    assert isinstance(result, BlockResult)
+    if result.truth:  # known values of the parameters this structure has, only
+        kept = {k: v for k, v in result.truth.items() if k in estimate.names} or None
+        result = dataclasses.replace(result, truth=kept)
+    return result
 
 
 # -- options -------------------------------------------------------------------------------------
+
+
+def _settings(options: Mapping[str, Any], given: set[str]) -> dict[str, Any]:
+    """fit_block's keywords from the options; a key the choice leaves unused is refused.
+
+    ``given`` holds the keys the experiment file sets (defaults of unused
+    keys are simply not passed on).
+    """
+    linear = options["linear"]
+    used = ("nb", "nf", "nk") if linear == "oe" else ("n_poles", "n_zeros")
+    for key in {"oe": ("n_poles", "n_zeros"), "tf": ("nb", "nf", "nk")}[linear]:
+        if key in given:
+            raise OptionError(
+                f"[identify] {key} is not used by linear = \"{linear}\", which takes "
+                f"{' and '.join(used)}; remove {key}, or choose linear = "
+                f"\"{'oe' if linear == 'tf' else 'tf'}\"")
+    settings: dict[str, Any] = {"linear": linear, **{k: options[k] for k in used}}
+    for side in ("input", "output"):
+        key = f"{side}_nonlinearity"
+        if key not in options:
+            continue  # this structure has no block on that side
+        kind = options[key]
+        settings[key] = _shape(options, side)
+        for option, wants in ((f"{side}_breakpoints", "piecewise-linear"),
+                              (f"{side}_degree", "polynomial")):
+            if option in given and kind != wants:
+                raise OptionError(f"[identify] {option} is for a {wants} shape and "
+                                  f"{key} = \"{kind}\"; remove {option}")
+        if f"{side}_degree" in given and options[f"{side}_parameters"] is not None:
+            raise OptionError(f"[identify] {side}_degree and [identify] {side}_parameters both "
+                              "set the polynomial's degree (one coefficient per power); give "
+                              "one")
+        # one shape per side can be free-scale (two are refused), so the side whose shape
+        # is named hands its breakpoints or degree on
+        if isinstance(settings[key], str):
+            if kind == "piecewise-linear" and options[f"{side}_breakpoints"] is not None:
+                settings["breakpoints"] = options[f"{side}_breakpoints"]
+            if kind == "polynomial":
+                settings["degree"] = options[f"{side}_degree"]
+    return settings
 
 
 def _shape(options: Mapping[str, Any], side: str) -> StaticNonlinearity | str:
@@ -317,9 +236,10 @@ def _side_options(side: str, default: str) -> tuple[Option, ...]:
                "slopes); none: from the data"),
         Option(f"{side}_breakpoints", None, optional(_numbers()),
                "breakpoints of a piecewise-linear shape (increasing; none: quantiles of its "
-               "input)"),
+               "input); refused for other shapes"),
         Option(f"{side}_degree", 3, integer(minimum=1, maximum=12),
-               "degree of a polynomial shape"),
+               f"degree of a polynomial shape named without {side}_parameters; refused "
+               "otherwise"),
     )
 
 
@@ -336,12 +256,16 @@ def _method(structure: str, summary: str) -> Method:
             Option("linear", "oe", choice(("oe", "tf")),
                    'linear block: "oe" (discrete B/F: nb, nf, nk) or "tf" (continuous: '
                    "n_poles, n_zeros)"),
-            Option("nb", 2, integer(minimum=1, maximum=50), "B coefficients of the linear block"),
-            Option("nf", 2, integer(minimum=0, maximum=50), "F order (poles) of the linear block"),
-            Option("nk", 1, integer(minimum=0), "delay of the linear block [samples]"),
-            Option("n_poles", 2, integer(minimum=1, maximum=20), "poles of a continuous block"),
+            Option("nb", 2, integer(minimum=1, maximum=50),
+                   'B coefficients of a discrete linear block (linear = "oe" only)'),
+            Option("nf", 2, integer(minimum=0, maximum=50),
+                   'F order (poles) of a discrete linear block (linear = "oe" only)'),
+            Option("nk", 1, integer(minimum=0),
+                   'delay of a discrete linear block [samples] (linear = "oe" only)'),
+            Option("n_poles", 2, integer(minimum=1, maximum=20),
+                   'poles of a continuous linear block (linear = "tf" only)'),
             Option("n_zeros", None, optional(integer(minimum=0, maximum=20)),
-                   "zeros of a continuous block (none: n_poles − 1)"),
+                   'zeros of a continuous linear block (linear = "tf" only; none: n_poles − 1)'),
             Option("offset", False, boolean(), "fit a constant output offset"),
             Option("initial", "estimate", choice(("estimate", "zero")),
                    "initial state of the linear block in the fit: estimated or rest"),
@@ -362,14 +286,6 @@ HAMMERSTEIN_WIENER = _method("hammerstein-wiener", "Hammerstein–Wiener model y
 
 
 # -- private ---------------------------------------------------------------------------------
-
-
-def _truth_from_spec(spec: ExperimentSpec, names: Sequence[str]) -> dict[str, float] | None:
-    name = report_options(spec.report).get("truth")
-    if name is None:
-        return None
-    base = spec.source.parent if spec.source else Path.cwd()
-    return read_truth(base / name, list(names)) or None
 
 
 def _shape_dict(shape: StaticNonlinearity | None) -> dict[str, Any] | None:
@@ -417,14 +333,6 @@ def _model_text(result: BlockResult) -> str:
             f"variance {est.noise_variance:.4g}; status {est.status}; {o.get('nfev')} "
             f"evaluations. Scale convention: {scale}. Covariance σ̂²(JᵀJ)⁻¹ at the minimum, "
             "right for white output noise.")
-
-
-def _plot_validation(report: ValidationReport, path: Path, overwrite: bool) -> None:
-    plot_validation(report, path, overwrite=overwrite)
-
-
-def _plot_residuals(report: ValidationReport, path: Path, overwrite: bool) -> None:
-    plot_residuals(report, path, overwrite=overwrite)
 
 
 def _plot_curves(curves: Sequence[StaticCurve], title: str, path: Path,

@@ -4,21 +4,118 @@ from __future__ import annotations
 
 import hashlib
 import re
+import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from .._checks import as_float, as_str, read_json
-from .._errors import DataError, FileFormatError, OptionError, OutputExistsError, ServoidError
+from .._errors import (
+    DataError,
+    FileFormatError,
+    OptionError,
+    OutputExistsError,
+    ServoidError,
+    ServoidWarning,
+    SimulationDivergedError,
+)
 from ..estimate import Estimate
 from ..report import Figure, Section, Table
 from ..validate import ValidationReport
 
-__all__ = ["REPORT_KEYS", "check_outputs", "check_sizes", "keyed", "parameter_table",
-           "read_truth", "report_options", "sha256", "spec_inputs", "validation_section"]
+__all__ = ["REPORT_KEYS", "DivergedRun", "check_outputs", "check_sizes", "keyed",
+           "parameter_table", "read_truth", "report_options", "sha256", "spec_inputs",
+           "truth_from_spec", "validation_section", "warnings_as_notes"]
 
 REPORT_KEYS = ("folder", "truth")
+
+
+@dataclass(frozen=True)
+class DivergedRun:
+    """A validation record on which the model's free run diverged.
+
+    It stands where a :class:`~servoid.validate.ValidationReport` would:
+    the model failed this validation, and there are no metrics to give.
+
+    Attributes
+    ----------
+    experiment : str
+        The validation record's name ('' for the held-back part).
+    output : str
+        The output channel simulated.
+    sample : int
+        First sample whose simulated value is not finite.
+    time : float
+        Its time from the record's start [s].
+    """
+
+    experiment: str
+    output: str
+    sample: int
+    time: float
+
+    @classmethod
+    def from_error(cls, error: SimulationDivergedError, experiment: str, output: str,
+                   dt: float) -> DivergedRun:
+        """The record of a :class:`~servoid.SimulationDivergedError`."""
+        return cls(experiment, output, error.sample, error.sample * dt)
+
+    @property
+    def note(self) -> str:
+        """The verdict in words, naming the sample, the time and the record."""
+        record = repr(self.experiment) if self.experiment else "the held-back part"
+        return (f"the free run diverges at sample {self.sample} (t = {self.time:.6g} s) of record "
+                f"{record}: the model is unstable in simulation there, whatever its one-step "
+                "fit, and fails this validation (no metrics); try a lower order or degree, or "
+                "estimate on data that cover this record's range")
+
+    def notes(self) -> tuple[str, ...]:
+        """The verdict, as :meth:`ValidationReport.notes` gives them."""
+        return (self.note,)
+
+    def summary(self) -> dict[str, Any]:
+        """What ``results.json`` holds for the record: where it diverged."""
+        return {"experiment": self.experiment, "output": self.output,
+                "diverged_at": {"sample": self.sample, "time": self.time}, "note": self.note}
+
+    def __str__(self) -> str:
+        record = f" {self.experiment!r}" if self.experiment else ""
+        return (f"validation{record} of {self.output!r}: FAILED — the free run diverges at "
+                f"sample {self.sample} (t = {self.time:.6g} s)")
+
+
+@contextmanager
+def warnings_as_notes() -> Iterator[list[str]]:
+    """Collect the ServoidWarnings of a block as notes; pass any other warning on.
+
+    The caller words the notes (a result warns each again, from the run,
+    so a script still sees them as warnings).
+    """
+    notes: list[str] = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ServoidWarning)
+        try:
+            yield notes
+        finally:
+            others = []
+            for w in caught:
+                if issubclass(w.category, ServoidWarning):
+                    notes.append(str(w.message))
+                else:
+                    others.append(w)
+    for w in others:  # outside the catch, so the caller's filters decide
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def truth_from_spec(spec: Any, names: Sequence[str]) -> dict[str, float] | None:
+    """The known values of ``names`` from ``[report] truth``, or None."""
+    name = report_options(spec.report).get("truth")
+    if name is None:
+        return None
+    base = spec.source.parent if spec.source else Path.cwd()
+    return read_truth(base / name, list(names)) or None
 
 
 def report_options(table: Mapping[str, Any]) -> dict[str, str]:

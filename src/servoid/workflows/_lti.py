@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from .._errors import ServoidError, ServoidWarning
+from .._errors import ServoidError, ServoidWarning, SimulationDivergedError
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 from ..estimate import Estimate, frequency_band
 from ..report import (
@@ -36,13 +36,14 @@ from ..report import (
 )
 from ..validate import ValidationReport, validate
 from ._common import (
+    DivergedRun,
     keyed,
     parameter_table,
-    read_truth,
-    report_options,
     sha256,
     spec_inputs,
+    truth_from_spec,
     validation_section,
+    warnings_as_notes,
 )
 from ._registry import FigureWriter
 from ._summary import Displayed
@@ -76,9 +77,10 @@ class IdentificationResult(Displayed):
         The registered method (``"arx"``, ``"oe"``, ``"tf"``, …).
     estimate : Estimate
         The model with its covariance.
-    validations : tuple of ValidationReport
+    validations : tuple of ValidationReport or DivergedRun
         One per validation record (the held-back part, or each
-        ``[validation] file``).
+        ``[validation] file``); a :class:`DivergedRun` where the model's
+        free run diverged on the record (the model failed there).
     title : str
         The structure in words, e.g. ``"OE (nb = 2, nf = 2, nk = 1)"``.
     orders : tuple of OrderRow
@@ -104,7 +106,7 @@ class IdentificationResult(Displayed):
     spec: ExperimentSpec
     method: str
     estimate: Estimate
-    validations: tuple[ValidationReport, ...]
+    validations: tuple[ValidationReport | DivergedRun, ...]
     title: str
     orders: tuple[OrderRow, ...] = ()
     criterion: str = ""
@@ -119,19 +121,25 @@ class IdentificationResult(Displayed):
     files: tuple[Path, ...] = field(default=())
 
     @property
-    def validation(self) -> ValidationReport:
+    def validation(self) -> ValidationReport | DivergedRun:
         """Validation on the first validation record."""
         return self.validations[0]
+
+    @property
+    def diverged(self) -> tuple[DivergedRun, ...]:
+        """The validation records on which the free run diverged."""
+        return tuple(v for v in self.validations if isinstance(v, DivergedRun))
 
     # -- console and JSON ---------------------------------------------------------------
     def __str__(self) -> str:
         est = self.estimate
-        o = est.options
-        lines = [f"{self.title}: output {', '.join(outputs_of(est))} from "
-                 f"{', '.join(o.get('inputs', []))}"
-                 f" ({o.get('input', 'u')}); {est.parameters.size} parameters on "
-                 f"{est.n_samples} samples, σ̂² = {est.noise_variance:.4g}"]
-        lines += str(est).splitlines()[1:]
+        lines = [self._headline()]
+        truth = self.truth or {}
+        body = str(est).splitlines()[1:]
+        if len(body) == len(est.names):  # one line per parameter: show the known value
+            body = [line + (f"   truth {truth[name]:.6g}" if name in truth else "")
+                    for name, line in zip(est.names, body, strict=True)]
+        lines += body
         if self.characteristics:
             lines.append("  characteristics (± std):")
             for row in self.characteristics:
@@ -142,6 +150,7 @@ class IdentificationResult(Displayed):
             lines.append(f"  order search by {self.criterion} ({len(self.orders)} candidates, "
                          "best first):")
             lines += ["    " + line for line in _order_lines(self.orders, self.criterion)[:11]]
+        lines += self._extra_lines()
         for v in self.validations:
             lines.append(f"  {v}")
         for note in self.notes:
@@ -186,10 +195,12 @@ class IdentificationResult(Displayed):
         """Validation and residual plots per record, Bode, pole–zero map."""
         out: dict[str, FigureWriter] = {}
         for k, v in enumerate(self.validations):
+            if isinstance(v, DivergedRun):
+                continue  # nothing finite to draw; the page says where it diverged
             suffix = "" if k == 0 else f"-{k + 1}"
             out[f"validation{suffix}.png"] = partial(_plot_validation, v)
             out[f"residuals{suffix}.png"] = partial(_plot_residuals, v)
-        if _has_frequency_response(self.estimate):
+        if _has_frequency_response(self.estimate) and self._reports():
             out["bode.png"] = partial(_plot_bode, self)
             out["poles.png"] = partial(_plot_poles, self)
         if self.singular_values:
@@ -209,12 +220,7 @@ class IdentificationResult(Displayed):
             (f"Validation records: {val_files}." if val_files else
              "Validation: the held-back part of the record ([split])."),
         ))
-        tables = [parameter_table(est)]
-        if self.characteristics:
-            tables.append(_characteristics_table(self.characteristics, self.truth))
-        model = Section("Model", paragraphs=(_model_text(self),), tables=tuple(tables),
-                        figures=tuple(_model_figures(files, self.measured is not None)))
-        sections = [experiment, model]
+        sections = [experiment, self._model_section(files), *self._extra_sections(files)]
         if self.orders:
             sections.append(Section(
                 "Order search",
@@ -229,8 +235,11 @@ class IdentificationResult(Displayed):
                 files["singular_values.png"], "Subspace singular values and the chosen order"),)))
         for k, v in enumerate(self.validations):
             suffix = "" if k == 0 else f"-{k + 1}"
-            section = validation_section(v, files[f"validation{suffix}.png"],
-                                         files[f"residuals{suffix}.png"])
+            if isinstance(v, DivergedRun):
+                section = Section("Validation: FAILED", paragraphs=(v.note,))
+            else:
+                section = validation_section(v, files[f"validation{suffix}.png"],
+                                             files[f"residuals{suffix}.png"])
             title = section.title + (f": {v.experiment}" if v.experiment else "")
             if len(outputs_of(est)) > 1:
                 title += f" ({v.output})"
@@ -240,12 +249,45 @@ class IdentificationResult(Displayed):
         name = spec.source.name if spec.source else "experiment"
         return Page(
             title=f"Identification report: {name}",
-            subtitle=f"{self.title} with parameter uncertainty, validated on data not used for "
-                     "fitting",
+            subtitle=self._subtitle(),
             sections=tuple(sections),
             meta=(("servoid", __version__), ("experiment file", str(spec.source or "")),
                   ("data file", ", ".join(str(p) for p in spec.data_paths))),
         )
+
+    # -- what a method family words its own way (narx, block models override these) --------
+    def _headline(self) -> str:
+        """The first console line: structure, channels, size of the fit."""
+        est = self.estimate
+        o = est.options
+        return (f"{self.title}: output {', '.join(outputs_of(est))} from "
+                f"{', '.join(o.get('inputs', []))} ({o.get('input', 'u')}); "
+                f"{est.parameters.size} parameters on {est.n_samples} samples, "
+                f"σ̂² = {est.noise_variance:.4g}")
+
+    def _extra_lines(self) -> list[str]:
+        """Console lines of a method's own section (after the parameters)."""
+        return []
+
+    def _model_section(self, files: Mapping[str, Path]) -> Section:
+        """The report's Model section."""
+        tables = [parameter_table(self.estimate)]
+        if self.characteristics:
+            tables.append(_characteristics_table(self.characteristics, self.truth))
+        return Section("Model", paragraphs=(_model_text(self),), tables=tuple(tables),
+                       figures=tuple(_model_figures(files, self.measured is not None)))
+
+    def _extra_sections(self, files: Mapping[str, Path]) -> list[Section]:
+        """A method's own report sections, after the Model section."""
+        return []
+
+    def _subtitle(self) -> str:
+        return (f"{self.title} with parameter uncertainty, validated on data not used for "
+                "fitting")
+
+    def _reports(self) -> list[ValidationReport]:
+        """The validations that ran to the end (not diverged)."""
+        return [v for v in self.validations if isinstance(v, ValidationReport)]
 
     def _truth(self, name: str) -> float | None:
         return None if not self.truth else self.truth.get(name)
@@ -319,6 +361,9 @@ def lti_result(
     notes: Sequence[str] = (),
     estimation: Experiment | ExperimentSet | None = None,
     closed_loop: bool = False,
+    modal: bool = True,
+    result_type: type[IdentificationResult] | None = None,
+    extra: Mapping[str, Any] | None = None,
 ) -> IdentificationResult:
     """Validate an estimate on each record and assemble the result.
 
@@ -329,6 +374,15 @@ def lti_result(
     and the input ``u``, the feedback test runs on it; ``closed_loop``
     says the method is made for closed-loop data (then the residuals are
     tested against past inputs only).
+
+    A free run that diverges on a record
+    (:class:`~servoid.SimulationDivergedError`) does not end the run: the
+    record gets a :class:`DivergedRun` (no metrics) and a note, and the
+    result is written as usual, its verdict saying the model failed.
+
+    ``modal = False`` skips the static gain, ω_n and ζ (a nonlinear
+    model has none); ``result_type`` is the class to build (a subclass of
+    :class:`IdentificationResult`) with its own fields in ``extra``.
     """
     input_role = estimate.options.get("input", "u")
     feedback = None
@@ -342,28 +396,42 @@ def lti_result(
             all_notes.append(_feedback_note(method, feedback))
     if measured is None and estimation is not None:
         measured = _measured_frf(estimation, estimate, closed_loop)
-    if not characteristics:
+    if not characteristics and modal:
         characteristics = _characteristics(estimate, validations[0])
-    with keyed({"transient": "[validation] transient", "horizon": "[identify] horizon"}):
-        reports = tuple(
-            validate(estimate, v, input=input_role, output=output,
-                     horizon=options.get("horizon", 5), initial=spec.validation.initial,
-                     transient=spec.validation.transient, limits=spec.limits(output),
-                     closed_loop=closed_loop)
-            for v in validations for output in outputs_of(estimate))
+    reports: list[ValidationReport | DivergedRun] = []
+    with keyed({"transient": "[validation] transient", "horizon": "[identify] horizon",
+                "initial": "[validation] initial"}):
+        for v in validations:
+            for output in outputs_of(estimate):
+                try:
+                    with warnings_as_notes() as said:
+                        reports.append(validate(
+                            estimate, v, input=input_role, output=output,
+                            horizon=options.get("horizon", 5), initial=spec.validation.initial,
+                            transient=spec.validation.transient, limits=spec.limits(output),
+                            closed_loop=closed_loop))
+                    all_notes += [f"{v.name or 'validation'}: {n}" for n in said]
+                except SimulationDivergedError as exc:
+                    # the model fails on this record, the run goes on; its note supersedes
+                    # what the simulation warned on the way
+                    reports.append(DivergedRun.from_error(exc, v.name, output, v.dt))
     if edge:
         all_notes.append(f"the chosen {', '.join(edge)} sits on the edge of the searched grid; "
                          "widen the grid to be sure the best order is inside it")
     for report in reports:
-        all_notes += [f"{report.experiment or 'validation'}: {n}" for n in report.notes()]
+        if isinstance(report, DivergedRun):
+            all_notes.append(report.note)  # names its record
+        else:
+            all_notes += [f"{report.experiment or 'validation'}: {n}" for n in report.notes()]
+    all_notes = list(dict.fromkeys(all_notes))
     for note in all_notes:
         warnings.warn(note, ServoidWarning, stacklevel=4)  # lti_result ← run ← identify ← user
     if truth is None:
-        truth = _truth_from_spec(spec, [*estimate.names, *(r.name for r in characteristics)])
-    return IdentificationResult(
-        spec, method, estimate, reports, title, tuple(orders), criterion,
+        truth = truth_from_spec(spec, [*estimate.names, *(r.name for r in characteristics)])
+    return (result_type or IdentificationResult)(
+        spec, method, estimate, tuple(reports), title, tuple(orders), criterion,
         tuple(characteristics), measured, tuple(float(s) for s in singular_values), truth,
-        tuple(all_notes), gain_unit(validations[0], estimate), feedback)
+        tuple(all_notes), gain_unit(validations[0], estimate), feedback, **(extra or {}))
 
 
 def _feedback(data: Experiment | ExperimentSet, estimate: Estimate) -> Any:
@@ -482,14 +550,6 @@ def _complex_list(values: Any) -> list[dict[str, float]]:
     return [{"re": float(v.real), "im": float(v.imag)} for v in np.asarray(values)]
 
 
-def _truth_from_spec(spec: ExperimentSpec, names: Sequence[str]) -> dict[str, float] | None:
-    name = report_options(spec.report).get("truth")
-    if name is None:
-        return None
-    base = spec.source.parent if spec.source else Path.cwd()
-    return read_truth(base / name, list(names)) or None
-
-
 def _row_dict(row: OrderRow) -> dict[str, Any]:
     return {"orders": dict(row.orders), "n_parameters": row.n_parameters, "loss": row.loss,
             **dict(row.scores), "fit_percent": None if math.isnan(row.fit) else row.fit,
@@ -580,9 +640,10 @@ def _has_frequency_response(est: Estimate) -> bool:
 
 
 def _frequency_grid(result: IdentificationResult) -> np.ndarray:
-    dt = result.validation.time[1] - result.validation.time[0]
+    first = result._reports()[0]  # figures() draws a Bode only when one validation ran
+    dt = first.time[1] - first.time[0]
     nyquist = 0.5 / dt
-    lowest = nyquist / max(result.validation.measured.size, 1000)
+    lowest = nyquist / max(first.measured.size, 1000)
     return np.logspace(np.log10(lowest), np.log10(nyquist * 0.999), 400)
 
 

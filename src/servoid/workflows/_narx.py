@@ -2,25 +2,19 @@
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
-from functools import partial
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .. import __version__
-from .._errors import ServoidWarning
 from ..data import ExperimentSpec
 from ..estimate import Estimate
-from ..report import Page, Section, Table, plot_residuals, plot_validation
-from ..validate import ValidationReport, validate
+from ..report import Section, Table
 from ._arx import HORIZON, OUTPUT, ROLE
-from ._common import keyed, parameter_table, sha256, spec_inputs, validation_section
-from ._lti import _truth_from_spec
+from ._common import keyed, parameter_table, warnings_as_notes
+from ._lti import IdentificationResult, lti_result
 from ._options import choice, integer, number, optional, orders
-from ._registry import FigureWriter, Method, Option
-from ._summary import Displayed
+from ._registry import Method, Option
 
 __all__ = ["METHOD", "NarxResult"]
 
@@ -30,115 +24,49 @@ _KEYS = {name: f"[identify] {name}" for name in
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class NarxResult(Displayed):
+class NarxResult(IdentificationResult):
     """A polynomial NARX model from an experiment file, validated.
 
-    Attributes
-    ----------
-    spec : ExperimentSpec
-        The experiment file.
-    estimate : Estimate
-        The model (:class:`~servoid.nonlinear.NarxModel`) with covariance;
-        ``options["selection"]`` lists the terms in the order they entered.
-    validations : tuple of ValidationReport
-        Free run and k-step prediction on each validation record.
-    title : str
-        The structure in words.
-    truth : mapping or None
-        Known coefficients by term name (``[report] truth``).
-    notes : tuple of str
-        Verdicts and warnings in words.
-    folder, files
-        Where the results were written.
+    The fields are those of
+    :class:`~servoid.workflows.IdentificationResult`: the estimate's model
+    is a :class:`~servoid.nonlinear.NarxModel` whose
+    ``options["selection"]`` lists the terms in the order they entered;
+    each validation is a free run and a k-step prediction (or a
+    :class:`~servoid.workflows._common.DivergedRun` where the free run
+    diverged); ``truth`` holds known coefficients by term name.
     """
 
-    spec: ExperimentSpec
-    estimate: Estimate
-    validations: tuple[ValidationReport, ...]
-    title: str
-    truth: Mapping[str, float] | None = None
-    notes: tuple[str, ...] = ()
-    folder: Path | None = None
-    files: tuple[Path, ...] = field(default=())
-
-    method = "narx"
-
-    @property
-    def validation(self) -> ValidationReport:
-        """Validation on the first validation record."""
-        return self.validations[0]
-
-    def __str__(self) -> str:
-        est = self.estimate
-        o = est.options
-        lines = [(f"{self.title}: output {o['output']} from {', '.join(o['inputs'])} "
-                  f"({o['input']}); {est.parameters.size} of {o['n_candidates']} candidate "
-                  f"terms on {est.n_samples} samples, σ̂² = {est.noise_variance:.4g}")]
-        lines += str(est).splitlines()[1:]
-        lines.append(f"  term selection (forward OLS, {_criterion_words(o)}), in order of entry:")
-        lines += ["    " + line for line in _selection_lines(o["selection"])]
-        for v in self.validations:
-            lines.append(f"  {v}")
-        for note in self.notes:
-            lines.append(f"  note: {note}")
-        if self.folder:
-            lines.append(f"  report: {self.folder / 'report.html'}")
-        return "\n".join(lines)
-
     def to_dict(self) -> dict[str, Any]:
-        """Everything in ``results.json``."""
-        spec = self.spec
-        return {
-            "servoid_version": __version__,
-            "method": "narx",
-            "experiment_file": str(spec.source) if spec.source else None,
-            "data_file": str(spec.data_path),
-            "data_sha256": sha256(spec.data_path),
-            "data_files": [{"path": str(p), "sha256": sha256(p)} for p in spec.data_paths],
-            "validation_files": [{"path": str(p), "sha256": sha256(p)}
-                                 for p in spec.validation_paths],
-            "structure": self.title,
-            "estimate": self.estimate.to_dict(),
-            "model": self.estimate.model.to_dict(),
-            "selection": list(self.estimate.options["selection"]),
-            "truth": dict(self.truth) if self.truth else None,
-            "validation": self.validation.summary(),
-            "validations": [v.summary() for v in self.validations],
-            "notes": list(self.notes),
-        }
-
-    def inputs(self) -> tuple[Path, ...]:
-        """Every file the run read."""
-        return spec_inputs(self.spec)
-
-    def figures(self) -> dict[str, FigureWriter]:
-        """Validation and residual plots per record."""
-        out: dict[str, FigureWriter] = {}
-        for k, v in enumerate(self.validations):
-            suffix = "" if k == 0 else f"-{k + 1}"
-            out[f"validation{suffix}.png"] = partial(_plot_validation, v)
-            out[f"residuals{suffix}.png"] = partial(_plot_residuals, v)
+        """Everything in ``results.json``, with the term selection."""
+        out = super().to_dict()
+        out["model"] = self.estimate.model.to_dict()
+        out["selection"] = list(self.estimate.options["selection"])
         return out
 
-    def page(self, files: Mapping[str, Path]) -> Page:
-        """The report page: model, ERR table, a validation per record."""
-        spec, est = self.spec, self.estimate
+    def _headline(self) -> str:
+        est = self.estimate
         o = est.options
-        data_files = ", ".join(f"{p.name} (sha256 {sha256(p)[:16]}…)" for p in spec.data_paths)
-        val_files = ", ".join(p.name for p in spec.validation_paths)
-        experiment = Section("Experiment", paragraphs=(
-            (f"Estimation data: {data_files}; input {', '.join(o['inputs'])} ({o['input']}), "
-             f"output {o['output']}."),
-            (f"Validation records: {val_files}." if val_files else
-             "Validation: the held-back part of the record ([split])."),
-        ))
+        return (f"{self.title}: output {o['output']} from {', '.join(o['inputs'])} "
+                f"({o['input']}); {est.parameters.size} of {o['n_candidates']} candidate "
+                f"terms on {est.n_samples} samples, σ̂² = {est.noise_variance:.4g}")
+
+    def _extra_lines(self) -> list[str]:
+        o = self.estimate.options
+        return [f"  term selection (forward OLS, {_criterion_words(o)}), in order of entry:",
+                *("    " + line for line in _selection_lines(o["selection"]))]
+
+    def _model_section(self, files: Mapping[str, Path]) -> Section:
+        est = self.estimate
         tables = [parameter_table(est, "Coefficients refitted by least squares on the selected "
                                        "terms; std from σ̂²(ΦᵀΦ)⁻¹")]
         if self.truth:
             tables.append(_truth_table(est, self.truth))
-        model = Section("Model", paragraphs=(_model_text(est), str(est.model)),
-                        tables=tuple(tables))
-        selection = Section(
+        return Section("Model", paragraphs=(_model_text(est), str(est.model)),
+                       tables=tuple(tables))
+
+    def _extra_sections(self, files: Mapping[str, Path]) -> list[Section]:
+        o = self.estimate.options
+        return [Section(
             "Term selection",
             paragraphs=(
                 (f"Forward orthogonal least squares over {o['n_candidates']} candidate terms "
@@ -146,25 +74,11 @@ class NarxResult(Displayed):
                  "terms above it (Chen, Billings & Luo 1989); 1 − ΣERR is what is still "
                  "unexplained after it. Terms tried after the last kept one show why the "
                  "criterion stopped."),),
-            tables=(_selection_table(o["selection"]),))
-        sections = [experiment, model, selection]
-        for k, v in enumerate(self.validations):
-            suffix = "" if k == 0 else f"-{k + 1}"
-            section = validation_section(v, files[f"validation{suffix}.png"],
-                                         files[f"residuals{suffix}.png"])
-            title = section.title + (f": {v.experiment}" if v.experiment else "")
-            sections.append(Section(title, section.paragraphs, section.tables, section.figures))
-        sections.append(Section("Notes", paragraphs=self.notes or
-                                ("The validation data do not reject the model.",)))
-        name = spec.source.name if spec.source else "experiment"
-        return Page(
-            title=f"Identification report: {name}",
-            subtitle=f"{self.title}, validated by free-run simulation on data not used for "
-                     "fitting",
-            sections=tuple(sections),
-            meta=(("servoid", __version__), ("experiment file", str(spec.source or "")),
-                  ("data file", ", ".join(str(p) for p in spec.data_paths))),
-        )
+            tables=(_selection_table(o["selection"]),))]
+
+    def _subtitle(self) -> str:
+        return (f"{self.title}, validated by free-run simulation on data not used for "
+                "fitting")
 
 
 def run(spec: ExperimentSpec, options: Mapping[str, Any],
@@ -173,51 +87,21 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     from ..nonlinear import fit_narx
 
     estimation, validations = spec.records()
-    notes: list[str] = []
-    with keyed(_KEYS), warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", ServoidWarning)
+    with keyed(_KEYS), warnings_as_notes() as notes:
         estimate = fit_narx(estimation, na=options["na"], nb=options["nb"], nk=options["nk"],
                             degree=options["degree"], max_terms=options["max_terms"],
                             criterion=options["criterion"], tolerance=options["tolerance"],
                             input=options["input"], output=options["output"])
-    notes += _notes(caught)
-    output = estimate.options["output"]
-    reports = []
-    for v in validations:
-        with keyed({**_KEYS, "transient": "[validation] transient",
-                    "initial": "[validation] initial"}), \
-                warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", ServoidWarning)
-            reports.append(validate(estimate, v, input=options["input"], output=output,
-                                    horizon=options["horizon"], initial=spec.validation.initial,
-                                    transient=spec.validation.transient,
-                                    limits=spec.limits(output)))
-        notes += [f"{v.name or 'validation'}: {n}" for n in _notes(caught)]  # a diverging run
-    for report in reports:
-        notes += [f"{report.experiment or 'validation'}: {n}" for n in report.notes()]
-    for note in notes:
-        warnings.warn(note, ServoidWarning, stacklevel=3)  # run ← identify ← user
-    if truth is None:
-        truth = _truth_from_spec(spec, list(estimate.names))
     o = estimate.options
     title = (f"NARX (na = {o['na']}, nb = {_short(o['nb'])}, nk = {_short(o['nk'])}, degree = "
              f"{o['degree']}, {estimate.parameters.size} terms)")
-    return NarxResult(spec, estimate, tuple(reports), title, truth,
-                      tuple(dict.fromkeys(notes)))
+    result = lti_result(spec, "narx", estimate, title, validations, options, notes=notes,
+                        truth=truth, modal=False, result_type=NarxResult)
+    assert isinstance(result, NarxResult)
+    return result
 
 
 # -- private ------------------------------------------------------------------------------
-
-
-def _notes(caught: Sequence[warnings.WarningMessage]) -> list[str]:
-    """ServoidWarnings as notes; any other warning is passed on as it came."""
-    out = []
-    for w in caught:
-        if issubclass(w.category, ServoidWarning):
-            out.append(str(w.message))
-        else:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    return out
 
 
 def _criterion_words(o: Mapping[str, Any]) -> str:
@@ -272,14 +156,6 @@ def _model_text(est: Estimate) -> str:
 
 def _short(values: Sequence[int]) -> str:
     return str(values[0]) if len(values) == 1 else str(list(values))
-
-
-def _plot_validation(report: ValidationReport, path: Path, overwrite: bool) -> None:
-    plot_validation(report, path, overwrite=overwrite)
-
-
-def _plot_residuals(report: ValidationReport, path: Path, overwrite: bool) -> None:
-    plot_residuals(report, path, overwrite=overwrite)
 
 
 METHOD = Method(

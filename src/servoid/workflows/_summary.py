@@ -49,6 +49,9 @@ class RecordSummary:
         The estimate's flags (unresolved resonance, boundary, …).
     notes : int
         Number of notes (warnings) of the run.
+    diverged : tuple of str
+        The validation records on which the model's free run diverged
+        (the model failed there; they have no metrics).
     """
 
     parameters: tuple[ParameterValue, ...]
@@ -58,6 +61,7 @@ class RecordSummary:
     structure_rejected: bool | None = None
     flags: tuple[str, ...] = ()
     notes: int = 0
+    diverged: tuple[str, ...] = ()
 
     def names(self) -> tuple[str, ...]:
         """Parameter names, in order."""
@@ -68,7 +72,21 @@ def summarise(results: Mapping[str, Any]) -> RecordSummary:
     """Return the summary of a ``results.json`` dictionary (see :func:`_summarise`)."""
     summary = _summarise(results)
     notes = results.get("notes")
-    return replace(summary, notes=len(notes) if isinstance(notes, list) else 0)
+    return replace(summary, notes=len(notes) if isinstance(notes, list) else 0,
+                   diverged=_diverged(results))
+
+
+def _diverged(results: Mapping[str, Any]) -> tuple[str, ...]:
+    """Where the free run diverged: 'record' (sample k, t = … s), per diverged record."""
+    entries = results.get("validations")
+    out = []
+    for entry in entries if isinstance(entries, list) else ():
+        where = entry.get("diverged_at") if isinstance(entry, Mapping) else None
+        if isinstance(where, Mapping):
+            name = entry.get("experiment") or "the held-back part"
+            out.append(f"{name} (sample {where.get('sample')}, t = "
+                       f"{_num(where.get('time')):.6g} s)")
+    return tuple(out)
 
 
 def _summarise(results: Mapping[str, Any]) -> RecordSummary:
@@ -153,11 +171,15 @@ def verdict_section(results: Mapping[str, Any]) -> Section:
 
     s = summarise(results)
     lines = []
+    if s.diverged:
+        lines.append(f"Validation: FAILED — the model's free run diverges on "
+                     f"{'; '.join(s.diverged)}. The model is unstable in simulation there, "
+                     "whatever its one-step fit; that record has no metrics.")
     if s.fit_percent is not None:
         lines.append(f"Validation fit: {s.fit_percent:.1f} %"
                      + (" — the model does worse than the output's mean." if s.fit_percent < 0
                         else "."))
-    else:
+    elif not s.diverged:
         lines.append("Validation fit: not computed by this method.")
     for verdict, good, bad in (
             (s.white, "Residuals: white — no structure left that the model misses.",
