@@ -8,6 +8,7 @@ report again from unchanged inputs.
 """
 
 from ._closedloop import ClosedLoopIdentification, loop_from_table
+from ._common import DivergedRun
 from ._demo import DemoResult, run_demo
 from ._inverse import InverseDynamicsIdentification, controller_from_table
 from ._lti import IdentificationResult, OrderRow
@@ -19,6 +20,7 @@ from ._run import get_method, identify, method_names, write_results
 __all__ = [
     "ClosedLoopIdentification",
     "DemoResult",
+    "DivergedRun",
     "Identification",
     "IdentificationResult",
     "InverseDynamicsIdentification",
