@@ -38,7 +38,6 @@ format of the experiment file is documented in ``docs/greybox-ode.md``.
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -46,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from .._checks import as_float, as_float_list, as_mapping, as_str, as_str_list, type_error
-from .._errors import DataError, OptionError, ServoidWarning
+from .._errors import DataError, OptionError
 from ..data import Experiment, ExperimentSpec
 from ..estimate import GreyboxParameter
 from ..estimate._diagnostics import MAX_STARTS
@@ -55,7 +54,7 @@ from ..estimate._ode_model import fit_ode
 from ..estimate._ode_user import load_function, parse_ref
 from ..report import Page
 from ._arx import OUTPUT
-from ._common import sha256
+from ._common import sha256, warnings_as_notes
 from ._lti import IdentificationResult, lti_result
 from ._options import boolean, choice, integer, number, optional
 from ._registry import Method, Option
@@ -150,18 +149,13 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         notes.append(f"[preprocess] detrend = \"{spec.preprocess.detrend}\": the physical model "
                      "sees signals with their operating point removed; use \"none\" unless the "
                      "model is written in deviations")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with warnings_as_notes() as fit_notes:  # lti_result warns each note again, from the run
         estimate = fit_ode(estimation, system, params, states=states, output=output, x0=x0,
                            estimate_initial=estimate_initial, substeps=options["substeps"],
                            covariance=options["covariance"], multistart=options["multistart"],
                            tol=options["tol"], max_nfev=options["max_nfev"],
                            rng=options["seed"])
-    for w in caught:
-        if issubclass(w.category, ServoidWarning):
-            notes.append(str(w.message))  # lti_result warns each note again, from the run
-        else:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    notes += fit_notes
     n_free = estimate.parameters.size
     title = (f"grey-box ODE {system.source} ({len(states)} states, {n_free} estimated "
              f"parameters{', compiled' if system.compiled else ''})")
