@@ -191,7 +191,35 @@ class StaticNonlinearity:
 
 
 @dataclass(frozen=True)
-class DeadZone(StaticNonlinearity):
+class _TwoBreakpoints(StaticNonlinearity):
+    """A unit-slope shape set by two breakpoints, ``lower <= upper``."""
+
+    lower: float
+    upper: float
+    _what: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        _breakpoints(self, self._what)
+
+    @property
+    def parameters(self) -> NDArray[np.float64]:
+        """θ = (lower, upper)."""
+        return np.array([self.lower, self.upper])
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """``<kind>.lower``, ``<kind>.upper``."""
+        return (f"{self.kind}.lower", f"{self.kind}.upper")
+
+    def _with(self, theta: NDArray[np.float64]) -> Any:
+        return _unchecked(self, lower=float(theta[0]), upper=float(theta[1]))
+
+    def _regions(self, theta: NDArray[np.float64]) -> list[tuple[int, str, float]]:
+        return [(0, "below", float(theta[0])), (1, "above", float(theta[1]))]
+
+
+@dataclass(frozen=True)
+class DeadZone(_TwoBreakpoints):
     """Dead zone with unit slope: no output between two breakpoints.
 
     ``f(x) = x − upper`` above ``upper``, ``x − lower`` below ``lower``
@@ -210,22 +238,8 @@ class DeadZone(StaticNonlinearity):
     [-0.5, 0.0, 1.0]
     """
 
-    lower: float
-    upper: float
     kind: ClassVar[str] = "deadzone"
-
-    def __post_init__(self) -> None:
-        _breakpoints(self, "dead zone")
-
-    @property
-    def parameters(self) -> NDArray[np.float64]:
-        """θ = (lower, upper)."""
-        return np.array([self.lower, self.upper])
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        """``deadzone.lower``, ``deadzone.upper``."""
-        return ("deadzone.lower", "deadzone.upper")
+    _what: ClassVar[str] = "dead zone"
 
     def _f(self, x: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.minimum(x - theta[0], 0.0) + np.maximum(x - theta[1], 0.0)
@@ -233,18 +247,12 @@ class DeadZone(StaticNonlinearity):
     def _df(self, x: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.column_stack([-(x < theta[0]).astype(float), -(x > theta[1]).astype(float)])
 
-    def _with(self, theta: NDArray[np.float64]) -> DeadZone:
-        return _unchecked(self, lower=float(theta[0]), upper=float(theta[1]))
-
     def _starts(self, x: NDArray[np.float64]) -> list[NDArray[np.float64]]:
         return _quantile_pairs(x)
 
-    def _regions(self, theta: NDArray[np.float64]) -> list[tuple[int, str, float]]:
-        return [(0, "below", float(theta[0])), (1, "above", float(theta[1]))]
-
 
 @dataclass(frozen=True)
-class Saturation(StaticNonlinearity):
+class Saturation(_TwoBreakpoints):
     """Saturation with unit slope: x clipped to [lower, upper].
 
     Parameters
@@ -260,22 +268,8 @@ class Saturation(StaticNonlinearity):
     [-1.0, 0.2, 0.5]
     """
 
-    lower: float
-    upper: float
     kind: ClassVar[str] = "saturation"
-
-    def __post_init__(self) -> None:
-        _breakpoints(self, "saturation")
-
-    @property
-    def parameters(self) -> NDArray[np.float64]:
-        """θ = (lower, upper)."""
-        return np.array([self.lower, self.upper])
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        """``saturation.lower``, ``saturation.upper``."""
-        return ("saturation.lower", "saturation.upper")
+    _what: ClassVar[str] = "saturation"
 
     def _f(self, x: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
         # written as a sum so that crossed limits inside a search stay a continuous function
@@ -284,16 +278,10 @@ class Saturation(StaticNonlinearity):
     def _df(self, x: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.column_stack([(x < theta[0]).astype(float), (x > theta[1]).astype(float)])
 
-    def _with(self, theta: NDArray[np.float64]) -> Saturation:
-        return _unchecked(self, lower=float(theta[0]), upper=float(theta[1]))
-
     def _starts(self, x: NDArray[np.float64]) -> list[NDArray[np.float64]]:
         lo, hi = np.quantile(x, [0.0, 1.0])
         return [np.array([np.quantile(x, p), np.quantile(x, 1 - p)])
                 for p in (0.02, 0.1, 0.25)] + [np.array([lo - 1.0, hi + 1.0])]
-
-    def _regions(self, theta: NDArray[np.float64]) -> list[tuple[int, str, float]]:
-        return [(0, "below", float(theta[0])), (1, "above", float(theta[1]))]
 
 
 @dataclass(frozen=True)
