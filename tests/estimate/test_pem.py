@@ -24,6 +24,8 @@ from servoid import (
 )
 from servoid.bench import simulate_lti
 from servoid.estimate import fit_armax, fit_arx, fit_bj, fit_oe, fit_pem
+from servoid.estimate._pem_orders import PemOrders, prepare
+from servoid.estimate._pem_start import iv_start
 from servoid.models import PolynomialModel, TransferFunction, c2d
 
 DT = 0.02
@@ -92,7 +94,7 @@ def test_estimated_initial_conditions_remove_the_start_up_transient():
     # a short record cut from the middle of a run: the plant is not at rest at its start
     full = simulate_lti(PLANT, binary(600, 5), DT)
     exp = full.slice(450, 600)
-    zero = fit_oe(exp, 2, 2, NK)
+    zero = fit_oe(exp, 2, 2, NK, initial="zero")
     est = fit_oe(exp, 2, 2, NK, initial="estimate")
     # the free response lies exactly in the span of the eliminated initial values
     assert rel_err(est.parameters, TRUE_OE) < 1e-8
@@ -100,9 +102,15 @@ def test_estimated_initial_conditions_remove_the_start_up_transient():
     assert est.options["initial"] == "estimate" and est.options["initial_values"] == 2
     # and on noisy data it still beats zero initial conditions
     noisy = simulate_lti(PLANT, binary(600, 6), DT, noise_std=0.01, rng=6).slice(450, 600)
-    err_zero = np.abs(fit_oe(noisy, 2, 2, NK).parameters - TRUE_OE)
-    err_est = np.abs(fit_oe(noisy, 2, 2, NK, initial="estimate").parameters - TRUE_OE)
+    err_zero = np.abs(fit_oe(noisy, 2, 2, NK, initial="zero").parameters - TRUE_OE)
+    est_noisy = fit_oe(noisy, 2, 2, NK, initial="estimate")
+    err_est = np.abs(est_noisy.parameters - TRUE_OE)
     assert np.linalg.norm(err_est) < 0.2 * np.linalg.norm(err_zero)
+    # the default ("auto") sees the transient and estimates the initial values by itself;
+    # it reaches the same minimum from another start (zero-start minimum): tolerance of the stop
+    auto = fit_oe(noisy, 2, 2, NK)
+    assert auto.options["initial"] == "estimate" and auto.options["initial_requested"] == "auto"
+    np.testing.assert_allclose(auto.parameters, est_noisy.parameters, rtol=0, atol=1e-6)
 
 
 # -- structure, names and the Estimate ------------------------------------------------------------
@@ -228,11 +236,16 @@ def two_resonances(seed=3):
 
 def test_multistart_finds_the_global_minimum_a_single_start_misses():
     exp, fa, _ = two_resonances()
-    single = fit_oe(exp, 2, 2, 1)
-    multi = fit_oe(exp, 2, 2, 1, multistart=6, rng=1)
+    # the IV start alone (the default before the scored starts of _pem_start.sm_starts)
+    iv = iv_start(PemOrders(0, 2, 0, 0, 2, 1, 1), prepare(exp, "u", None), 0)[0]
+    single = fit_oe(exp, 2, 2, 1, init=iv)
+    multi = fit_oe(exp, 2, 2, 1, init=iv, multistart=6, rng=1)
     near_a = fit_oe(exp, 2, 2, 1, init=[0.02, 0.02, *fa[1:]])
-    # the default start locks onto the weaker resonance (a local minimum, about twice the cost)
+    # the IV start locks onto the weaker resonance (a local minimum, about twice the cost)
     assert single.options["cost"] > 1.5 * multi.options["cost"]
+    # the default start, scored among IV and Steiglitz-McBride candidates, finds the deeper one
+    assert fit_oe(exp, 2, 2, 1).options["cost"] == pytest.approx(near_a.options["cost"],
+                                                                 rel=1e-9)
     # the random starts reach the deeper minimum, the one a start near it converges to
     assert multi.options["cost"] == pytest.approx(near_a.options["cost"], rel=1e-9)
     # the same minimum up to where tol = 1e-9 stops each search (~1e-3 σ)
@@ -241,7 +254,7 @@ def test_multistart_finds_the_global_minimum_a_single_start_misses():
     assert ms["starts"] == 7 and ms["best"] != 0 and 1 <= ms["same_minimum"] <= 7
     assert len(ms["costs"]) == 7 and multi.options["start"].startswith("random start")
     # reproducible with the same seed
-    again = fit_oe(exp, 2, 2, 1, multistart=6, rng=1)
+    again = fit_oe(exp, 2, 2, 1, init=iv, multistart=6, rng=1)
     np.testing.assert_array_equal(again.parameters, multi.parameters)
 
 
@@ -283,7 +296,7 @@ def small():
         (lambda e: fit_armax(e, "2", 2, 1), OptionTypeError, "na must be an integer"),
         (lambda e: fit_oe(e, [2, 2], 2), DataError, r"nb needs one value per input \(1\)"),
         (lambda e: fit_oe(e, 2, 2, initial="backcast"), OptionError,
-         "initial must be one of 'zero', 'estimate'; got 'backcast'"),
+         "initial must be one of 'auto', 'zero', 'estimate'; got 'backcast'"),
         (lambda e: fit_oe(e, 2, 2, input="x"), OptionError, "input must be one of"),
         (lambda e: fit_oe(e, 2, 2, tol=2.0), DataError, r"tol .* must lie in \(0, 1\)"),
         (lambda e: fit_oe(e, 2, 2, tol=0.0), DataError, "tol must be > 0"),

@@ -557,7 +557,7 @@ CASES = [
     case("arx-output-array", estimate.fit_arx, EXP, 1, 1, output=np.array([]),
          error=OptionTypeError, match=r"channel name must be a string, one of: u, y"),
     case("oe-initial", estimate.fit_oe, EXP, 2, 2, initial="rest",
-         error=OptionError, match=r"initial must be one of 'zero', 'estimate'; got 'rest'"),
+         error=OptionError, match=r"initial must be one of 'auto', 'zero', 'estimate'; got 'rest'"),
     case("armax-nc-str", estimate.fit_armax, EXP, 2, 2, "1",
          error=OptionTypeError, match=r"nc must be an integer, got '1'"),
     case("bj-nd-negative", estimate.fit_bj, EXP, 2, 1, -1, 2,

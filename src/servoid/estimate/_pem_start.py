@@ -16,6 +16,8 @@ Identification*, 2nd ed., §10.4):
    linear regression (Hannan & Rissanen, *Biometrika* 69, 1982).
 
 Roots of F, C and D outside the unit circle are reflected into it.
+For output error with one input, :func:`sm_starts` adds
+Steiglitz–McBride iterates as competing candidates (scored in ``_pem``).
 Random starts (multistart) draw stable F, C, D and solve the linear
 parameters A, B exactly for them.
 """
@@ -35,7 +37,7 @@ from ._pem_kernels import reflect
 from ._pem_orders import PemOrders, Polys, SignalData
 from ._pem_predictor import Problem
 
-__all__ = ["iv_start", "random_start", "stabilize"]
+__all__ = ["iv_start", "random_start", "sm_starts", "stabilize"]
 
 _ONE = np.ones(1)
 
@@ -77,6 +79,48 @@ def iv_start(orders: PemOrders, sd: SignalData, start: int) -> tuple[NDArray[np.
             how.append("C = D = 1 (no noise to model)")
     polys = Polys(a, tuple(bs), tuple(fs), _pad(c, orders.nc), _pad(d, orders.nd))
     return orders.join(polys), ", ".join(how)
+
+
+def sm_starts(orders: PemOrders, sd: SignalData, start: int, iterations: int,
+              samples: int) -> list[NDArray[np.float64]]:
+    """Steiglitz–McBride iterates for an output-error structure with one input.
+
+    From F₀ = 1 (the first iterate is the ARX fit), each iterate filters y
+    and u by 1/F_k and solves the ARX least-squares problem for
+    (F_{k+1}, B_{k+1}) (K. Steiglitz and L. E. McBride, "A technique for
+    the identification of linear systems", IEEE Trans. Automatic Control
+    10(4), 1965, 461–464; on such starts for the non-convex output-error
+    criterion: Ljung, *System Identification*, 2nd ed., 1999, §10.4, and
+    Söderström & Stoica, *System Identification*, 1989).  With coloured
+    noise the iterates are biased and need not converge, so every one is
+    returned as a candidate start; F is reflected into the unit circle.
+    Only the first ``samples`` samples of each segment are used (a start,
+    not an estimate: its cost stays bounded at any N).
+    """
+    if orders.na or orders.nc or orders.nd or orders.n_inputs != 1 or not orders.nf[0]:
+        return []
+    nf, nb, nk = orders.nf[0], orders.nb[0], orders.nk[0]
+    first = max(start, nf, nk + nb - 1)
+    ys = [y[:samples] for y in sd.y if min(y.size, samples) > first + nf + nb]
+    us = [u[0][:samples] for y, u in zip(sd.y, sd.u, strict=True)
+          if min(y.size, samples) > first + nf + nb]
+    if not ys:
+        return []
+    f = _ONE
+    out: list[NDArray[np.float64]] = []
+    for _ in range(iterations):
+        yf = [sps.lfilter(_ONE, f, y) for y in ys]
+        uf = [(sps.lfilter(_ONE, f, u),) for u in us]
+        try:
+            theta = arx_ls(yf, uf, nf, [nb], [nk], first)
+        except (IdentifiabilityError, DataError):
+            break
+        if not np.all(np.isfinite(theta)):
+            break
+        f, b = split_arx(theta, nf, [nb])
+        f = reflect(f)[0]
+        out.append(np.concatenate([b[0], f[1:]]))
+    return out
 
 
 def arma_start(vs: Sequence[NDArray[np.float64]], nc: int, nd: int,
