@@ -9,6 +9,7 @@ rule, and the corrupt record must be a failed row.
 from __future__ import annotations
 
 import csv
+import json
 import shutil
 from pathlib import Path
 
@@ -117,6 +118,22 @@ def test_dask_and_serial_give_identical_numbers(batch, batch_result, tmp_path):
     pytest.importorskip("distributed")
     parallel = run_fleet(batch.fleet_file, tmp_path / "dask", workers=2, progress=False)
     assert _same(parallel.rows, batch_result.rows)
+
+
+def test_dask_run_records_each_task_cpu_and_resume_starts_no_cluster(batch, batch_result,
+                                                                      tmp_path, monkeypatch):
+    pytest.importorskip("distributed")
+    out = tmp_path / "dask"
+    run_fleet(batch.fleet_file, out, workers=2, progress=False)
+    stored = [json.loads(p.read_text(encoding="utf-8")) for p in (out / "records").glob("*.json")]
+    assert len(stored) == 13
+    # a record's CPU time on its worker is at most its wall time (one thread per worker)
+    assert all(0 < s["cpu_seconds"] <= s["seconds"] * 1.05 + 0.05 for s in stored)
+    starts = []
+    monkeypatch.setattr(fleet_run._Pool, "_start_local", lambda self, n: starts.append(n))
+    again = run_fleet(batch.fleet_file, out, workers=2, progress=False)
+    assert starts == []  # every outcome was stored: no worker was started, none needed
+    assert _same(again.rows, batch_result.rows)
 
 
 def test_ageing_drift_is_found_with_the_right_sign(tmp_path):

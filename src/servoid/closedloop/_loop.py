@@ -20,6 +20,8 @@ __all__ = ["FeedbackLoop", "reduced_plant"]
 
 PARAMETER_NAMES: tuple[str, str, str] = ("K", "omega_hp", "delta_hp")
 PARAMETER_UNITS: tuple[str, str, str] = ("1/s", "rad/s", "-")
+_ONE = np.ones(1)
+_ONE.setflags(write=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,9 +138,9 @@ class FeedbackLoop:
         TransferFunction
             The closed loop from r to y, same time base as `plant`.
         """
-        f = self.feedback_at(plant.dt)
-        num = self.c * np.polymul(plant.num, f.den)
-        den = np.polyadd(np.polymul(plant.den, f.den), np.polymul(f.num, plant.num))
+        f_num, f_den = self._feedback_arrays(plant.dt)
+        num = self.c * np.convolve(plant.num, f_den)
+        den = poly_add(np.convolve(plant.den, f_den), np.convolve(f_num, plant.num))
         return TransferFunction(num, den, plant.dt, plant.method, plant.prewarp)
 
     def plant_from(self, closed_loop: TransferFunction) -> TransferFunction:
@@ -156,12 +158,20 @@ class FeedbackLoop:
             §1.5) until near pole-zero pairs are cancelled.
         """
         h = closed_loop
-        f = self.feedback_at(h.dt)
-        num = np.polymul(h.num, f.den)
-        den = np.polysub(self.c * np.polymul(h.den, f.den), np.polymul(f.num, h.num))
+        f_num, f_den = self._feedback_arrays(h.dt)
+        num = np.convolve(h.num, f_den)
+        den = poly_add(self.c * np.convolve(h.den, f_den), -np.convolve(f_num, h.num))
         if not np.any(den):
             raise ModelError("c·A − F·B vanishes identically: the closed loop equals c/F")
         return TransferFunction(num, den, h.dt, h.method, h.prewarp)
+
+    def _feedback_arrays(self, dt: float | None) -> tuple[NDArray[np.float64],
+                                                          NDArray[np.float64]]:
+        # a static F needs no TransferFunction (the fits close the loop at every step)
+        if self.is_static:
+            return np.array([float(self.F)]), _ONE  # type: ignore[arg-type]
+        f = self.feedback_at(dt)
+        return np.asarray(f.num, dtype=float), np.asarray(f.den, dtype=float)
 
     def plant_input(self, r: ArrayLike, y: ArrayLike, dt: float) -> NDArray[np.float64]:
         """Return the plant input ``u = c·r − F·y`` the loop forms.
@@ -197,6 +207,16 @@ class FeedbackLoop:
         f = self.F
         assert isinstance(f, TransferFunction)
         return {"c": self.c, "F": {"num": f.num.tolist(), "den": f.den.tolist(), "dt": f.dt}}
+
+
+def poly_add(p: ArrayLike, q: ArrayLike) -> NDArray[np.float64]:
+    """``numpy.polyadd`` of coefficient arrays (descending powers), without poly1d."""
+    a, b = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
+    if a.size < b.size:
+        a, b = b, a
+    out = a.copy()
+    out[a.size - b.size:] += b
+    return out
 
 
 def reduced_plant(theta: Sequence[float] | NDArray[np.float64]) -> TransferFunction:
@@ -246,12 +266,19 @@ def tustin(model: TransferFunction, dt: float) -> TransferFunction:
 
 def tustin_arrays(num: ArrayLike, den: ArrayLike, dt: float) -> TransferFunction:
     """Return the Tustin image of ``num(s)/den(s)`` (descending powers)."""
+    numz, denz = tustin_coefficients(num, den, dt)
+    return TransferFunction(numz, denz, dt, "tustin")
+
+
+def tustin_coefficients(num: ArrayLike, den: ArrayLike,
+                        dt: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`tustin_arrays` as its (numerator, denominator) in z, not normalised."""
     d = np.asarray(den, dtype=float)
     n = d.size - 1
     basis = _tustin_basis(n, float(dt))
     b = np.asarray(num, dtype=float)
     numz = np.concatenate([np.zeros(n + 1 - b.size), b]) @ basis
-    return TransferFunction(numz, d @ basis, dt, "tustin")
+    return numz, d @ basis
 
 
 @lru_cache(maxsize=32)

@@ -41,15 +41,17 @@ from .._errors import (
     check_option,
 )
 from .._lazy import optimize
-from .._lazy import signal as sps
 from ..data import Experiment, ExperimentSet, as_segments, detect_intersample
 from ..estimate import Estimate, fit_tf_greybox
 from ..models import TransferFunction, c2d
 from ._channels import check_name
-from ._loop import FeedbackLoop, tustin, tustin_arrays
+from ._descent import descend
+from ._kernels import level_residuals
+from ._loop import FeedbackLoop
+from ._onestep_model import Coefficients, model_function
 from ._physical import anchors_of, delta_method, pole_report, warn_flagged
 from ._result import ClosedLoopResult
-from ._sampling import BANDLIMITED_DEGREE, Hold, sampled_arrays, sampled_loop
+from ._sampling import BANDLIMITED_DEGREE, Hold
 from ._start import grid_starts
 from ._structures import STRUCTURES, PlantStructure
 
@@ -209,8 +211,8 @@ def fit_one_step(
                         f"{min(seg.n_samples for seg in segments)}")
     chain = anti_alias is not None or decimation > 1
     hold, note = _intersample(segments[0], discretization, chain, anti_alias, decimation)
-    model_fn, advance = _model_function(plant_structure, loop, dt, discretization, hold,
-                                        anti_alias, decimation)
+    model_fn, coefficients, advance = model_function(plant_structure, loop, dt, discretization,
+                                                      hold, anti_alias, decimation)
     records = [(seg.signal("r")[:, 0], seg[_output(seg, output)]) for seg in segments]
     problem = _Problem(_aligned(segments, output, advance),
                        (segments[0].names_of("r")[0], _output(segments[0], output)), dt,
@@ -223,7 +225,7 @@ def fit_one_step(
                                                                   n_starts)]
     else:
         starts = [_check_theta0(theta0, plant_structure)]
-    est = _best_fit(problem, model_fn, starts, plant_structure, max_nfev, bounds)
+    est = _best_fit(problem, model_fn, coefficients, starts, plant_structure, max_nfev, bounds)
     return greybox_result(
         "one-step", est, loop, dt, est.model, integrator_tol, discretization=discretization,
         structure=plant_structure, hold=hold, note=note, advance=advance, reference=records,
@@ -340,69 +342,6 @@ def _intersample(
 _KIND = {"zoh": "staircase (DAC command)", "bandlimited": "band-limited (read back)"}
 
 
-def _model_function(
-    plant_structure: PlantStructure, loop: FeedbackLoop, dt: float, discretization: str,
-    hold: Hold | None, anti_alias: TransferFunction | None, decimation: int,
-) -> tuple[Callable[[NDArray[np.float64]], TransferFunction], int]:
-    """θ ↦ the discrete closed loop at dt, and its advance [samples]."""
-    plant_of = plant_structure.plant
-    reduced_of = plant_structure.reduced
-    if hold is not None:
-        if isinstance(loop.F, TransferFunction) and loop.F.dt is not None:
-            raise OptionError(
-                f"discretization={discretization!r} samples the continuous closed loop, but F is "
-                f"discrete (dt = {loop.F.dt} s); give F as a continuous TransferFunction or a "
-                "gain, or use discretization='tustin'"
-            )
-
-        f = loop.feedback_at(None)
-        f_num, f_den, c = np.asarray(f.num, float), np.asarray(f.den, float), loop.c
-
-        def exact(theta: NDArray[np.float64]) -> TransferFunction:
-            # c·G/(1 + F·G) as polynomials: no intermediate TransferFunction to build
-            plant = plant_of(theta)
-            num = c * np.polymul(plant.num, f_den)
-            den = np.polyadd(np.polymul(plant.den, f_den), np.polymul(f_num, plant.num))
-            model, _ = sampled_arrays(num, den, dt, hold, anti_alias=anti_alias,
-                                      decimation=decimation)
-            return model
-
-        _, advance = sampled_loop(loop.close(plant_of(_probe(plant_structure))), dt, hold,
-                                  anti_alias=anti_alias, decimation=decimation)
-        return exact, advance
-    if discretization == "prewarp":
-
-        def prewarped(theta: NDArray[np.float64]) -> TransferFunction:
-            # Tustin with s = k(z − 1)/(z + 1), k = ω/tan(ωT/2): the map of step 2/k.
-            w = reduced_of(theta)[1]
-            h = 2.0 * math.tan(0.5 * w * dt) / w
-            plant = plant_of(theta)
-            mapped = tustin_arrays(plant.num, plant.den, h)
-            return loop.close(TransferFunction(mapped.num, mapped.den, dt, "tustin", w))
-
-        return prewarped, 0
-    if loop.is_static and plant_structure.name == "reduced":
-        f, c = float(loop.F), loop.c  # type: ignore[arg-type]
-
-        def fast(theta: NDArray[np.float64]) -> TransferFunction:
-            # static F: close in s, then one Tustin map (it commutes with the loop algebra)
-            k, w, d = theta
-            kw2 = k * w * w
-            return tustin_arrays([c * kw2], [1.0, 2.0 * d * w, w * w, f * kw2], dt)
-
-        return fast, 0
-
-    def mapped(theta: NDArray[np.float64]) -> TransferFunction:
-        return loop.close(tustin(plant_of(theta), dt))
-
-    return mapped, 0
-
-
-def _probe(plant_structure: PlantStructure) -> NDArray[np.float64]:
-    # any valid θ fixes the advance, which depends only on the hold and the rig chain
-    return plant_structure.start((1.0, 1.0, 0.5))
-
-
 def _aligned(segments: Sequence[Experiment], output: str | None,
              advance: int) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
     """(r, y) with y delayed by `advance` samples: ``y(k − L) = G'(q)·r(k)`` is causal.
@@ -412,7 +351,7 @@ def _aligned(segments: Sequence[Experiment], output: str | None,
     out = []
     for seg in segments:
         r = np.ascontiguousarray(seg.signal("r")[:, 0], dtype=float)
-        y = np.asarray(seg[_output(seg, output)], dtype=float)
+        y = np.ascontiguousarray(seg[_output(seg, output)], dtype=float)
         if advance:
             y = np.concatenate([np.zeros(advance), y[: y.size - advance]])
         out.append((r, y))
@@ -459,6 +398,7 @@ class _Problem:
 def _best_fit(
     problem: _Problem,
     model_fn: Callable[[NDArray[np.float64]], TransferFunction],
+    coefficients: Coefficients,
     starts: Sequence[NDArray[np.float64]],
     plant_structure: PlantStructure,
     max_nfev: int | None,
@@ -475,7 +415,7 @@ def _best_fit(
     """
     if bounds is not None:
         starts = [np.clip(t, bounds[0], 0.99 * bounds[1]) for t in starts]
-    ranked = _rank_starts(problem, model_fn, starts, plant_structure, bounds, max_nfev)
+    ranked = _rank_starts(problem, coefficients, starts, plant_structure, bounds, max_nfev)
     failures: list[Exception] = []
     dt = problem.dt
     for theta0, nuisance in ranked:
@@ -509,47 +449,36 @@ def _best_fit(
     raise first
 
 
-def _simulate(model: TransferFunction, x: NDArray[np.float64]) -> NDArray[np.float64]:
-    numq = np.concatenate([np.zeros(model.den.size - model.num.size), model.num])
-    with np.errstate(all="ignore"):
-        return np.asarray(sps.lfilter(numq, model.den, x), dtype=float)
-
-
 def _level_fit(
-    problem: _Problem, model: TransferFunction,
+    problem: _Problem, model: tuple[NDArray[np.float64], NDArray[np.float64]],
 ) -> tuple[list[NDArray[np.float64]], list[tuple[float, float]]]:
     """Residuals with the rest level and output offset of each record projected out.
 
-    A loop held at level ℓ before the record adds ``ℓ·(G(1) − s(k))`` to
-    the response from rest (s the step response, G(1) the static gain);
-    an offset o of the output adds o.  Removing the means (spec §3.2)
-    leaves exactly these two for a record that starts at rest:
-    ``ℓ = −mean(r)`` and ``o = G(1)·mean(r) − mean(y)``, which differ from
-    zero by the loop's lag over a short record.  Both are linear: least
-    squares per record.
+    `model` is ``(b, a)`` as lfilter takes it.  A loop held at level ℓ
+    before the record adds ``ℓ·(G(1) − s(k))`` to the response from rest
+    (s the step response, G(1) the static gain); an offset o of the output
+    adds o.  Removing the means (spec §3.2) leaves exactly these two for a
+    record that starts at rest: ``ℓ = −mean(r)`` and
+    ``o = G(1)·mean(r) − mean(y)``, which differ from zero by the loop's lag
+    over a short record.  Both are linear: least squares per record, on the
+    criterion's samples.  G(1) is the settled step response (it equals the
+    static gain once the loop has settled within the record, which a record
+    that resolves it always allows); a start after the transient has died
+    out (decay energy below 1e-6 of the whole) leaves the level without
+    effect and undetermined, so the offset is fitted alone.  The simulation
+    and the regression are one compiled pass (:func:`._kernels.level_residuals`).
     """
+    b, a = model
     out, nuisance = [], []
-    s0 = problem.start
-    for r, y in problem.records:
-        e = y - _simulate(model, r)
-        level = offset = 0.0
-        if problem.initial == "level":
-            step = _simulate(model, np.ones(r.size))
-            if np.all(np.isfinite(step)):
-                # the static gain: the settled step response (it equals G(1) once the loop has
-                # settled within the record, which a record that resolves it always allows)
-                decay = step[-1] - step
-                columns = [decay, np.ones(r.size)]
-                # a start after the transient has died out (energy below 1e-6 of the whole
-                # decay) leaves the level without effect and undetermined: fit the offset alone
-                if float(decay[s0:] @ decay[s0:]) < 1e-6 * float(decay @ decay):
-                    columns = columns[1:]
-                coef, *_ = np.linalg.lstsq(np.column_stack(columns)[s0:], e[s0:], rcond=None)
-                offset = float(coef[-1])
-                level = float(coef[0]) if len(columns) == 2 else 0.0
-                e = e - level * decay - offset
-        out.append(e[s0:])
-        nuisance.append((level, offset))
+    with np.errstate(all="ignore"):
+        for r, y in problem.records:
+            e, level, offset = level_residuals(b, a, r, y, problem.start,
+                                               problem.initial == "level")
+            if not (math.isfinite(level) and math.isfinite(offset)):
+                # what the least-squares solver does on a non-finite column: the start fails
+                raise np.linalg.LinAlgError("the level regression is not finite")
+            out.append(e)
+            nuisance.append((level, offset))
     return out, nuisance
 
 
@@ -579,20 +508,32 @@ def _with_levels(
 
 def _rank_starts(
     problem: _Problem,
-    model_fn: Callable[[NDArray[np.float64]], TransferFunction],
+    coefficients: Coefficients,
     starts: Sequence[NDArray[np.float64]],
     plant_structure: PlantStructure,
     bounds: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
     max_nfev: int | None,
 ) -> list[tuple[NDArray[np.float64], list[tuple[float, float]]]]:
-    """The optima of loose descents from each start with their levels, best first."""
+    """The optima of loose descents from each start with their levels, best first.
+
+    A descent that comes within :data:`_JOIN` (relative) of an optimum an
+    earlier descent found has joined that basin: it would end there, so it
+    stops and counts as that optimum (the usual case: every start of a
+    well-excited record leads to the one minimum, and the last third of
+    each later descent is spent converging onto it again).
+    """
     is_log = np.array([t == "log" for t in plant_structure.transforms])
 
     def to_theta(z: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.where(is_log, np.exp(np.where(is_log, z, 0.0)), z)
 
+    found: list[tuple[float, NDArray[np.float64], NDArray[np.float64]]] = []  # cost, z, scale
+
     def residuals(z: NDArray[np.float64]) -> NDArray[np.float64]:
-        parts, _ = _level_fit(problem, model_fn(to_theta(z)))
+        for k, (_, z_opt, scale) in enumerate(found):
+            if np.all(np.abs(z - z_opt) <= scale):
+                raise _Joined(k)
+        parts, _ = _level_fit(problem, coefficients(to_theta(z)))
         out = np.concatenate(parts)
         out[~np.isfinite(out)] = 1e30  # a diverging simulation: finite, so the step is refused
         return out
@@ -602,27 +543,59 @@ def _rank_starts(
         lo = np.where(is_log, np.log(np.where(is_log, bounds[0], 1.0)), bounds[0])
         hi = np.where(is_log, np.log(np.where(is_log, bounds[1], 1.0)), bounds[1])
     ranked: list[tuple[float, NDArray[np.float64]]] = []
+    limit = max_nfev if max_nfev is not None else 100 * (len(plant_structure.names) + 1)
     for theta0 in starts:
         z0 = np.where(is_log, np.log(np.where(is_log, theta0, 1.0)), theta0)
         try:
             with np.errstate(all="ignore"), warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
-                res = optimize.least_squares(
-                    residuals, z0, method="lm" if bounds is None else "trf",
-                    bounds=(-np.inf, np.inf) if lo is None else (lo, hi),
-                    xtol=1e-6, ftol=1e-6, gtol=1e-8,
-                    max_nfev=max_nfev if max_nfev is not None else 100 * (z0.size + 1))
+                if lo is None:
+                    x, cost = _loose(residuals, z0, limit)
+                else:
+                    res = optimize.least_squares(
+                        residuals, z0, method="trf", bounds=(lo, hi), xtol=1e-6, ftol=1e-6,
+                        gtol=1e-8, max_nfev=limit)
+                    x, cost = res.x, float(res.cost)
+        except _Joined as joined:
+            cost, z_opt, _ = found[joined.basin]
+            ranked.append((cost, to_theta(z_opt)))
+            continue
         except (ValueError, np.linalg.LinAlgError):
             ranked.append((math.inf, np.asarray(theta0, dtype=float)))
             continue
-        ok = np.all(np.isfinite(res.x)) and np.isfinite(res.cost) and res.cost < 1e50
-        ranked.append((float(res.cost) if ok else math.inf, to_theta(res.x) if ok else theta0))
+        ok = np.all(np.isfinite(x)) and np.isfinite(cost) and cost < 1e50
+        ranked.append((float(cost) if ok else math.inf, to_theta(x) if ok else theta0))
+        if ok:
+            # log coordinates are relative already; the others relative to the optimum
+            scale = _JOIN * np.where(is_log, 1.0, np.abs(x))
+            found.append((float(cost), np.array(x, dtype=float), scale))
     ranked.sort(key=lambda item: item[0])
     out = []
     for _, theta in ranked:
-        _, nuisance = _level_fit(problem, model_fn(theta))
+        _, nuisance = _level_fit(problem, coefficients(theta))
         out.append((theta, nuisance))
     return out
+
+
+def _loose(residuals: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+           z0: NDArray[np.float64], max_nfev: int) -> tuple[NDArray[np.float64], float]:
+    """A loose unbounded descent (:func:`._descent.descend`, MINPACK's tolerances 1e-6)."""
+    out = descend(residuals, z0, ftol=1e-6, xtol=1e-6, gtol=1e-8, max_nfev=max_nfev)
+    return out.x, out.cost
+
+
+#: Relative distance to a found optimum within which a later descent has joined its basin.
+#: The loose descents stop at 1e-6; a basin of the criterion is far wider than 1e-3 of a
+#: parameter (distinct minima lie a factor 1.5 or more apart in ω_hp).
+_JOIN = 1e-3
+
+
+class _Joined(Exception):
+    """A descent reached the neighbourhood of an optimum found before."""
+
+    def __init__(self, basin: int) -> None:
+        super().__init__(basin)
+        self.basin = basin
 
 
 # -- the physical estimate and its checks ------------------------------------------------------

@@ -35,7 +35,6 @@ has passed: the tail of g obeys D's recursion.
 
 from __future__ import annotations
 
-import math
 from functools import lru_cache
 from typing import Literal
 
@@ -46,6 +45,7 @@ from .._errors import ModelError
 from .._lazy import signal as sps
 from ..estimate._hybrid import piece_transition
 from ..models import TransferFunction
+from . import _kernels
 
 __all__: list[str] = []
 
@@ -55,6 +55,18 @@ HOLDS: tuple[Hold, ...] = ("zoh", "foh", "bandlimited")
 #: Degree of the band-limited course (8 nodes, 3 samples behind and 4 ahead).
 BANDLIMITED_DEGREE = 7
 _FIR_SPAN = 20  # servoid.data.decimate: firwin(20·q + 1, 1/q, hamming)
+_STATUS = {
+    _kernels.BAD_COEFFICIENTS: "the closed-loop model has non-finite or vanishing coefficients: "
+                               "the parameters left the range where the plant structure is "
+                               "defined",
+    _kernels.STATIC: "the closed loop has no dynamics (a static gain): nothing to sample",
+    _kernels.IMPROPER: "the closed loop is improper (more zeros than poles): it cannot be "
+                       "sampled; check the plant structure's lag parameters",
+    _kernels.OVERFLOW: "the sampled closed loop is not finite over one sample period: the "
+                       "parameters left the range where the plant structure can be sampled "
+                       "(an anti_alias filter that does not match the data, or a poor theta0, "
+                       "can drive them there)",
+}
 
 
 @lru_cache(maxsize=8)
@@ -105,6 +117,28 @@ def sampled_arrays(
     return _polynomial_hold(num, den, dt, 1 if hold == "foh" else BANDLIMITED_DEGREE)
 
 
+def sampled_coefficients(
+    num: NDArray[np.float64],
+    den: NDArray[np.float64],
+    dt: float,
+    hold: Hold,
+    *,
+    anti_alias: TransferFunction | None = None,
+    decimation: int = 1,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+    """:func:`sampled_arrays` as ``(b, a, advance)`` for lfilter, without a TransferFunction.
+
+    ``a`` is monic and ``b`` as long as ``a``: ``lfilter(b, a, r)`` simulates
+    the model.  The fits' inner loops call this at every step.
+    """
+    if hold == "zoh" or anti_alias is not None or decimation > 1:
+        model, advance = sampled_arrays(num, den, dt, hold, anti_alias=anti_alias,
+                                        decimation=decimation)
+        b = np.concatenate([np.zeros(model.den.size - model.num.size), model.num])
+        return b, np.asarray(model.den, dtype=float), advance
+    return polynomial_hold_arrays(num, den, dt, 1 if hold == "foh" else BANDLIMITED_DEGREE)
+
+
 def _realise(num: NDArray[np.float64], den: NDArray[np.float64],
              unit: float) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                    NDArray[np.float64], float]:
@@ -112,10 +146,9 @@ def _realise(num: NDArray[np.float64], den: NDArray[np.float64],
     den, num = _leading(_finite(den)), _leading(_finite(num))
     n = den.size - 1
     if n < 1:
-        raise ModelError("the closed loop has no dynamics (a static gain): nothing to sample")
+        raise ModelError(_STATUS[_kernels.STATIC])
     if num.size > den.size:
-        raise ModelError("the closed loop is improper (more zeros than poles): it cannot be "
-                         "sampled; check the plant structure's lag parameters")
+        raise ModelError(_STATUS[_kernels.IMPROPER])
     scale = unit ** np.arange(n + 1)  # s = s'/unit: the s^(n−i) coefficient gains unit^i
     dd = den * scale
     nn = np.concatenate([np.zeros(n + 1 - num.size), num]) * scale
@@ -133,18 +166,14 @@ def _realise(num: NDArray[np.float64], den: NDArray[np.float64],
 def _check_transition(phi: NDArray[np.float64], g: NDArray[np.float64]) -> None:
     """A ModelError when one sample period of the model overflows (a fast unstable pole)."""
     if not (np.all(np.isfinite(phi)) and np.all(np.isfinite(g))):
-        raise ModelError("the sampled closed loop is not finite over one sample period: the "
-                         "parameters left the range where the plant structure can be sampled "
-                         "(an anti_alias filter that does not match the data, or a poor theta0, "
-                         "can drive them there)")
+        raise ModelError(_STATUS[_kernels.OVERFLOW])
 
 
 def _finite(poly: NDArray[np.float64]) -> NDArray[np.float64]:
     """`poly` as floats, or a ModelError when a coefficient is not finite or all vanish."""
     poly = np.asarray(poly, dtype=float)
     if not np.all(np.isfinite(poly)) or not np.any(poly):
-        raise ModelError("the closed-loop model has non-finite or vanishing coefficients: the "
-                         "parameters left the range where the plant structure is defined")
+        raise ModelError(_STATUS[_kernels.BAD_COEFFICIENTS])
     return poly
 
 
@@ -156,32 +185,37 @@ def _leading(poly: NDArray[np.float64]) -> NDArray[np.float64]:
 def _polynomial_hold(num: NDArray[np.float64], den: NDArray[np.float64], dt: float,
                      degree: int) -> tuple[TransferFunction, int]:
     """Exact model for an input that is the degree-`degree` polynomial through nearby samples."""
-    a, b, c, d = _realise(num, den, dt)
-    n = a.shape[0]
+    b, a, advance = polynomial_hold_arrays(num, den, dt, degree)
+    return TransferFunction(b, a, dt), advance
+
+
+def polynomial_hold_arrays(num: NDArray[np.float64], den: NDArray[np.float64], dt: float,
+                           degree: int) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+    """:func:`_polynomial_hold` as ``(b, a, advance)``, b padded to a's length, a monic.
+
+    The period [k, k+1] interpolates the samples ``r(k + m)``, m = −behind …
+    degree − behind; its state transition and input weights come from Van
+    Loan's block exponential (:func:`servoid.estimate._hybrid.piece_transition`,
+    compiled in :func:`._kernels.polynomial_hold`), and
+    ``y(k) = c·x(k) + d·r(k)``, ``x(k+1) = Φx(k) + Σ_m Γ_m r(k+m)`` gives the
+    impulse response ``g(j) = Σ_m c·Φ^(j−1+m)·Γ_m`` and the transfer function
+    (:func:`_rational`).
+    """
     behind = (degree - 1) // 2 if degree > 1 else 0
-    nodes = np.arange(-behind, degree + 1 - behind, dtype=float)  # period [k, k+1] uses these
-    phi, g = piece_transition(a, b, 1.0, 1.0, degree)
-    _check_transition(phi, g)
-    # coefficients (ascending in σ ∈ [0, 1]) from the samples, then derivatives j!·c_j at σ = 0
-    coef = np.linalg.inv(np.vander(nodes, degree + 1, increasing=True))
-    factorial = np.array([math.factorial(j) for j in range(degree + 1)], dtype=float)
-    gammas = g @ (factorial[:, None] * coef)  # column m: weight of r(k + nodes[m]) in x(k+1)
-    m_min, m_max = int(nodes[0]), int(nodes[-1])
-    advance = max(m_max - 1, 0)
-    length = n + m_max - m_min + 1  # the tail obeys D's recursion from here on
-    # y(k) = c·x(k) + d·r(k), x(k+1) = Φx(k) + Σ_m Γ_m r(k+m): g(j) = Σ_m cΦ^(j−1+m)Γ_m
-    rows = np.empty((length + m_max + 1, n))
-    rows[0] = c
-    for e in range(1, rows.shape[0]):
-        rows[e] = rows[e - 1] @ phi  # c·Φ^e
-    table = rows @ gammas  # [e, m − m_min] = c·Φ^e·Γ_m
-    h = np.zeros(length + 1)
-    for col, m in enumerate(range(m_min, m_max + 1)):
-        e = np.arange(length + 1) - advance - 1 + m  # exponent for each jp
-        ok = (e >= 0) & (e < table.shape[0])
-        h[ok] += table[e[ok], col]
-    h[advance] += d
-    return _rational(phi, h, length, dt), advance
+    m_min, m_max = -behind, degree - behind
+    b, a, status = _kernels.polynomial_hold(
+        np.ascontiguousarray(num, dtype=float), np.ascontiguousarray(den, dtype=float),
+        float(dt), _hold_weights(m_min, m_max), m_min, m_max)
+    if status != _kernels.OK:
+        raise ModelError(_STATUS[status])
+    return b, a, max(m_max - 1, 0)
+
+
+@lru_cache(maxsize=8)
+def _hold_weights(m_min: int, m_max: int) -> NDArray[np.float64]:
+    weights = _kernels.hold_weights(m_min, m_max)
+    weights.setflags(write=False)
+    return weights
 
 
 def _chain(num: NDArray[np.float64], den: NDArray[np.float64], dt: float,

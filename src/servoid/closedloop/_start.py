@@ -27,9 +27,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._lazy import optimize
-from .._lazy import signal as sps
 from ..models import TransferFunction
-from ._loop import FeedbackLoop, tustin, tustin_arrays
+from ._kernels import first_order_cost, tustin_costs
+from ._loop import FeedbackLoop, tustin, tustin_coefficients
 
 __all__: list[str] = []
 
@@ -54,15 +54,11 @@ def grid_starts(
     k0 = a / f0
     w_lo = min(max(a / 4.0, a_lo), 0.5 * omega_max)
     omegas = np.geomspace(w_lo, omega_max, _N_OMEGA)
-    scored: list[tuple[float, NDArray[np.float64]]] = []
-    for w in omegas:
-        for d in _DELTAS:
-            if loop.is_static and f0 * k0 >= 2.0 * d * w:  # Routh: FK < 2δω
-                continue
-            theta = np.array([k0, w, d])
-            cost = _cost(records, _tustin_loop(theta, loop, dt))
-            if math.isfinite(cost):
-                scored.append((cost, theta))
+    grid = [np.array([k0, w, d]) for w in omegas for d in _DELTAS
+            if not (loop.is_static and f0 * k0 >= 2.0 * d * w)]  # Routh: FK < 2δω
+    costs = _costs(records, [_tustin_loop(theta, loop, dt) for theta in grid])
+    scored = [(cost, theta) for cost, theta in zip(costs, grid, strict=True)
+              if math.isfinite(cost)]
     if not scored:  # nothing stable on the grid: a resonance far above the band
         return [np.array([k0, omega_max, 1.0])]
     scored.sort(key=lambda item: item[0])
@@ -87,10 +83,12 @@ def _first_order_rate(
 ) -> float:
     """Bandwidth a [rad/s] of the first-order loop gain·a/(s + a) fitting y best."""
 
+    pairs = [(np.ascontiguousarray(r, dtype=float), np.ascontiguousarray(y, dtype=float))
+             for r, y in records]
+
     def cost(log_a: float) -> float:
         p = math.exp(-math.exp(log_a) * dt)  # ZOH image: y(k) = p·y(k−1) + gain·(1 − p)·r(k−1)
-        return sum(float(np.sum((y - sps.lfilter([0.0, gain * (1.0 - p)], [1.0, -p], r)) ** 2))
-                   for r, y in records)
+        return sum(first_order_cost(p, gain * (1.0 - p), r, y) for r, y in pairs)
 
     # bounded Brent on a log grid's best cell: the cost is smooth and unimodal there
     grid = np.linspace(math.log(a_lo), math.log(a_hi), 24)
@@ -102,20 +100,35 @@ def _first_order_rate(
     return float(math.exp(res.x))
 
 
-def _tustin_loop(theta: NDArray[np.float64], loop: FeedbackLoop, dt: float) -> TransferFunction:
+def _tustin_loop(theta: NDArray[np.float64], loop: FeedbackLoop,
+                 dt: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(b, a)`` of the Tustin closed loop at θ, b as long as a (lfilter's form), a monic."""
     k, w, d = theta
     kw2 = k * w * w
     if loop.is_static:
         f = float(loop.F)  # type: ignore[arg-type]
-        return tustin_arrays([loop.c * kw2], [1.0, 2.0 * d * w, w * w, f * kw2], dt)
-    return loop.close(tustin(TransferFunction([kw2], [1.0, 2.0 * d * w, w * w, 0.0]), dt))
+        num, den = tustin_coefficients([loop.c * kw2], [1.0, 2.0 * d * w, w * w, f * kw2], dt)
+    else:
+        model = loop.close(tustin(TransferFunction([kw2], [1.0, 2.0 * d * w, w * w, 0.0]), dt))
+        num, den = np.asarray(model.num, float), np.asarray(model.den, float)
+    num = np.concatenate([np.zeros(den.size - num.size), num])
+    return num / den[0], den / den[0]
 
 
-def _cost(records: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
-          model: TransferFunction) -> float:
-    numq = np.concatenate([np.zeros(model.den.size - model.num.size), model.num])
-    total = 0.0
+def _costs(records: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]],
+           models: Sequence[tuple[NDArray[np.float64], NDArray[np.float64]]]) -> list[float]:
+    """Output error Σ (y − model·r)² of each ``(b, a)`` over the records (inf if not finite)."""
+    if not models:
+        return []
+    width = max(a.size for _, a in models)
+    nums = np.zeros((len(models), width))
+    dens = np.zeros((len(models), width))
+    for i, (b, a) in enumerate(models):
+        nums[i, : b.size] = b  # trailing zeros: the same filter
+        dens[i, : a.size] = a
+    total = np.zeros(len(models))
     with np.errstate(all="ignore"):
         for r, y in records:
-            total += float(np.sum((y - sps.lfilter(numq, model.den, r)) ** 2))
-    return total if math.isfinite(total) else math.inf
+            total += tustin_costs(nums, dens, np.ascontiguousarray(r, dtype=float),
+                                  np.ascontiguousarray(y, dtype=float))
+    return [float(c) if math.isfinite(c) else math.inf for c in total]

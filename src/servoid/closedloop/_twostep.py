@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import as_float
-from .._errors import DataError, OptionError, ServoidWarning, check_option
+from .._errors import DataError, ModelError, OptionError, ServoidWarning, check_option
 from .._lazy import signal as sps
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import fit_arx, fit_tf_greybox
@@ -100,6 +100,12 @@ def fit_indirect(
         arx = dataclasses.replace(arx, options={**arx.options, "prefilter_hz": prefilter})
 
     def plant_of(theta: NDArray[np.float64]) -> TransferFunction:
+        if loop.is_static:  # B/(c·A − F·B) from the arrays: one TransferFunction, not three
+            a, b = _arx_arrays(theta, na, nk)
+            den = loop.c * a - float(loop.F) * b  # type: ignore[arg-type]
+            if not np.any(den):
+                raise ModelError("c·A − F·B vanishes identically: the closed loop equals c/F")
+            return TransferFunction(b, den, dt, "tustin")
         return loop.plant_from(_arx_tf(theta, na, nk, dt))
 
     if cancel_tol is None and not loop.is_static:
@@ -282,12 +288,18 @@ def _lowpass(
 
 def _arx_tf(theta: NDArray[np.float64], na: int, nk: int, dt: float) -> TransferFunction:
     """Return ``B(q⁻¹)/A(q⁻¹)`` as a z-domain transfer function (Tustin-tagged)."""
+    az, bz = _arx_arrays(theta, na, nk)
+    return TransferFunction(bz, az, dt, "tustin")
+
+
+def _arx_arrays(theta: NDArray[np.float64], na: int,
+                nk: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``A`` and ``B`` of an ARX θ padded to one length (descending powers of z)."""
     a = np.concatenate([[1.0], theta[:na]])
     b = np.concatenate([np.zeros(nk), theta[na:]])
     n = max(a.size, b.size)
-    az = np.concatenate([a, np.zeros(n - a.size)])
-    bz = np.concatenate([b, np.zeros(n - b.size)])
-    return TransferFunction(bz, az, dt, "tustin")
+    return (np.concatenate([a, np.zeros(n - a.size)]),
+            np.concatenate([b, np.zeros(n - b.size)]))
 
 
 def _check_positive(name: str, value: float) -> None:
