@@ -58,14 +58,15 @@ def _recorded(record, family):
 
 def test_emps_force_narx_beats_every_linear_model(halves):
     narx = _held_back(lambda e: fit_narx(e, na=2, nb=4, nk=0, degree=3), halves, "emps")
-    oe = _held_back(lambda e: fit_oe(e, 4, 3, 0), halves, "emps")
+    oe = _held_back(lambda e: fit_oe(e, 6, 4, 0), halves, "emps")
     arx = _held_back(lambda e: fit_arx(e, 6, 4, 0), halves, "emps")
     assert _recorded("emps", "NARX")["model"] == "NARX na=2 nb=4 nk=0 degree=3"
     assert narx == pytest.approx(_recorded("emps", "NARX")["held_back_fit"], abs=0.5)
     assert oe == pytest.approx(_recorded("emps", "OE")["held_back_fit"], abs=0.5)
     assert arx == pytest.approx(_recorded("emps", "ARX")["held_back_fit"], abs=0.5)
-    # the docs' claim: the friction in the force is worth > 5 points of free-run fit
-    assert narx > max(oe, arx) + 5.0
+    # the docs' claim: the friction in the force is worth > 3 points of free-run fit
+    assert _recorded("emps", "OE")["model"] == "OE nb=6 nf=4 nk=0"
+    assert narx > max(oe, arx) + 3.0
 
 
 def test_arm_is_linear_within_about_one_point(halves):
@@ -74,9 +75,9 @@ def test_arm_is_linear_within_about_one_point(halves):
     arx = _held_back(lambda e: fit_arx(e, 4, 8, 0), halves, "arm")
     assert block == pytest.approx(_recorded("arm", "block")["held_back_fit"], abs=0.5)
     assert arx == pytest.approx(_recorded("arm", "ARX")["held_back_fit"], abs=0.5)
-    # the docs' claim, chosen model against chosen model: the nonlinear families gain at most
-    # about a point over the linear ones on this record (block 96.7 %, ARX 95.6 %)
+    # the docs' claim, chosen model against chosen model: on this record a linear model is best
+    # and the nonlinear families stay within 1.5 points of it (OE 96.9 %, block 96.7 %)
     chosen = {f: _recorded("arm", f)["held_back_fit"] for f in ("ARX", "OE", "NARX", "block")}
     best_linear = max(chosen["ARX"], chosen["OE"])
-    assert max(chosen["NARX"], block) < best_linear + 1.5
-    assert block > best_linear - 1.5  # and lose nothing either
+    assert max(chosen["NARX"], block) <= best_linear
+    assert min(chosen["NARX"], block) > best_linear - 1.5
