@@ -1,38 +1,102 @@
-"""Estimators: least squares, ARX, prediction error, IV, subspace, continuous time, FRF."""
+"""Estimators: least squares, ARX, prediction error, IV, subspace, continuous time, FRF.
 
-from ._arx import ArxOrders, fit_arx
-from ._band import FrequencyBand, frequency_band
-from ._diagnostics import (
-    Identifiability,
-    IdentifiabilityFlag,
-    MultistartSummary,
-    check_identifiability,
-)
-from ._estimate import Estimate, ParameterRow
-from ._fit_frf import FrfWeighting, fit_frf
-from ._frf import FrfMethod, estimate_frf
-from ._greybox import GreyboxModel, GreyboxParameter, fit_greybox
-from ._innovation import InnovationModel
-from ._inverse import (
-    FRICTION_MODELS,
-    InverseDynamicsRegression,
-    fit_closed_loop_oe,
-    fit_inverse_dynamics,
-    inverse_dynamics_regression,
-)
-from ._iv import fit_iv
-from ._ls import LeastSquaresResult, lstsq, solve_gram
-from ._modal import modal_parameters
-from ._order import OrderCandidate, OrderSelection, select_arx_order
-from ._pem import fit_armax, fit_bj, fit_oe, fit_pem
-from ._rls import RecursiveLeastSquaresResult, fit_rls
-from ._search import StructureCandidate, StructureSelection, select_order
-from ._separable import fit_separable
-from ._srivc import fit_tf
-from ._ss_polynomial import to_polynomial
-from ._subspace import fit_n4sid
-from ._svf import FilteredSignal, filter_product, state_variable_filter
-from ._tf_greybox import fit_tf_greybox
+The estimators load on first use (PEP 562), so that ``import servoid.estimate``
+does not import numba, scipy and every estimator's module before one is
+called: ``from servoid.estimate import fit_arx`` imports ``_arx`` and what
+it needs, nothing else.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ._arx import ArxOrders, fit_arx
+    from ._band import FrequencyBand, frequency_band
+    from ._diagnostics import (
+        Identifiability,
+        IdentifiabilityFlag,
+        MultistartSummary,
+        check_identifiability,
+    )
+    from ._estimate import Estimate, ParameterRow
+    from ._fit_frf import FrfWeighting, fit_frf
+    from ._frf import FrfMethod, estimate_frf
+    from ._greybox import GreyboxModel, GreyboxParameter, fit_greybox
+    from ._innovation import InnovationModel
+    from ._inverse import (
+        FRICTION_MODELS,
+        InverseDynamicsRegression,
+        fit_closed_loop_oe,
+        fit_inverse_dynamics,
+        inverse_dynamics_regression,
+    )
+    from ._iv import fit_iv
+    from ._ls import LeastSquaresResult, lstsq, solve_gram
+    from ._modal import modal_parameters
+    from ._order import OrderCandidate, OrderSelection, select_arx_order
+    from ._pem import fit_armax, fit_bj, fit_oe, fit_pem
+    from ._rls import RecursiveLeastSquaresResult, fit_rls
+    from ._search import StructureCandidate, StructureSelection, select_order
+    from ._separable import fit_separable
+    from ._srivc import fit_tf
+    from ._ss_polynomial import to_polynomial
+    from ._subspace import fit_n4sid
+    from ._svf import FilteredSignal, filter_product, state_variable_filter
+    from ._tf_greybox import fit_tf_greybox
+
+#: Exported name → the private module that defines it.
+_WHERE = {
+    "ArxOrders": "_arx",
+    "Estimate": "_estimate",
+    "FRICTION_MODELS": "_inverse",
+    "FilteredSignal": "_svf",
+    "FrequencyBand": "_band",
+    "FrfMethod": "_frf",
+    "FrfWeighting": "_fit_frf",
+    "GreyboxModel": "_greybox",
+    "GreyboxParameter": "_greybox",
+    "Identifiability": "_diagnostics",
+    "IdentifiabilityFlag": "_diagnostics",
+    "InnovationModel": "_innovation",
+    "InverseDynamicsRegression": "_inverse",
+    "LeastSquaresResult": "_ls",
+    "MultistartSummary": "_diagnostics",
+    "OrderCandidate": "_order",
+    "OrderSelection": "_order",
+    "ParameterRow": "_estimate",
+    "RecursiveLeastSquaresResult": "_rls",
+    "StructureCandidate": "_search",
+    "StructureSelection": "_search",
+    "check_identifiability": "_diagnostics",
+    "estimate_frf": "_frf",
+    "filter_product": "_svf",
+    "fit_armax": "_pem",
+    "fit_arx": "_arx",
+    "fit_bj": "_pem",
+    "fit_closed_loop_oe": "_inverse",
+    "fit_frf": "_fit_frf",
+    "fit_greybox": "_greybox",
+    "fit_inverse_dynamics": "_inverse",
+    "fit_iv": "_iv",
+    "fit_n4sid": "_subspace",
+    "fit_oe": "_pem",
+    "fit_pem": "_pem",
+    "fit_rls": "_rls",
+    "fit_separable": "_separable",
+    "fit_tf": "_srivc",
+    "fit_tf_greybox": "_tf_greybox",
+    "frequency_band": "_band",
+    "inverse_dynamics_regression": "_inverse",
+    "lstsq": "_ls",
+    "modal_parameters": "_modal",
+    "select_arx_order": "_order",
+    "select_order": "_search",
+    "solve_gram": "_ls",
+    "state_variable_filter": "_svf",
+    "to_polynomial": "_ss_polynomial",
+}
 
 __all__ = [
     "FRICTION_MODELS",
@@ -84,3 +148,17 @@ __all__ = [
     "state_variable_filter",
     "to_polynomial",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """Import an estimator's module when its name is first read."""
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later reads skip this hook
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import warnings
 from collections.abc import Sequence
 from typing import Literal
@@ -14,11 +15,11 @@ from .._errors import DataError, ServoidWarning, check_option
 from .._lazy import signal as sps
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import PolynomialModel
-from ._channels import check_magnitude, check_not_constant
+from ._channels import LARGEST_VALUE, SMALLEST_VALUE, check_magnitude, check_not_constant
 from ._channels import output_name as _channel_output
-from ._estimate import Estimate
-from ._gram import lagged_gram
-from ._ls import LeastSquaresResult, LsMethod, lstsq, solve_gram
+from ._estimate import Deferred, Estimate
+from ._gram import lagged_gram, lagged_gram_ranges, value_range
+from ._ls import LeastSquaresResult, LsMethod, _solve_gram, lstsq
 
 __all__ = ["ArxOrders", "fit_arx"]
 
@@ -117,10 +118,12 @@ def fit_arx(
 
     Notes
     -----
-    Memory: about 1 N × 8 bytes beyond the record on the Gram route (one
-    float copy of a channel in the checks; the residuals are computed on
-    first access, 8·N bytes more); the QR route, taken when the Gram
-    matrix is ill-conditioned, adds the N × (na + Σnb) regressor matrix.
+    Memory: about 0 N × 8 bytes beyond the record on the Gram route (the
+    channel checks and the Gram sums read the channels in place, in one
+    compiled call; the residuals are computed on first access, 8·N bytes,
+    and the model is built on first read of ``model``); the QR route,
+    taken when the Gram matrix is ill-conditioned, adds the
+    N × (na + Σnb) regressor matrix.
     Checked by ``benchmarks/bench_scaling.py``.
     """
     check_option("input", input, ("u", "r"))
@@ -131,7 +134,7 @@ def fit_arx(
     if not input_names:
         first.signal(input)  # raises a DataError naming what exists
     output_name = _channel_output(first, output)
-    orders = ArxOrders(na, nb, nk, len(input_names))
+    orders = _orders(na, nb, nk, len(input_names))
     start = orders.max_lag if start is None else as_int("start", start, minimum=0)
     if start < orders.max_lag:
         raise DataError(f"start must be >= the longest lag {orders.max_lag}, got {start}")
@@ -144,24 +147,27 @@ def fit_arx(
             f"({start} initial + {n_par + 1} equations); got {first.n_samples if len(segments) == 1 else n_rows}"
             ". Use a longer record or lower orders"
         )
+    names, sig, lag, target_sig, target_lag = _structure(orders.na, orders.nb, orders.nk,
+                                                         tuple(input_names))
     signals = [_signals(seg, output_name, input_names) for seg in segments]
-    check_magnitude("output", [z[0] for z in signals])
-    for k, name in enumerate(input_names, start=1):
-        check_magnitude(f"input {name!r}", [z[k] for z in signals])
-        check_not_constant(name, [z[k] for z in signals])
-    names = _parameter_names(orders, input_names)
-    sig, lag = orders.columns()
+    gram = None
+    if method in ("auto", "gram") and all(z[0].size > start for z in signals):
+        # the Gram sums and each channel's range in one compiled call per segment
+        parts = [lagged_gram_ranges(z, target_sig, target_lag, start) for z in signals]
+        _check_channels(signals, input_names, [r for _, r in parts])
+        gram = parts[0][0] if len(parts) == 1 else sum(g for g, _ in parts)
+    else:
+        _check_channels(signals, input_names)
 
     result: LeastSquaresResult | None = None
     if method in ("auto", "gram"):
-        target_sig = np.append(sig, 0)
-        target_lag = np.append(lag, 0)
         # A segment with no more than `start` samples gives no equation; the kernel's
         # end corrections assume at least one (they would index past its end).
-        gram = sum(
-            lagged_gram(z, target_sig, target_lag, start) for z in signals if z[0].size > start
-        )
-        result = solve_gram(gram, n_rows, names)
+        if gram is None:
+            gram = sum(
+                lagged_gram(z, target_sig, target_lag, start) for z in signals if z[0].size > start
+            )
+        result = _solve_gram(np.asarray(gram, dtype=np.float64), n_rows, names)
         if result is None and method == "gram":
             warnings.warn(
                 "the regressor is too ill-conditioned for the normal equations "
@@ -181,11 +187,14 @@ def fit_arx(
         b_list.append(theta[offset : offset + nb_i])
         offset += nb_i
     # The regression used −y lags; flip the sign of the a-part of the covariance.
-    sign = np.concatenate([-np.ones(orders.na), np.ones(n_par - orders.na)])
-    cov = result.covariance * np.outer(sign, sign)
-    model = PolynomialModel.arx(
-        a, b_list, list(orders.nk), first.dt, noise_variance=result.noise_variance
-    )
+    # (exact sign flips of the off-diagonal a–b blocks, in place: result is ours)
+    cov = result.covariance
+    cov[: orders.na, orders.na :] *= -1.0
+    cov[orders.na :, : orders.na] *= -1.0
+    noise_variance = result.noise_variance
+    # built on first read of estimate.model: θ is finite here, so the build cannot fail
+    model = Deferred(lambda: PolynomialModel.arx(a, b_list, list(orders.nk), first.dt,
+                                                 noise_variance=noise_variance))
     _warn_if_unstable(a)
 
     def residuals() -> NDArray[np.float64]:
@@ -268,8 +277,99 @@ def _parameter_names(orders: ArxOrders, inputs: Sequence[str]) -> tuple[str, ...
     return tuple(names)
 
 
+def _orders(na: object, nb: object, nk: object, n_inputs: int) -> ArxOrders:
+    """ArxOrders(na, nb, nk, n_inputs), validated once per distinct set of plain ints."""
+    plain = type(na) is int and all(
+        type(v) is int or (type(v) is tuple and all(type(x) is int for x in v)) for v in (nb, nk)
+    )
+    if plain:  # ints and tuples of ints hash by value; their check cannot change
+        return _cached_orders(na, nb, nk, n_inputs)
+    return ArxOrders(na, nb, nk, n_inputs)  # type: ignore[arg-type]
+
+
+@functools.lru_cache(maxsize=256)
+def _cached_orders(na: int, nb: object, nk: object, n_inputs: int) -> ArxOrders:
+    # a failed check raises and is not cached; ArxOrders is never mutated by fit_arx
+    return ArxOrders(na, nb, nk, n_inputs)  # type: ignore[arg-type]
+
+
+@functools.lru_cache(maxsize=256)
+def _structure(
+    na: int, nb: tuple[int, ...], nk: tuple[int, ...], inputs: tuple[str, ...]
+) -> tuple[tuple[str, ...], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64],
+           NDArray[np.int64]]:
+    """Names, regressor columns and the Gram's columns (with y) of validated orders.
+
+    Cached: they depend on the orders only, and rebuilding them cost as much as
+    the sums of a 1e4-sample fit. The arrays are read-only (shared).
+    """
+    orders = ArxOrders(na, nb, nk, len(nb))
+    sig, lag = orders.columns()
+    target_sig, target_lag = np.append(sig, 0), np.append(lag, 0)
+    for arr in (sig, lag, target_sig, target_lag):
+        arr.setflags(write=False)
+    return _parameter_names(orders, inputs), sig, lag, target_sig, target_lag
+
+
+def _check_channels(signals: Sequence[tuple[NDArray[np.float64], ...]],
+                    input_names: Sequence[str],
+                    ranges: Sequence[NDArray[np.float64]] | None = None) -> None:
+    """check_magnitude of every channel and check_not_constant of the inputs.
+
+    One compiled pass per channel gives min and max (or ``ranges``, per
+    segment a (channel, (min, max)) array from :func:`lagged_gram_ranges`,
+    channels in the order of ``signals``); only when those show a
+    problem (or a segment is empty) do the checks themselves run, raising
+    their usual errors, so the behaviour is theirs. With NaN in a channel
+    the checks pass whatever the other values (NaN compares false), so the
+    unspecified min/max of such a channel can only send it to the checks.
+    """
+    ok = True
+    for k in range(len(input_names) + 1):
+        pieces = [z[k] for z in signals]
+        if any(p.size == 0 for p in pieces):
+            ok = False
+            break
+        rk = ([value_range(p) for p in pieces] if ranges is None
+              else [(float(r[k, 0]), float(r[k, 1])) for r in ranges])
+        lo = min(r[0] for r in rk)
+        hi = max(r[1] for r in rk)
+        peak = max(abs(lo), abs(hi))
+        if not (peak <= LARGEST_VALUE and not 0 < peak < SMALLEST_VALUE):
+            ok = False
+            break
+        if k and hi - lo <= 1e-12 * max(abs(lo), abs(hi), 1e-300):
+            ok = False
+            break
+    if ok:
+        return
+    check_magnitude("output", [z[0] for z in signals])
+    for k, name in enumerate(input_names, start=1):
+        check_magnitude(f"input {name!r}", [z[k] for z in signals])
+        check_not_constant(name, [z[k] for z in signals])
+
+
+def _strictly_stable(a: NDArray[np.float64], radius: float) -> bool:
+    """All roots of the monic a strictly inside |z| < radius (Schur–Cohn step-down).
+
+    a(z)'s roots scaled by 1/radius are the roots of c_k = a_k/radius^k; they lie
+    inside the unit circle iff every reflection coefficient k_m = c_m/c_0 of the
+    step-down recursion c ← (c − k_m·reverse(c))/(1 − k_m²) has |k_m| < 1
+    (Jury's test; Åström & Wittenmark, *Computer-Controlled Systems*, §3.3).
+    A few flops instead of the eigenvalues of the companion matrix.
+    """
+    c = [float(v) / radius**i for i, v in enumerate(a.tolist())]
+    while len(c) > 1:
+        k = c[-1] / c[0]
+        if not abs(k) < 1.0:  # also NaN
+            return False
+        scale = 1.0 - k * k
+        c = [(c[i] - k * c[-1 - i]) / scale for i in range(len(c) - 1)]
+    return True
+
+
 def _warn_if_unstable(a: NDArray[np.float64]) -> None:
-    if a.size < 2:
+    if a.size < 2 or _strictly_stable(a, 1.0 + 1e-9):
         return
     radius = float(np.abs(np.roots(a)).max())
     if radius > 1.0 + 1e-9:

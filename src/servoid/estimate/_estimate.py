@@ -15,7 +15,7 @@ from .._checks import as_array, as_float, as_mapping, type_error
 from .._errors import ChannelError, DataError, ModelError
 from .._lazy import stats
 
-__all__ = ["Estimate", "ParameterRow"]
+__all__ = ["Deferred", "Estimate", "ParameterRow"]
 
 
 @dataclass(frozen=True)
@@ -28,6 +28,39 @@ class ParameterRow:
     ci_low: float
     ci_high: float
     unit: str = ""
+
+
+class Deferred:
+    """A model an estimator builds on first read of :attr:`Estimate.model`.
+
+    ``Estimate(model=Deferred(build), ...)`` calls ``build()`` once, when
+    ``model`` is first read: a fit whose model is not looked at (an order
+    scan, a benchmark) does not pay for building it.  Only for a build
+    that cannot fail once the fit has succeeded.
+    """
+
+    __slots__ = ("build",)
+
+    def __init__(self, build: Callable[[], Any]) -> None:
+        self.build = build
+
+
+class _ModelSlot:
+    """The ``model`` field: stores a model or a :class:`Deferred`, returns a model."""
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        if obj is None:  # class access: tells dataclass the field has no default
+            raise AttributeError("model")
+        value = obj.__dict__["_model"]
+        if isinstance(value, Deferred):
+            value = value.build()
+            obj.__dict__["_model"] = value
+        return value
+
+    def __set__(self, obj: Any, value: Any) -> None:
+        # reached only from __init__ (object.__setattr__); the frozen dataclass's
+        # __setattr__ refuses assignments from outside first
+        obj.__dict__["_model"] = value
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,7 +98,7 @@ class Estimate:
         method; see :meth:`model_at`.
     """
 
-    model: Any
+    model: Any = _ModelSlot()  # type: ignore[assignment]
     parameters: NDArray[np.float64]
     names: tuple[str, ...]
     covariance: NDArray[np.float64]
@@ -82,19 +115,27 @@ class Estimate:
 
     def __post_init__(self) -> None:
         for name in ("parameters", "covariance"):
-            arr = np.array(as_array(name, getattr(self, name), finite=False), dtype=float)
+            value = getattr(self, name)
+            if type(value) is np.ndarray and value.dtype == np.float64:
+                arr = value.copy()  # what as_array + np.array give, without their checks
+            else:
+                arr = np.array(as_array(name, value, finite=False), dtype=float)
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
         if not self.units:
             object.__setattr__(self, "units", ("",) * self.parameters.size)
         for name in ("names", "units"):
             value = getattr(self, name)
+            if type(value) is tuple and all(type(v) is str for v in value):
+                continue  # already what the check below makes of it
             if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or not all(
                     isinstance(v, str) for v in value):
                 raise type_error(name, value, "a sequence of strings")
             object.__setattr__(self, name, tuple(value))
-        as_mapping("options", self.options)
-        object.__setattr__(self, "options", MappingProxyType(dict(self.options)))
+        options = self.options
+        if type(options) is not dict:
+            as_mapping("options", options)
+        object.__setattr__(self, "options", MappingProxyType(dict(options)))
 
     @property
     def std(self) -> NDArray[np.float64]:

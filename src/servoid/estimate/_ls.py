@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -161,16 +162,55 @@ def solve_gram(
     n = gram.shape[0] - 1
     names = _names(names, n)
     _check_rows(n_rows, n)
-    if not np.all(np.isfinite(gram)):
+    return _solve_gram(gram, n_rows, names)
+
+
+try:  # the LAPACK gufuncs behind np.linalg.eigvalsh / inv, without their ~10 µs of wrapping
+    from numpy.linalg import _umath_linalg
+
+    _eigvalsh_lo = _umath_linalg.eigvalsh_lo
+    _inv_gufunc = _umath_linalg.inv
+except (ImportError, AttributeError):  # pragma: no cover - another numpy layout
+    _eigvalsh_lo = _inv_gufunc = None
+
+
+def _eigvalsh(g: NDArray[np.float64]) -> NDArray[np.float64]:
+    """np.linalg.eigvalsh of a small finite symmetric float matrix (same LAPACK call)."""
+    if _eigvalsh_lo is None:  # pragma: no cover
+        return np.linalg.eigvalsh(g)
+    # a failed LAPACK call gives NaN (eig[0] > 0 is then False: treated as singular)
+    return _eigvalsh_lo(g, signature="d->d")
+
+
+def _inv(g: NDArray[np.float64]) -> NDArray[np.float64]:
+    """np.linalg.inv of a small, well-conditioned float matrix (same LAPACK call)."""
+    if _inv_gufunc is None:  # pragma: no cover
+        return np.linalg.inv(g)
+    return _inv_gufunc(g, signature="d->d")
+
+
+def _solve_gram(
+    gram: NDArray[np.float64], n_rows: int, names: tuple[str, ...] | None
+) -> LeastSquaresResult | None:
+    """:func:`solve_gram` on checked arguments (a square float Gram, n_rows > n).
+
+    The elementwise steps run in small compiled calls around the two LAPACK
+    calls and the two products (same operations in the same order as the numpy
+    expressions they replace, so the results are the same to the bit): at 1e4
+    samples the dozen small numpy calls cost more than the ARX sums themselves.
+    """
+    n = gram.shape[0] - 1
+    gram = np.ascontiguousarray(gram, dtype=np.float64)
+    g, scale, finite = _scaled(gram)
+    if not finite:
         raise DataError(
             "the Gram matrix has non-finite entries: the signals are too large for their "
             "squares to be summed in double precision (beyond about 1e150), or hold NaN. "
             "Rescale the channels (calibrate them to SI units)"
         )
-    scale = np.sqrt(np.diag(gram)[:n])
-    _check_columns(scale, names)
-    g = gram[:n, :n] / np.outer(scale, scale)
-    eig = np.linalg.eigvalsh(g)
+    if not scale.min() > 0:
+        _check_columns(scale, names)
+    eig = _eigvalsh(g)
     condition = float(np.sqrt(eig[-1] / eig[0])) if eig[0] > 0 else np.inf
     if condition > RANK_COND_LIMIT:
         raise _rank_error(condition, names)
@@ -178,17 +218,58 @@ def solve_gram(
         return None
     # g is small (n ≤ a few dozen) and, scaled, well conditioned (κ ≤ GRAM_COND_LIMIT²):
     # its inverse is the covariance factor and gives θ in one product (numpy's LAPACK
-    # call costs microseconds; scipy's checked wrappers cost more than the fit at 1e4)
-    cov_s = np.linalg.inv(g)
-    cov_s = 0.5 * (cov_s + cov_s.T)
-    rhs = gram[:n, n] / scale
-    theta_s = cov_s @ rhs
+    # call costs microseconds; scipy's checked wrappers cost more than the fit at 1e4).
     # RSS = yᵀy − θᵀΦᵀy; cancellation limits it to about ε·yᵀy absolute, which only
     # matters for noise-free data where σ̂² is not used.
+    cov_s, rhs = _symmetrised(gram, scale, _inv(g))
+    theta_s = cov_s @ rhs
     rss = max(float(gram[n, n] - theta_s @ rhs), 0.0)
     sigma2 = rss / max(n_rows - n, 1)
-    cov = sigma2 * cov_s / np.outer(scale, scale)
+    cov = _covariance(cov_s, scale, sigma2)
     return LeastSquaresResult(theta_s / scale, cov, rss, n_rows, condition, "gram")
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _scaled(gram):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # scale = √diag(Φᵀ Φ), g = (ΦᵀΦ)/(scale scaleᵀ), and whether every entry is finite
+    n = gram.shape[0] - 1
+    finite = True
+    for i in range(n + 1):
+        for j in range(n + 1):
+            if not np.isfinite(gram[i, j]):
+                finite = False
+    scale = np.empty(n)
+    for i in range(n):
+        scale[i] = np.sqrt(gram[i, i])
+    g = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            g[i, j] = gram[i, j] / (scale[i] * scale[j])
+    return g, scale, finite
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _symmetrised(gram, scale, inv):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # cov_s = (inv + invᵀ)/2 and rhs = Φᵀy/scale, as 0.5 * (c + c.T) and gram[:n, n] / scale
+    n = scale.size
+    cov_s = np.empty((n, n))
+    rhs = np.empty(n)
+    for i in range(n):
+        rhs[i] = gram[i, n] / scale[i]
+        for j in range(n):
+            cov_s[i, j] = 0.5 * (inv[i, j] + inv[j, i])
+    return cov_s, rhs
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _covariance(cov_s, scale, sigma2):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # σ̂²·cov_s / (scale scaleᵀ), evaluated as numpy does: (σ̂²·c_ij) / (s_i·s_j)
+    n = scale.size
+    cov = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            cov[i, j] = sigma2 * cov_s[i, j] / (scale[i] * scale[j])
+    return cov
 
 
 def _names(names: object, n: int) -> tuple[str, ...] | None:

@@ -3,19 +3,22 @@
 The tests use the correlations at a few dozen lags only: r_ε(τ) for
 τ = 0…M, r_εu(τ) for τ = −M…M, and, for the null covariance of r_εu, the
 input's own lagged products up to 2M (up to 6M with coloured residuals).
-They are direct sums Σ_t a(t)·b(t + τ) over the lags used, computed by a
-compiled kernel that walks the record in blocks of :data:`BLOCK` samples
-(four lags per sweep, vectorised): O(N·lags) time with a small constant
-and, beyond the centred copies of ε and u, O(lags) memory — not an FFT of
-the whole record padded to 2N, of which all but the used lags would be
-discarded. The signals are centred and scaled to unit peak first: the
-correlations do not depend on scale, and it keeps products of data near
-1e150 from overflowing.
-"""
+They are direct sums Σ_t a(t)·b(t + τ) over the lags used, computed by
+compiled kernels that walk the record in blocks of :data:`BLOCK` samples:
+O(N·lags) time with a small constant and O(lags + BLOCK) memory — not an
+FFT of the whole record padded to 2N, of which all but the used lags would
+be discarded. The signals are centred and scaled to below unit peak (by a
+power of two, exactly) block by block inside the kernels, so no centred
+copy of the record is made: the correlations do not depend on scale, and
+it keeps products of data near 1e150 from overflowing. With one input, a
+single sweep forms every lag the white-residual tests need (ε·ε, u·ε, ε·u
+and u·u, their loads shared)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -131,12 +134,11 @@ def residual_analysis(
 
     Notes
     -----
-    Memory: about 2 N × 8 bytes beyond the inputs with one input (the
-    centred residuals and input; 8·N bytes more per further input).
+    Memory: about 0 N × 8 bytes beyond the inputs (the signals are centred
+    block by block inside the kernels; O(M + 2048) floats of buffers).
 
-    Time O(N·M·(1 + n_inputs²)), memory O(N·(1 + n_inputs)) for the centred
-    copies (8 bytes per sample and signal): about 25 ms for N = 10⁶, M = 25
-    and one input with white residuals on the reference machine
+    Time O(N·M·(1 + n_inputs²)): about 10 ms for N = 10⁶, M = 25 and one
+    input with white residuals on the reference machine
     (``benchmarks/bench_scaling.py``); coloured residuals add the input's
     lagged products up to 6M for the null covariance (about twice that).
     """
@@ -161,38 +163,108 @@ def residual_analysis(
     if max_lag < 1 or max_lag >= n // 2:
         raise DataError(f"max_lag must lie in [1, {n // 2 - 1}] for {n} residuals, got {max_lag}")
     # correlations do not depend on scale: work on unit-scale data so that values near 1e160
-    # cannot overflow the products into inf and turn the tests into "white, p = 1"
-    e = _centre_kernel(e_raw, e_mean)
-    e_sums = _lag_products(e, e, 0, max_lag)
+    # cannot overflow the products into inf and turn the tests into "white, p = 1". The
+    # centred, scaled signals (x − mean)·2^−k, 2^k the power of two above the peak, are formed
+    # block by block inside the kernels (no N-sample copies; scaling by a power of two is
+    # exact, so it leaves the correlations as they are); the means are finite, so every value is.
+    e = _Centred.of(e_raw, e_mean)
+    cols = [] if uu is None else [_Centred.of(col, m) for col, m in zip(uu.T, u_means, strict=True)]
+    single = len(cols) == 1
+    if single:  # the common case: every lag the white-residual tests use, in one pass
+        e_sums, ue, eu, uu_sums = _fused_sums(e, cols[0], max_lag)
+    else:
+        e_sums = _centred_lags(e, e, 0, max_lag)
     auto = _normalised(e_sums, e_sums[0], e_sums[0])
     lags = np.arange(max_lag + 1)
     q = n * (n + 2) * np.sum(auto[1:] ** 2 / (n - lags[1:]))
     p_white = float(stats.chi2.sf(q, max_lag))
     cross_lags = np.arange(-max_lag, max_lag + 1)
-    if uu is None:
+    if not cols:
         cross = np.empty((0, cross_lags.size))
         p_indep = np.nan
     else:
-        cols = [_centre_kernel(col, m) for col, m in zip(uu.T, u_means, strict=True)]
         # Coloured residuals (an output-error model leaves the noise colour in them) widen the
         # spread of r_εu under the null; then the residuals' own correlation enters its
         # covariance (Ljung, System Identification, 2nd ed., eq. 16.69), else the exact white one.
         colour = None
         if not p_white > 1 - confidence:
             k_max = _colour_lags(n, max_lag)
-            more = _lag_products(e, e, max_lag + 1, k_max)  # empty when K ≤ M
+            more = _centred_lags(e, e, max_lag + 1, k_max)  # empty when K ≤ M
             colour = _bartlett(np.concatenate([e_sums[: k_max + 1], more]))
         reach = 2 * max_lag + (0 if colour is None else (colour.size - 1) // 2)
-        sums = _input_sums(cols, reach)
+        if single:
+            one = np.concatenate([uu_sums, _centred_lags(cols[0], cols[0], 2 * max_lag + 1, reach)])
+            sums = {(0, 0): np.concatenate([one[:0:-1], one])}
+            two_sided = [np.concatenate([eu[1:][::-1], ue])]  # Σ u(t)·e(t + d), d = −M…M
+        else:
+            sums = _input_sums(cols, reach)
+            two_sided = [_centred_two_sided(col, e, max_lag) for col in cols]
         energy = np.array([sums[i, i][reach] for i in range(len(cols))])
         cross = np.vstack([
-            _normalised(_two_sided(col, e, max_lag), energy[i], e_sums[0])
-            for i, col in enumerate(cols)
+            _normalised(two_sided[i], energy[i], e_sums[0]) for i in range(len(cols))
         ])
         p_indep = _independence_pvalue(cross, cols, sums, energy, max_lag, colour, causal)
     bound = float(stats.norm.ppf(0.5 + confidence / 2) / np.sqrt(n))
     return ResidualAnalysis(lags, auto, cross_lags, cross, bound, confidence, p_white, p_indep, n,
                             causal)
+
+
+class _Centred(NamedTuple):
+    """A signal x with its mean and scale: stands for (x − mean)·scale.
+
+    ``scale`` is the power of two 2^−k with 2^(k−1) ≤ max|x − mean| < 2^k (1 for a
+    constant signal), so the values lie in (−1, 1) and the scaling itself is exact.
+    The kernels and :meth:`at` form the values where they are used, with the same
+    two operations, so every use sees the same numbers.
+    """
+
+    raw: NDArray[np.float64]
+    mean: float
+    scale: float
+
+    @classmethod
+    def of(cls, x: NDArray[np.float64], mean: float) -> _Centred:
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        lo, hi = _range_kernel(x)  # x is finite (its mean is): min and max are exact
+        # |x − mean| is largest at the largest or the smallest x (rounding is monotonic),
+        # so this is max|x − mean| to the bit
+        peak = max(float(hi - mean), float(mean - lo), 0.0)
+        # 2^−k, capped at 2^1023 (a peak below ~1e-308 still comes out near 1e-2 or above)
+        scale = math.ldexp(1.0, min(-math.frexp(peak)[1], 1023)) if peak > 0 else 1.0
+        return cls(x, float(mean), scale)
+
+    @property
+    def size(self) -> int:
+        return int(self.raw.size)
+
+    def at(self, index: NDArray[np.int64]) -> NDArray[np.float64]:
+        """The centred values at ``index``, zero outside the record."""
+        inside = (index >= 0) & (index < self.raw.size)
+        x = (self.raw[np.clip(index, 0, self.raw.size - 1)] - self.mean) * self.scale
+        return np.where(inside, x, 0.0)
+
+
+def _centred_lags(a: _Centred, b: _Centred, first: int, last: int) -> NDArray[np.float64]:
+    """Σ_{t=0}^{N−1−τ} a(t)·b(t + τ) for τ = first…last of the centred signals."""
+    if last < first:
+        return np.zeros(0)
+    return _pair_kernel(a.raw, a.mean, a.scale, b.raw, b.mean, b.scale, int(first), int(last),
+                        BLOCK)
+
+
+def _centred_two_sided(a: _Centred, b: _Centred, max_lag: int) -> NDArray[np.float64]:
+    """Σ_t a(t)·b(t + d) for d = −L…L of the centred signals (b leading a for d < 0)."""
+    if a is b:
+        one = _centred_lags(a, a, 0, max_lag)
+        return np.concatenate([one[:0:-1], one])
+    return np.concatenate([_centred_lags(b, a, 1, max_lag)[::-1], _centred_lags(a, b, 0, max_lag)])
+
+
+def _fused_sums(
+    e: _Centred, u: _Centred, max_lag: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Σe(t)e(t+τ), Σu(t)e(t+τ), Σe(t)u(t+τ) for τ = 0…M and Σu(t)u(t+τ) for τ = 0…2M."""
+    return _fused_kernel(e.raw, e.mean, e.scale, u.raw, u.mean, u.scale, int(max_lag), BLOCK)
 
 
 def _xcorr(a: NDArray[np.float64], b: NDArray[np.float64], max_lag: int) -> NDArray[np.float64]:
@@ -254,13 +326,13 @@ def _two_sided(
 
 
 def _input_sums(
-    cols: list[NDArray[np.float64]], reach: int
+    cols: list[_Centred], reach: int
 ) -> dict[tuple[int, int], NDArray[np.float64]]:
     """S_ij(d) = Σ_t u_i(t)·u_j(t + d), d = −reach…reach, for every pair of inputs."""
     sums = {}
     for i, a in enumerate(cols):
         for j in range(i, len(cols)):
-            sums[i, j] = _two_sided(a, a if i == j else cols[j], reach)
+            sums[i, j] = _centred_two_sided(a, a if i == j else cols[j], reach)
             sums[j, i] = sums[i, j][::-1]
     return sums
 
@@ -277,7 +349,7 @@ def _lag_products(
 
 
 def _independence_pvalue(
-    cross: NDArray[np.float64], cols: list[NDArray[np.float64]],
+    cross: NDArray[np.float64], cols: list[_Centred],
     sums: dict[tuple[int, int], NDArray[np.float64]], energy: NDArray[np.float64],
     max_lag: int, colour: NDArray[np.float64] | None = None, causal: bool = False,
 ) -> float:
@@ -310,8 +382,8 @@ def _independence_pvalue(
             if colour is None:
                 full = s_ij[reach - 2 * m_lag : reach + 2 * m_lag + 1]
                 # u_j(t + d) at the first and last M samples t, zero outside the record
-                head = cols[i][t_head] * _shifted(cols[j], t_head[None, :] + d_all[:, None])
-                tail = cols[i][t_tail] * _shifted(cols[j], t_tail[None, :] + d_all[:, None])
+                head = cols[i].at(t_head) * cols[j].at(t_head[None, :] + d_all[:, None])
+                tail = cols[i].at(t_tail) * cols[j].at(t_tail[None, :] + d_all[:, None])
                 head_sum = np.concatenate([np.zeros((d_all.size, 1)), np.cumsum(head, axis=1)],
                                           axis=1)
                 tail_sum = np.concatenate(
@@ -416,3 +488,144 @@ def _lag_kernel(a, b, first, last, block):  # type: ignore[no-untyped-def]  # pr
                         out[tau - first + j] += a[t] * b[t + tau + j]
             tau += m
     return out
+
+
+@numba.njit(cache=True, nogil=True, fastmath={"nnan", "ninf", "nsz"})
+def _range_kernel(x):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # min and max of finite x (the flags let the compares vectorise)
+    lo = np.inf
+    hi = -np.inf
+    for v in x:
+        lo = min(lo, v)
+        hi = max(hi, v)
+    return lo, hi
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _fill(x, mean, scale, start, buf):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # buf[i] = (x[start + i] − mean)·scale, zero past the record (a multiply: a divide per
+    # sample cost as much as a quarter of the lagged products)
+    n = x.size
+    avail = min(buf.size, n - start)
+    for i in range(avail):
+        buf[i] = (x[start + i] - mean) * scale
+    for i in range(max(avail, 0), buf.size):
+        buf[i] = 0.0
+
+
+@numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"}, error_model="numpy")
+def _pair_kernel(a, ma, sa, b, mb, sb, first, last, block):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # out[τ − first] = Σ_t a_c(t)·b_c(t + τ), x_c = (x − m)·s formed per block in two small
+    # buffers (b's reaches `last` samples further, zero past the record, so no end cases)
+    n = a.size
+    out = np.zeros(last - first + 1)
+    ab = np.empty(block)
+    bb = np.empty(block + last + 4)
+    for start in range(0, n, block):
+        w = min(block, n - start)
+        _fill(a, ma, sa, start, ab)
+        _fill(b, mb, sb, start, bb)
+        tau = first
+        # 0-based slices: an index t + τ the compiler cannot prove non-negative (τ starts
+        # at `first`) keeps numba's wraparound check in the loop and stops vectorisation
+        while tau + 3 <= last:  # four lags per sweep: one load of a per four products
+            b0 = bb[tau : tau + w]
+            b1 = bb[tau + 1 : tau + 1 + w]
+            b2 = bb[tau + 2 : tau + 2 + w]
+            b3 = bb[tau + 3 : tau + 3 + w]
+            s0 = 0.0
+            s1 = 0.0
+            s2 = 0.0
+            s3 = 0.0
+            for t in range(w):
+                x = ab[t]
+                s0 += x * b0[t]
+                s1 += x * b1[t]
+                s2 += x * b2[t]
+                s3 += x * b3[t]
+            out[tau - first] += s0
+            out[tau - first + 1] += s1
+            out[tau - first + 2] += s2
+            out[tau - first + 3] += s3
+            tau += 4
+        while tau <= last:
+            b0 = bb[tau : tau + w]
+            s0 = 0.0
+            for t in range(w):
+                s0 += ab[t] * b0[t]
+            out[tau - first] += s0
+            tau += 1
+    return out
+
+
+@numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"}, error_model="numpy")
+def _fused_kernel(e, me, se, u, mu, su, m, block):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # For τ = 0…M: ee[τ] = Σ e_c(t)e_c(t+τ), ue[τ] = Σ u_c(t)e_c(t+τ), eu[τ] = Σ e_c(t)u_c(t+τ),
+    # uu[τ] = Σ u_c(t)u_c(t+τ); uu also for τ = M+1…2M. One sweep over blocks of the
+    # centred signals (formed in small buffers, zero past the record): each lag's four
+    # products share their loads, two lags per inner loop.
+    n = e.size
+    r = 2 * m
+    eb = np.empty(block + r + 2)
+    ub = np.empty(block + r + 2)
+    ee = np.zeros(m + 1)
+    ue = np.zeros(m + 1)
+    eu = np.zeros(m + 1)
+    uu = np.zeros(r + 1)
+    for start in range(0, n, block):
+        w = min(block, n - start)
+        _fill(e, me, se, start, eb)
+        _fill(u, mu, su, start, ub)
+        tau = 0
+        while tau <= m:
+            s0 = 0.0
+            s1 = 0.0
+            s2 = 0.0
+            s3 = 0.0
+            t0 = 0.0
+            t1 = 0.0
+            t2 = 0.0
+            t3 = 0.0
+            for t in range(w):  # lags τ and τ + 1 (the second unused past M)
+                x = eb[t]
+                v = ub[t]
+                xe = eb[t + tau]
+                xu = ub[t + tau]
+                ye = eb[t + tau + 1]
+                yu = ub[t + tau + 1]
+                s0 += x * xe
+                s1 += v * xe
+                s2 += x * xu
+                s3 += v * xu
+                t0 += x * ye
+                t1 += v * ye
+                t2 += x * yu
+                t3 += v * yu
+            ee[tau] += s0
+            ue[tau] += s1
+            eu[tau] += s2
+            uu[tau] += s3
+            if tau + 1 <= m:
+                ee[tau + 1] += t0
+                ue[tau + 1] += t1
+                eu[tau + 1] += t2
+            uu[tau + 1] += t3
+            tau += 2
+        # τ is now the first lag of uu not yet summed (M + 1 or M + 2)
+        while tau + 1 <= r:
+            s0 = 0.0
+            s1 = 0.0
+            for t in range(w):
+                v = ub[t]
+                s0 += v * ub[t + tau]
+                s1 += v * ub[t + tau + 1]
+            uu[tau] += s0
+            uu[tau + 1] += s1
+            tau += 2
+        if tau <= r:
+            s0 = 0.0
+            for t in range(w):
+                s0 += ub[t] * ub[t + tau]
+            uu[tau] += s0
+    return ee, ue, eu, uu
+
