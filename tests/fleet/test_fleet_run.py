@@ -114,10 +114,21 @@ def test_interrupted_run_resumes_to_the_same_table(batch, batch_result, tmp_path
     assert _same(second.rows, batch_result.rows)
 
 
-def test_dask_and_serial_give_identical_numbers(batch, batch_result, tmp_path):
+@pytest.mark.parametrize("per_task", [None, 4])
+def test_dask_and_serial_give_identical_numbers(batch, batch_result, tmp_path, monkeypatch,
+                                                per_task):
     pytest.importorskip("distributed")
+    if per_task is not None:  # records grouped into tasks, as a large fleet is
+        monkeypatch.setattr(fleet_run, "_batch_size", lambda n_todo, n_workers: per_task)
     parallel = run_fleet(batch.fleet_file, tmp_path / "dask", workers=2, progress=False)
     assert _same(parallel.rows, batch_result.rows)
+
+
+def test_records_are_grouped_into_tasks_only_when_there_are_many():
+    assert fleet_run._batch_size(13, 2) == 1  # the test fleet: one record per task
+    assert fleet_run._batch_size(100, 2) == 3
+    assert fleet_run._batch_size(1000, 2) == 8  # at most eight, ≥ 16 tasks per worker
+    assert fleet_run._batch_size(1000, 64) == 1
 
 
 def test_dask_run_records_each_task_cpu_and_resume_starts_no_cluster(batch, batch_result,

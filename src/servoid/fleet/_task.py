@@ -13,7 +13,7 @@ import hashlib
 import json
 import time
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -22,7 +22,7 @@ from .. import __version__
 from .._errors import ServoidError
 from ..workflows._summary import summarise
 
-__all__ = ["identify_record", "record_inputs", "record_key"]
+__all__ = ["identify_record", "identify_records", "record_inputs", "record_key"]
 
 _CHUNK = 1 << 20
 
@@ -58,6 +58,12 @@ def record_inputs(path: Path) -> list[Path]:
     except (ServoidError, OSError):
         pass  # the task will report why; the key still covers the experiment file
     return files
+
+
+def identify_records(paths: Sequence[str],
+                     identify: Mapping[str, Any] | None) -> list[dict[str, Any]]:
+    """Identify several records in turn (one Dask task); see :func:`identify_record`."""
+    return [identify_record(path, identify) for path in paths]
 
 
 def identify_record(path: str, identify: Mapping[str, Any] | None) -> dict[str, Any]:
