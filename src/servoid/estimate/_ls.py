@@ -318,3 +318,23 @@ def _rank_error(condition: float, names: tuple[str, ...] | None) -> Identifiabil
         f"{cols}): the input is not persistently exciting for these orders. Use a richer "
         "input (PRBS, multisine) or lower orders"
     )
+
+
+def damped_step(h: NDArray[np.float64], g: NDArray[np.float64],
+                lam: float) -> NDArray[np.float64]:
+    """Solve (H + λ·diag H) Δ = g after equilibration (an LM step).
+
+    ``H`` is a Gauss–Newton matrix JᵀJ, ``g`` the matching gradient term;
+    scaling by √diag H first makes λ relative to each parameter's curvature
+    (Marquardt's choice).  A singular system falls back to least squares.
+    """
+    s = np.sqrt(np.clip(np.diag(h), 0.0, None))
+    s[~(s > 0)] = 1.0
+    hs = h / np.outer(s, s)
+    if lam:
+        hs = hs + lam * np.eye(h.shape[0])
+    try:
+        chol = linalg.cho_factor(hs, check_finite=False)
+        return linalg.cho_solve(chol, g / s, check_finite=False) / s
+    except linalg.LinAlgError:
+        return np.linalg.lstsq(hs, g / s, rcond=1e-12)[0] / s

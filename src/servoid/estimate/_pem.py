@@ -61,13 +61,13 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
-from .._lazy import linalg
 from ..data import Experiment, ExperimentSet
 from ..models import PolynomialModel
 from ._arx import _warn_if_unstable
 from ._covariance import COVARIANCES, Covariance, parameter_covariance, resolve
 from ._diagnostics import MAX_STARTS
 from ._estimate import Estimate
+from ._ls import damped_step
 from ._oe_kernel import StreamProblem
 from ._pem_orders import PemOrders, Polys, SignalData, check_record, prepare
 from ._pem_predictor import Problem, initial_sizes
@@ -705,7 +705,7 @@ def _search(problem: Problem, orders: PemOrders, theta: NDArray[np.float64], max
     h, g = problem.normal_equations(theta)
     lam, iterations, reflected, converged, note = 0.0, 0, 0, False, ""
     while True:
-        step = _step(h, g, 0.0)
+        step = damped_step(h, g, 0.0)
         predicted = float(g @ step)  # = ‖ΨΔ‖², twice the decrease of ½Σε² the step promises
         if not np.isfinite(predicted):
             raise ConvergenceError(
@@ -718,7 +718,7 @@ def _search(problem: Problem, orders: PemOrders, theta: NDArray[np.float64], max
             break
         lam_try = lam
         for _ in range(_MAX_DAMPING):
-            delta = step if lam_try == 0.0 else _step(h, g, lam_try)
+            delta = step if lam_try == 0.0 else damped_step(h, g, lam_try)
             trial, n_ref = stabilize(orders, theta + delta)
             trial_cost = problem.cost(trial)
             if lam_try == 0.0 and n_ref == 0:
@@ -795,20 +795,6 @@ def _inside_step(problem: Problem, orders: PemOrders, theta: NDArray[np.float64]
                 return candidate, other_cost, 0
             break
     return trial, trial_cost, n_ref
-
-
-def _step(h: NDArray[np.float64], g: NDArray[np.float64], lam: float) -> NDArray[np.float64]:
-    """Solve (ΨᵀΨ + λ·diag ΨᵀΨ) Δ = Ψᵀε after equilibration."""
-    s = np.sqrt(np.clip(np.diag(h), 0.0, None))
-    s[~(s > 0)] = 1.0
-    hs = h / np.outer(s, s)
-    if lam:
-        hs = hs + lam * np.eye(h.shape[0])
-    try:
-        chol = linalg.cho_factor(hs, check_finite=False)
-        return linalg.cho_solve(chol, g / s, check_finite=False) / s
-    except linalg.LinAlgError:
-        return np.linalg.lstsq(hs, g / s, rcond=1e-12)[0] / s
 
 
 def _status(best: _Search, reflected: int, singular: bool) -> str:

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from .._lazy import linalg
+from ._ls import damped_step
 from ._oe_kernel import oe_errors, oe_gram, oe_gram_columns
 
 __all__ = ["StreamResult", "stream_filtered_gram", "stream_least_squares", "stream_residuals"]
@@ -201,7 +201,7 @@ def stream_least_squares(
                             np.zeros((0, 0)))
     lam, status, message = 0.0, 0, "the maximum number of function evaluations is exceeded"
     while passes.evaluations < max_nfev:
-        step = _step(h, g, 0.0)
+        step = damped_step(h, g, 0.0)
         predicted = float(g @ step)
         if not np.isfinite(predicted):
             status, message = -1, "the gradient is not finite"
@@ -219,7 +219,7 @@ def stream_least_squares(
             break
         lam_try, accepted = lam, False
         for _ in range(_MAX_DAMPING):
-            delta = step if lam_try == 0.0 else _step(h, g, lam_try)
+            delta = step if lam_try == 0.0 else damped_step(h, g, lam_try)
             trial_cost, trial_c = evaluate(z + delta)
             if trial_cost < cost:
                 accepted = True
@@ -295,17 +295,3 @@ def stream_filtered_gram(
         return 0.5 * (out + out.T)
 
     return gram
-
-
-def _step(h: NDArray[np.float64], g: NDArray[np.float64], lam: float) -> NDArray[np.float64]:
-    """Solve (JᵀJ + λ·diag JᵀJ) Δ = −Jᵀr after equilibration."""
-    s = np.sqrt(np.clip(np.diag(h), 0.0, None))
-    s[~(s > 0)] = 1.0
-    hs = h / np.outer(s, s)
-    if lam:
-        hs = hs + lam * np.eye(h.shape[0])
-    try:
-        chol = linalg.cho_factor(hs, check_finite=False)
-        return linalg.cho_solve(chol, g / s, check_finite=False) / s
-    except linalg.LinAlgError:
-        return np.linalg.lstsq(hs, g / s, rcond=1e-12)[0] / s
