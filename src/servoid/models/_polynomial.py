@@ -355,21 +355,36 @@ class PolynomialModel:
                 ServoidWarning,
                 stacklevel=2,
             )
-        k = int(horizon)
+        rest, terms = self._predictor_filters(int(horizon))
+        # one compiled pass per filter, each adding into ŷ (lfilter allocated per term)
+        yhat = np.empty(yy.size)
+        filter_into(rest, self.c, yy, yhat, False)
+        for i, (num, den) in enumerate(terms):
+            filter_into(num, den, uu[:, i], yhat, True)
+        return yhat
+
+    def _predictor_filters(
+        self, k: int
+    ) -> tuple[NDArray[np.float64], list[tuple[NDArray[np.float64], NDArray[np.float64]]]]:
+        """The k-step predictor's filters: ``rest/C`` on y, ``num_i/den_i`` per input.
+
+        ``ŷ = (rest/C) y + Σ_i (num_i/den_i) u_i`` with ``rest = C − F_k A D``
+        (its first k terms set to zero), ``num_i = F_k D B_i q^{−nk_i}`` and
+        ``den_i = C F_i`` (see :meth:`predict`).
+        """
         ad = np.convolve(self.a, self.d)
         pulse = np.zeros(k)
         pulse[0] = 1.0
         fk = signal.lfilter(self.c, ad, pulse)  # first k impulse-response terms of H
         rest = _padd(self.c, -np.convolve(fk, ad))
         rest[: min(k, rest.size)] = 0.0  # zero by construction of F_k; drop the rounding
-        # one compiled pass per filter, each adding into ŷ (lfilter allocated per term)
-        yhat = np.empty(yy.size)
-        filter_into(rest, self.c, yy, yhat, False)
         fkd = np.convolve(fk, self.d)
-        for i in range(self.n_inputs):
-            num = np.convolve(fkd, np.concatenate([np.zeros(self.nk[i]), self.b[i]]))
-            filter_into(num, np.convolve(self.c, self.f[i]), uu[:, i], yhat, True)  # type: ignore[index]
-        return yhat
+        terms = [
+            (np.convolve(fkd, np.concatenate([np.zeros(self.nk[i]), self.b[i]])),
+             np.convolve(self.c, self.f[i]))  # type: ignore[index]
+            for i in range(self.n_inputs)
+        ]
+        return rest, terms
 
     def residuals(self, y: ArrayLike, u: ArrayLike) -> NDArray[np.float64]:
         """Return the one-step prediction errors ``y − ŷ(t | t − 1)``.

@@ -14,7 +14,7 @@ from .._errors import DataError, ModelError, SimulationDivergedError, check_opti
 from ..data import Experiment
 from ..data._experiment import check_experiment
 from ._metrics import fit_percent, metric_set
-from ._residuals import ResidualAnalysis, residual_analysis
+from ._residuals import ResidualAnalysis, analyse_residuals
 from ._simulate import (
     INITIALS,
     Initial,
@@ -291,6 +291,9 @@ def validate(
     else:
         model = _one_output(discrete_model(model, experiment.dt, intersample), experiment,
                             outputs[0])
+    # ARX: the simulation, the prediction and the residuals from one compiled pass
+    is_fused = (not replayable and isinstance(initial, str) and initial in ("auto", "measured")
+                and is_arx(model) and has_noise_model(model))
     y = experiment[outputs[0]]
     inputs = experiment.names_of(input)
     # one input: a view of its channel shaped (N, 1) as signal() stacks it, without the copy
@@ -307,6 +310,12 @@ def validate(
         if y_sim.shape != y.shape or not 0 <= first < y.size - 2:
             raise ModelError(f"{type(model).__name__}.replay returned {y_sim.shape} samples "
                              f"from sample {first} for a {y.size}-sample record")
+    elif is_fused:
+        # the simulation, the k-step prediction and the residuals in one compiled pass
+        skip = _transient(transient, y.size)
+        y_sim, first, y_pred, eps, stats = _arx_outputs(model, y, u, horizon, skip)
+        first += skip
+        initial_used = "measured"
     else:
         y_sim, first, initial_used = simulate_model(model, y, u, initial=initial,
                                                     transient=transient)
@@ -314,14 +323,17 @@ def validate(
     if max_lag is None:
         max_lag = _default_max_lag(y.size, first, experiment.name)
     if has_noise_model(model):
-        y_pred = np.asarray(model.predict(y, u, horizon=horizon), dtype=float)
-        eps = np.asarray(model.residuals(y, u), dtype=float)
+        if not is_fused:
+            y_pred = np.asarray(model.predict(y, u, horizon=horizon), dtype=float)
+            eps = np.asarray(model.residuals(y, u), dtype=float)
         # The k-step predictor takes unknown samples before the record as zero. For an ARX
         # model it is an FIR in y and u reaching back k − 1 + first samples, so from there on
         # it is exact, as the simulation is from `first` on (measured initial conditions).
         p0 = min(first + horizon - 1, len(y) - 2) if first > 0 else 0
+        e_run, sums = eps[first:], stats if is_fused else None
     else:  # output error: every predictor is the simulation, with its initial state
-        y_pred, eps, p0 = y_sim, y - y_sim, first
+        y_pred, p0 = y_sim, first
+        e_run, sums = y[first:] - y_sim[first:], None
     clipped = 0
     if limits is not None:
         lo, hi = _limits(limits)
@@ -346,8 +358,7 @@ def validate(
         relative_error=metrics["relative_error"],
         horizon=horizon,
         prediction_fit_percent=prediction_fit,
-        residuals=residual_analysis(eps[first:], u[first:], max_lag, confidence,
-                                    causal=closed_loop),
+        residuals=analyse_residuals(e_run, u[first:], max_lag, confidence, closed_loop, sums),
         experiment=experiment.name,
         prediction_first=p0,
         initial=initial_used,
@@ -418,6 +429,67 @@ def simulate_from_data(
         arx_from_data(a, np.ascontiguousarray(y, dtype=float), m, y_sim)
         return y_sim, m
     return np.asarray(model.simulate(u if u.shape[1] > 1 else u[:, 0]), dtype=float), 0
+
+
+def _arx_outputs(
+    model: Any, y: NDArray[np.float64], u: NDArray[np.float64], horizon: int, first: int = 0
+) -> tuple[NDArray[np.float64], int, NDArray[np.float64], NDArray[np.float64],
+           NDArray[np.float64]]:
+    """Simulation, k-step prediction and residuals of an ARX model, one pass.
+
+    The same values as :func:`simulate_from_data`, ``model.predict(y, u,
+    horizon)`` and ``model.residuals(y, u)`` (the same filters, summed in
+    the same order), from one compiled pass over the record instead of
+    six filter passes and their checks.
+
+    Returns
+    -------
+    y_sim, m, y_pred, eps
+        As :func:`simulate_from_data` returns them, then the prediction
+        and the residuals.
+    stats : ndarray, shape (1 + n_inputs, 3)
+        Sum, min and max of ``eps[first + m:]`` and of each input there
+        (``first``: samples skipped beyond the m initial conditions), for
+        the residual tests.
+    """
+    from ..models._kernels import all_finite
+    from ._kernels import arx_pass
+
+    y, u = check_signals(y, u)
+    u = u.reshape(len(y), -1)
+    y = np.ascontiguousarray(y, dtype=float)
+    if not all_finite(y):
+        raise DataError("y must be finite")
+    a = np.ascontiguousarray(model.a, dtype=float)
+    bks = [np.concatenate([np.zeros(k), b]) for b, k in zip(model.b, model.nk, strict=True)]
+    m = max(a.size - 1, *(bk.size - 1 for bk in bks))
+    if m and m >= len(y) - 1:
+        raise DataError(f"validation needs more than {m + 1} samples, got {len(y)}")
+    first += m
+    r1, _ = model._predictor_filters(1)
+    rk, terms = model._predictor_filters(int(horizon))
+    n_in = len(bks)
+    b_rows = np.zeros((n_in, max(bk.size for bk in bks)))
+    p_rows = np.zeros((n_in, max(num.size for num, _ in terms)))
+    for i, (bk, (num, _)) in enumerate(zip(bks, terms, strict=True)):
+        b_rows[i, : bk.size] = bk  # trailing zero taps add exact zeros
+        p_rows[i, : num.size] = num
+    y_sim, y_pred, eps = np.empty(len(y)), np.empty(len(y)), np.empty(len(y))
+    stats = np.zeros((1 + n_in, 3))
+    stats[:, 1], stats[:, 2] = np.inf, -np.inf
+    arx_pass(a, b_rows, np.ascontiguousarray(r1), np.ascontiguousarray(rk), p_rows, y,
+             np.ascontiguousarray(u.T, dtype=float), m, y_sim, y_pred, eps, first, stats)
+    return y_sim, m, y_pred, eps, stats
+
+
+def _transient(transient: Any, n: int) -> int:
+    """``transient`` checked as :func:`simulate_model` checks it."""
+    if isinstance(transient, bool) or not isinstance(transient, (int, np.integer)):
+        raise type_error("transient", transient, "an integer number of samples")
+    if not 0 <= transient < n - 2:
+        raise DataError(f"transient must lie in [0, {n - 3}] samples for {n} samples, "
+                        f"got {transient}")
+    return int(transient)
 
 
 def _time_of(experiment: Experiment) -> Any:

@@ -142,9 +142,28 @@ def residual_analysis(
     (``benchmarks/bench_scaling.py``); coloured residuals add the input's
     lagged products up to 6M for the null covariance (about twice that).
     """
+    return analyse_residuals(residuals, u, max_lag, confidence, causal, None)
+
+
+def analyse_residuals(
+    residuals: ArrayLike,
+    u: ArrayLike | None,
+    max_lag: int,
+    confidence: float,
+    causal: bool,
+    known_sums: NDArray[np.float64] | None,
+) -> ResidualAnalysis:
+    """:func:`residual_analysis`, with the sums and ranges known or not.
+
+    ``known_sums`` (rows: the residuals, then each input; columns: sum, min,
+    max), when a pass that formed the residuals summed them already,
+    replaces the mean and range passes over the signals.
+    """
     e_raw = as_array("residuals", residuals, finite=False).ravel()
     n = e_raw.size
-    e_mean = _mean(e_raw)
+    e_mean = _known_mean(known_sums, 0, n)
+    if not np.isfinite(e_mean):
+        e_mean = _mean(e_raw)
     if not np.isfinite(e_mean):
         raise DataError(
             f"residuals have {int(np.sum(~np.isfinite(e_raw)))} non-finite value(s) of {n}: the "
@@ -155,7 +174,11 @@ def residual_analysis(
         raise DataError(f"u must have {n} samples per input (one per residual), got shape "
                         f"{uu.shape}")
     uu = None if uu is None else uu.reshape(n, -1)
-    u_means = [] if uu is None else [_mean(col) for col in uu.T]
+    known = known_sums is not None and uu is not None and known_sums.shape[0] == 1 + uu.shape[1]
+    u_means = [] if uu is None else [
+        m if known and np.isfinite(m := _known_mean(known_sums, i + 1, n)) else _mean(col)
+        for i, col in enumerate(uu.T)
+    ]
     if not np.all(np.isfinite(u_means)):
         raise DataError("the input for the cross-correlation test has non-finite values")
     if not 0 < confidence < 1:
@@ -167,8 +190,11 @@ def residual_analysis(
     # centred, scaled signals (x − mean)·2^−k, 2^k the power of two above the peak, are formed
     # block by block inside the kernels (no N-sample copies; scaling by a power of two is
     # exact, so it leaves the correlations as they are); the means are finite, so every value is.
-    e = _Centred.of(e_raw, e_mean)
-    cols = [] if uu is None else [_Centred.of(col, m) for col, m in zip(uu.T, u_means, strict=True)]
+    e = _Centred.of(e_raw, e_mean, _known_range(known_sums, 0, e_mean))
+    cols = [] if uu is None else [
+        _Centred.of(col, m, _known_range(known_sums, i + 1, m) if known else None)
+        for i, (col, m) in enumerate(zip(uu.T, u_means, strict=True))
+    ]
     single = len(cols) == 1
     if single:  # the common case: every lag the white-residual tests use, in one pass
         e_sums, ue, eu, uu_sums = _fused_sums(e, cols[0], max_lag)
@@ -223,9 +249,11 @@ class _Centred(NamedTuple):
     scale: float
 
     @classmethod
-    def of(cls, x: NDArray[np.float64], mean: float) -> _Centred:
+    def of(cls, x: NDArray[np.float64], mean: float,
+           known: tuple[float, float] | None = None) -> _Centred:
         x = np.ascontiguousarray(x, dtype=np.float64)
-        lo, hi = _range_kernel(x)  # x is finite (its mean is): min and max are exact
+        # x is finite (its mean is): min and max are exact
+        lo, hi = _range_kernel(x) if known is None else known
         # |x − mean| is largest at the largest or the smallest x (rounding is monotonic),
         # so this is max|x − mean| to the bit
         peak = max(float(hi - mean), float(mean - lo), 0.0)
@@ -277,6 +305,22 @@ def _lagged_sums(
 ) -> NDArray[np.float64]:
     # Σ_t a(t)·b(t + d) for d = −L…L (zero outside the record), unnormalised.
     return _two_sided(a, b, max_lag)
+
+
+def _known_mean(sums: NDArray[np.float64] | None, row: int, n: int) -> float:
+    """The mean from a known sum; NaN when there is none (or it is not finite)."""
+    if sums is None or n == 0:
+        return math.nan
+    with np.errstate(over="ignore", invalid="ignore"):
+        return float(sums[row, 0] / n)
+
+
+def _known_range(sums: NDArray[np.float64] | None, row: int,
+                 mean: float) -> tuple[float, float] | None:
+    """The known (min, max), when its sum was finite (the mean it gave was used)."""
+    if sums is None or not np.isfinite(sums[row, 0]) or not np.isfinite(mean):
+        return None
+    return float(sums[row, 1]), float(sums[row, 2])
 
 
 def _mean(x: NDArray[np.float64]) -> float:
