@@ -7,6 +7,7 @@ import warnings
 from collections.abc import Sequence
 from typing import Literal
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -18,8 +19,14 @@ from ..models import PolynomialModel
 from ._channels import LARGEST_VALUE, SMALLEST_VALUE, check_magnitude, check_not_constant
 from ._channels import output_name as _channel_output
 from ._estimate import Deferred, Estimate
-from ._gram import lagged_gram, lagged_gram_ranges, value_range
-from ._ls import LeastSquaresResult, LsMethod, _solve_gram, lstsq
+from ._gram import (  # lagged_gram_ranges: the reference the tests compare the screen with
+    _lagged_gram_ranges,
+    _pair_keys,
+    lagged_gram,
+    lagged_gram_ranges,  # noqa: F401
+    value_range,
+)
+from ._ls import LsMethod, _gram_core, lstsq
 
 __all__ = ["ArxOrders", "fit_arx"]
 
@@ -29,22 +36,25 @@ InputRole = Literal["u", "r"]
 class ArxOrders:
     """Validated ARX orders: na, nb and nk per input."""
 
-    __slots__ = ("na", "nb", "nk")
+    __slots__ = ("_max_lag", "_n_parameters", "na", "nb", "nk")
 
     def __init__(self, na: int, nb: int | Sequence[int], nk: int | Sequence[int], n_inputs: int):
         self.na = _count("na", na, minimum=0)
         self.nb = _per_input("nb", nb, n_inputs, minimum=1)
         self.nk = _per_input("nk", nk, n_inputs, minimum=0)
+        # derived once: the instance is never changed after construction
+        self._n_parameters = self.na + sum(self.nb)
+        self._max_lag = max(self.na, *(k + b - 1 for k, b in zip(self.nk, self.nb, strict=True)))
 
     @property
     def n_parameters(self) -> int:
         """Number of ARX coefficients na + Σ nb."""
-        return self.na + sum(self.nb)
+        return self._n_parameters
 
     @property
     def max_lag(self) -> int:
         """Longest delay in the regressor [samples]."""
-        return max(self.na, *(k + b - 1 for k, b in zip(self.nk, self.nb, strict=True)))
+        return self._max_lag
 
     def columns(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """Signal index (0 = y, 1.. = inputs) and lag of each regressor column."""
@@ -135,9 +145,10 @@ def fit_arx(
         first.signal(input)  # raises a DataError naming what exists
     output_name = _channel_output(first, output)
     orders = _orders(na, nb, nk, len(input_names))
-    start = orders.max_lag if start is None else as_int("start", start, minimum=0)
-    if start < orders.max_lag:
-        raise DataError(f"start must be >= the longest lag {orders.max_lag}, got {start}")
+    max_lag = orders.max_lag
+    start = max_lag if start is None else as_int("start", start, minimum=0)
+    if start < max_lag:
+        raise DataError(f"start must be >= the longest lag {max_lag}, got {start}")
     n_par = orders.n_parameters
     n_rows = sum(max(seg.n_samples - start, 0) for seg in segments)
     if n_rows <= n_par:
@@ -147,19 +158,24 @@ def fit_arx(
             f"({start} initial + {n_par + 1} equations); got {first.n_samples if len(segments) == 1 else n_rows}"
             ". Use a longer record or lower orders"
         )
-    names, sig, lag, target_sig, target_lag = _structure(orders.na, orders.nb, orders.nk,
-                                                         tuple(input_names))
+    names, sig, lag, target_sig, target_lag, key_arr, pair_key = _structure_keys(
+        orders.na, orders.nb, orders.nk, tuple(input_names))
     signals = [_signals(seg, output_name, input_names) for seg in segments]
     gram = None
     if method in ("auto", "gram") and all(z[0].size > start for z in signals):
         # the Gram sums and each channel's range in one compiled call per segment
-        parts = [lagged_gram_ranges(z, target_sig, target_lag, start) for z in signals]
-        _check_channels(signals, input_names, [r for _, r in parts])
-        gram = parts[0][0] if len(parts) == 1 else sum(g for g, _ in parts)
+        parts = [_lagged_gram_ranges(z, target_sig, target_lag, start, key_arr, pair_key)
+                 for z in signals]
+        if len(parts) == 1 and _ranges_ok(parts[0][1], LARGEST_VALUE, SMALLEST_VALUE):
+            gram = parts[0][0]  # no channel check can fail: decided in one compiled call
+        else:
+            _check_channels(signals, input_names, [r for _, r in parts])
+            gram = parts[0][0] if len(parts) == 1 else sum(g for g, _ in parts)
     else:
         _check_channels(signals, input_names)
 
-    result: LeastSquaresResult | None = None
+    na_ = orders.na
+    core = None
     if method in ("auto", "gram"):
         # A segment with no more than `start` samples gives no equation; the kernel's
         # end corrections assume at least one (they would index past its end).
@@ -167,52 +183,69 @@ def fit_arx(
             gram = sum(
                 lagged_gram(z, target_sig, target_lag, start) for z in signals if z[0].size > start
             )
-        result = _solve_gram(np.asarray(gram, dtype=np.float64), n_rows, names)
-        if result is None and method == "gram":
+        core = _gram_core(gram, n_rows, names)
+        if core is None and method == "gram":
             warnings.warn(
                 "the regressor is too ill-conditioned for the normal equations "
                 "(scaled condition number > 1e3); solved by QR instead",
                 ServoidWarning,
                 stacklevel=2,
             )
-    if result is None:
+    stable: bool | None
+    if core is not None:
+        # θ = θ_s/scale, a = [1, −θ_a], the covariance with the a–b blocks' signs flipped
+        # (the regression used −y lags) and the stability test in one compiled call
+        # (the same float operations as the numpy expressions, so the same bits).
+        theta_s, cov_s, scale, rss, sigma2, condition = core
+        theta, a, parameters, cov, stable = _finish(theta_s, cov_s, scale, sigma2, na_,
+                                                     _powers(na_ + 1))
+        noise_variance = rss / (n_rows - n_par)
+        solver = "gram"
+    else:
         phi = _regressor(signals, sig, lag, start, n_rows)
         target = np.concatenate([z[0][start:] for z in signals])
         result = lstsq(phi, target, names)
+        theta = result.theta
+        a = np.concatenate([[1.0], -theta[:na_]])
+        parameters = np.concatenate([a[1:], theta[na_:]])
+        # The regression used −y lags; flip the sign of the a-part of the covariance.
+        # (exact sign flips of the off-diagonal a–b blocks, in place: result is ours)
+        cov = result.covariance
+        cov[:na_, na_:] *= -1.0
+        cov[na_:, :na_] *= -1.0
+        noise_variance = result.noise_variance
+        condition, solver, stable = result.condition, result.method, None
+    _warn_if_unstable(a, stable)
 
-    theta = result.theta
-    a = np.concatenate([[1.0], -theta[: orders.na]])
-    b_list, offset = [], orders.na
-    for nb_i in orders.nb:
-        b_list.append(theta[offset : offset + nb_i])
-        offset += nb_i
-    # The regression used −y lags; flip the sign of the a-part of the covariance.
-    # (exact sign flips of the off-diagonal a–b blocks, in place: result is ours)
-    cov = result.covariance
-    cov[: orders.na, orders.na :] *= -1.0
-    cov[orders.na :, : orders.na] *= -1.0
-    noise_variance = result.noise_variance
+    def b_list() -> list[NDArray[np.float64]]:
+        out, offset = [], na_
+        for nb_i in orders.nb:
+            out.append(theta[offset : offset + nb_i])
+            offset += nb_i
+        return out
+
     # built on first read of estimate.model: θ is finite here, so the build cannot fail
-    model = Deferred(lambda: PolynomialModel.arx(a, b_list, list(orders.nk), first.dt,
+    model = Deferred(lambda: PolynomialModel.arx(a, b_list(), list(orders.nk), first.dt,
                                                  noise_variance=noise_variance))
-    _warn_if_unstable(a)
 
     def residuals() -> NDArray[np.float64]:
-        return np.concatenate([_equation_error(z, a, b_list, orders.nk)[start:] for z in signals])
+        bs = b_list()
+        return np.concatenate([_equation_error(z, a, bs, orders.nk)[start:] for z in signals])
 
     def model_at(theta: NDArray[np.float64]) -> PolynomialModel:
         bounds = np.cumsum([orders.na, *orders.nb])
         return PolynomialModel.arx(np.concatenate([[1.0], theta[: orders.na]]),
                                    np.split(theta[orders.na :], bounds[1:-1] - orders.na),
                                    list(orders.nk), first.dt,
-                                   noise_variance=result.noise_variance)
+                                   noise_variance=noise_variance)
 
-    return Estimate(
+    # _trusted: the arrays are fresh and ours, names a cached tuple of str, options a new dict
+    return Estimate._trusted(
         model=model,
-        parameters=np.concatenate([a[1:], *b_list]),
+        parameters=parameters,
         names=names,
         covariance=cov,
-        noise_variance=result.noise_variance,
+        noise_variance=noise_variance,
         n_samples=n_rows,
         method="arx",
         options={
@@ -222,8 +255,8 @@ def fit_arx(
             "input": input,
             "inputs": list(input_names),
             "output": output_name,
-            "solver": result.method,
-            "condition": result.condition,
+            "solver": solver,
+            "condition": condition,
             "start": start,
             "segments": len(segments),
         },
@@ -311,6 +344,89 @@ def _structure(
     return _parameter_names(orders, inputs), sig, lag, target_sig, target_lag
 
 
+@functools.lru_cache(maxsize=256)
+def _structure_keys(
+    na: int, nb: tuple[int, ...], nk: tuple[int, ...], inputs: tuple[str, ...]
+) -> tuple[tuple[str, ...], NDArray[np.int64], NDArray[np.int64], NDArray[np.int64],
+           NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """:func:`_structure` and the Gram's lagged-product keys (:func:`_pair_keys`), cached."""
+    names, sig, lag, target_sig, target_lag = _structure(na, nb, nk, inputs)
+    key_arr, pair_key = _pair_keys(tuple(target_sig.tolist()), tuple(target_lag.tolist()))
+    return names, sig, lag, target_sig, target_lag, key_arr, pair_key
+
+
+@functools.lru_cache(maxsize=64)
+def _powers(n: int) -> NDArray[np.float64]:
+    """radius**i, i < n, for the stability test's radius (Python's pow, as before)."""
+    out = np.array([_STABLE_RADIUS**i for i in range(n)], dtype=np.float64)
+    out.setflags(write=False)
+    return out
+
+
+_STABLE_RADIUS = 1.0 + 1e-9
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _finish(theta_s, cov_s, scale, sigma2, na, powers):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # θ = θ_s / scale; a = [1, −θ[:na]]; parameters = [a[1:], θ[na:]];
+    # cov = σ̂²·cov_s/(scale scaleᵀ) with the a–b blocks negated; a strictly stable?
+    n = scale.size
+    theta = np.empty(n)
+    for i in range(n):
+        theta[i] = theta_s[i] / scale[i]
+    a = np.empty(na + 1)
+    a[0] = 1.0
+    for i in range(na):
+        a[i + 1] = -theta[i]
+    parameters = np.empty(n)
+    for i in range(n):
+        parameters[i] = a[i + 1] if i < na else theta[i]
+    cov = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            v = sigma2 * cov_s[i, j] / (scale[i] * scale[j])
+            cov[i, j] = -v if (i < na) != (j < na) else v
+    return theta, a, parameters, cov, _schur_cohn(a, powers)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _schur_cohn(a, powers):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # _strictly_stable(a, radius) with powers[i] = radius**i, same operations
+    if a.size < 2:
+        return True
+    c = np.empty(a.size)
+    for i in range(a.size):
+        c[i] = a[i] / powers[i]
+    m = a.size
+    nxt = np.empty(a.size)
+    while m > 1:
+        k = c[m - 1] / c[0]
+        if not abs(k) < 1.0:  # also NaN
+            return False
+        scale = 1.0 - k * k
+        for i in range(m - 1):
+            nxt[i] = (c[i] - k * c[m - 1 - i]) / scale
+        m -= 1
+        for i in range(m):
+            c[i] = nxt[i]
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _ranges_ok(ranges, largest, smallest):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # _check_channels' screen for one segment (channel 0 the output): True when no check
+    # can fail; the same comparisons in the same order
+    for k in range(ranges.shape[0]):
+        lo = ranges[k, 0]
+        hi = ranges[k, 1]
+        peak = max(abs(lo), abs(hi))
+        if not (peak <= largest and not 0 < peak < smallest):
+            return False
+        if k and hi - lo <= 1e-12 * max(abs(lo), abs(hi), 1e-300):
+            return False
+    return True
+
+
 def _check_channels(signals: Sequence[tuple[NDArray[np.float64], ...]],
                     input_names: Sequence[str],
                     ranges: Sequence[NDArray[np.float64]] | None = None) -> None:
@@ -368,8 +484,10 @@ def _strictly_stable(a: NDArray[np.float64], radius: float) -> bool:
     return True
 
 
-def _warn_if_unstable(a: NDArray[np.float64]) -> None:
-    if a.size < 2 or _strictly_stable(a, 1.0 + 1e-9):
+def _warn_if_unstable(a: NDArray[np.float64], stable: bool | None = None) -> None:
+    if stable is None:
+        stable = a.size < 2 or _strictly_stable(a, _STABLE_RADIUS)
+    if stable:
         return
     radius = float(np.abs(np.roots(a)).max())
     if radius > 1.0 + 1e-9:

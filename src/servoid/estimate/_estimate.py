@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -28,6 +29,17 @@ class ParameterRow:
     ci_low: float
     ci_high: float
     unit: str = ""
+
+
+#: Tuples of str that passed the names/units check, by id; holding them keeps the ids
+#: from being reused, and an estimator's cached names (ARX) skip the check after
+#: the first fit. Bounded: beyond 1024 entries a tuple is simply checked each time.
+_CHECKED: dict[int, tuple[str, ...]] = {}
+
+
+@functools.lru_cache(maxsize=128)
+def _blank_units(n: int) -> tuple[str, ...]:
+    return ("",) * n
 
 
 class Deferred:
@@ -123,10 +135,14 @@ class Estimate:
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
         if not self.units:
-            object.__setattr__(self, "units", ("",) * self.parameters.size)
+            object.__setattr__(self, "units", _blank_units(self.parameters.size))
         for name in ("names", "units"):
             value = getattr(self, name)
+            if type(value) is tuple and _CHECKED.get(id(value)) is value:
+                continue  # a tuple of str seen before (held here, so its id is its own)
             if type(value) is tuple and all(type(v) is str for v in value):
+                if len(_CHECKED) < 1024:
+                    _CHECKED[id(value)] = value
                 continue  # already what the check below makes of it
             if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or not all(
                     isinstance(v, str) for v in value):
@@ -136,6 +152,28 @@ class Estimate:
         if type(options) is not dict:
             as_mapping("options", options)
         object.__setattr__(self, "options", MappingProxyType(dict(options)))
+
+    @classmethod
+    def _trusted(cls, *, model: Any, parameters: NDArray[np.float64], names: tuple[str, ...],
+                 covariance: NDArray[np.float64], options: dict[str, Any],
+                 **fields: Any) -> Estimate:
+        """An Estimate from fields already in the form ``__post_init__`` gives them.
+
+        For an estimator's hot path (ARX): ``parameters`` and ``covariance``
+        fresh float64 arrays nobody else holds (made read-only here, not
+        copied), ``names`` a tuple of str, ``options`` a fresh dict, units
+        blank. What ``Estimate(...)`` would store, without its conversions.
+        """
+        obj = object.__new__(cls)
+        parameters.setflags(write=False)
+        covariance.setflags(write=False)
+        state = obj.__dict__
+        state.update(status="ok", units=_blank_units(parameters.size), residual_function=None,
+                     model_function=None)
+        state.update(fields)
+        state.update(_model=model, parameters=parameters, names=names, covariance=covariance,
+                     options=MappingProxyType(options))
+        return obj
 
     @property
     def std(self) -> NDArray[np.float64]:

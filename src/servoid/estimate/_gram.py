@@ -73,6 +73,30 @@ def lagged_gram_ranges(
     return gram, ranges
 
 
+def _lagged_gram_ranges(
+    z: tuple[NDArray[np.float64], ...],
+    signal: NDArray[np.int64],
+    lag: NDArray[np.int64],
+    start: int,
+    key_arr: NDArray[np.int64],
+    pair_key: NDArray[np.int64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`lagged_gram_ranges` with the structure's :func:`_pair_keys` given.
+
+    For a caller that has cached them (ARX): the same compiled call, without
+    re-deriving the keys or converting channels that are already contiguous
+    float arrays.
+    """
+    if not all(type(x) is np.ndarray and x.dtype == np.float64 and x.flags.c_contiguous
+               for x in z):
+        z = tuple(np.ascontiguousarray(x, dtype=np.float64) for x in z)
+    n = signal.size
+    gram = np.empty((n, n))
+    ranges = np.empty((len(z), 2))
+    _gram_ranges_kernel(z, key_arr, signal, lag, start, pair_key, gram, ranges)
+    return gram, ranges
+
+
 @functools.lru_cache(maxsize=256)
 def _pair_keys(
     signal: tuple[int, ...], lag: tuple[int, ...]

@@ -16,6 +16,7 @@ solution unchanged and makes the rank test independent of signal units.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -199,19 +200,40 @@ def _solve_gram(
     expressions they replace, so the results are the same to the bit): at 1e4
     samples the dozen small numpy calls cost more than the ARX sums themselves.
     """
+    core = _gram_core(gram, n_rows, names)
+    if core is None:
+        return None
+    theta_s, cov_s, scale, rss, sigma2, condition = core
+    cov = _covariance(cov_s, scale, sigma2)
+    return LeastSquaresResult(theta_s / scale, cov, rss, n_rows, condition, "gram")
+
+
+def _gram_core(
+    gram: NDArray[np.float64], n_rows: int, names: tuple[str, ...] | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float, float,
+           float] | None:
+    """Scaled θ, scaled covariance factor, scale, RSS, σ̂² and condition (or None).
+
+    The steps of :func:`_solve_gram` up to the unscaling, for a caller (ARX)
+    that unscales, rearranges and flips signs in one compiled call of its own.
+    """
     n = gram.shape[0] - 1
-    gram = np.ascontiguousarray(gram, dtype=np.float64)
-    g, scale, finite = _scaled(gram)
+    if type(gram) is not np.ndarray or gram.dtype != np.float64 or not gram.flags.c_contiguous:
+        gram = np.ascontiguousarray(gram, dtype=np.float64)
+    g, scale, finite, positive = _scaled(gram)
     if not finite:
         raise DataError(
             "the Gram matrix has non-finite entries: the signals are too large for their "
             "squares to be summed in double precision (beyond about 1e150), or hold NaN. "
             "Rescale the channels (calibrate them to SI units)"
         )
-    if not scale.min() > 0:
+    if not positive:  # scale.min() > 0, decided in the compiled call
         _check_columns(scale, names)
     eig = _eigvalsh(g)
-    condition = float(np.sqrt(eig[-1] / eig[0])) if eig[0] > 0 else np.inf
+    # Python floats: the same IEEE division and correctly rounded square root as
+    # float(np.sqrt(eig[-1] / eig[0])), without numpy's scalar overhead (NaN: inf)
+    eig_lo, eig_hi = float(eig[0]), float(eig[-1])
+    condition = math.sqrt(eig_hi / eig_lo) if eig_lo > 0 else math.inf
     if condition > RANK_COND_LIMIT:
         raise _rank_error(condition, names)
     if condition > GRAM_COND_LIMIT:
@@ -225,13 +247,13 @@ def _solve_gram(
     theta_s = cov_s @ rhs
     rss = max(float(gram[n, n] - theta_s @ rhs), 0.0)
     sigma2 = rss / max(n_rows - n, 1)
-    cov = _covariance(cov_s, scale, sigma2)
-    return LeastSquaresResult(theta_s / scale, cov, rss, n_rows, condition, "gram")
+    return theta_s, cov_s, scale, rss, sigma2, condition
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _scaled(gram):  # type: ignore[no-untyped-def]  # pragma: no cover
-    # scale = √diag(Φᵀ Φ), g = (ΦᵀΦ)/(scale scaleᵀ), and whether every entry is finite
+    # scale = √diag(Φᵀ Φ), g = (ΦᵀΦ)/(scale scaleᵀ), whether every entry is finite
+    # and whether every scale is > 0 (False for NaN, as `not scale.min() > 0`)
     n = gram.shape[0] - 1
     finite = True
     for i in range(n + 1):
@@ -239,13 +261,16 @@ def _scaled(gram):  # type: ignore[no-untyped-def]  # pragma: no cover
             if not np.isfinite(gram[i, j]):
                 finite = False
     scale = np.empty(n)
+    positive = True
     for i in range(n):
         scale[i] = np.sqrt(gram[i, i])
+        if not scale[i] > 0:
+            positive = False
     g = np.empty((n, n))
     for i in range(n):
         for j in range(n):
             g[i, j] = gram[i, j] / (scale[i] * scale[j])
-    return g, scale, finite
+    return g, scale, finite, positive
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
