@@ -389,7 +389,8 @@ def _lag_products(
     b = np.ascontiguousarray(b, dtype=np.float64)
     if last < first:
         return np.zeros(0)
-    return _lag_kernel(a, b, int(first), int(last), BLOCK)
+    # the centred kernel with mean 0 and scale 1: (x − 0)·1 is x exactly
+    return _pair_kernel(a, 0.0, 1.0, b, 0.0, 1.0, int(first), int(last), BLOCK)
 
 
 def _independence_pvalue(
@@ -457,81 +458,6 @@ def _shifted(x: NDArray[np.float64], index: NDArray[np.int64]) -> NDArray[np.flo
     """x[index], zero where the index falls outside the record."""
     inside = (index >= 0) & (index < x.size)
     return np.where(inside, x[np.clip(index, 0, x.size - 1)], 0.0)
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _centre_kernel(x, mean):  # type: ignore[no-untyped-def]  # pragma: no cover
-    # _unit_scale(x − mean) in two passes and one allocation, with the same operations
-    n = x.size
-    p0 = 0.0
-    p1 = 0.0
-    p2 = 0.0
-    p3 = 0.0
-    stop = n - n % 4
-    for t in range(0, stop, 4):  # four running maxima: no chain of dependent compares
-        p0 = max(p0, abs(x[t] - mean))
-        p1 = max(p1, abs(x[t + 1] - mean))
-        p2 = max(p2, abs(x[t + 2] - mean))
-        p3 = max(p3, abs(x[t + 3] - mean))
-    for t in range(stop, n):
-        p0 = max(p0, abs(x[t] - mean))
-    peak = max(max(p0, p1), max(p2, p3))
-    out = np.empty(n)
-    if peak > 0:
-        for t in range(n):
-            out[t] = (x[t] - mean) / peak
-    else:
-        for t in range(n):
-            out[t] = x[t] - mean
-    return out
-
-
-@numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"}, error_model="numpy")
-def _lag_kernel(a, b, first, last, block):  # type: ignore[no-untyped-def]  # pragma: no cover
-    # out[τ − first] = Σ_t a(t)·b(t + τ). Each block of a is swept against four shifted views
-    # of b at once (one load of a per four products); the inner loops run over 0-based slices,
-    # which the compiler vectorises (reassociation allowed: the sum order is the only change)
-    n = a.size
-    out = np.zeros(last - first + 1)
-    for start in range(0, n, block):
-        stop = min(start + block, n)
-        tau = first
-        while tau <= last:
-            m = 4 if tau + 3 <= last else 1
-            hi = min(stop, n - tau - (m - 1))  # where all m lags have a partner in b
-            if hi > start:
-                w = hi - start
-                aa = a[start:hi]
-                b0 = b[start + tau : hi + tau]
-                if m == 4:
-                    b1 = b[start + tau + 1 : hi + tau + 1]
-                    b2 = b[start + tau + 2 : hi + tau + 2]
-                    b3 = b[start + tau + 3 : hi + tau + 3]
-                    s0 = 0.0
-                    s1 = 0.0
-                    s2 = 0.0
-                    s3 = 0.0
-                    for t in range(w):
-                        x = aa[t]
-                        s0 += x * b0[t]
-                        s1 += x * b1[t]
-                        s2 += x * b2[t]
-                        s3 += x * b3[t]
-                    out[tau - first] += s0
-                    out[tau - first + 1] += s1
-                    out[tau - first + 2] += s2
-                    out[tau - first + 3] += s3
-                else:
-                    s0 = 0.0
-                    for t in range(w):
-                        s0 += aa[t] * b0[t]
-                    out[tau - first] += s0
-            if m == 4:  # the last products of the shorter lags, cut by the four-lag bound
-                for j in range(3):
-                    for t in range(max(start, hi), min(stop, n - tau - j)):
-                        out[tau - first + j] += a[t] * b[t + tau + j]
-            tau += m
-    return out
 
 
 @numba.njit(cache=True, nogil=True, fastmath={"nnan", "ninf", "nsz"})
