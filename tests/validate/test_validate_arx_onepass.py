@@ -54,7 +54,7 @@ def test_fused_pass_equals_unfused_functions(name, seed, horizon):
     model = MODELS[name]
     # 5000 samples: more than two blocks of the kernel (2048), so block edges are crossed
     y, u = _record(model, 5000, seed)
-    y_sim, first, y_pred, eps, _ = _arx_outputs(model, y, u, horizon)
+    y_sim, first, y_pred, eps, _, _ = _arx_outputs(model, y, u, horizon)
     ref_sim, ref_first = simulate_from_data(model, y, u)
     uu = u if u.shape[1] > 1 else u[:, 0]
     scale = np.max(np.abs(y))
@@ -71,7 +71,8 @@ def test_fused_pass_equals_unfused_functions(name, seed, horizon):
 def _unfused_outputs(model, y, u, horizon, first=0):
     """What the fused pass replaces: the simulation, ``predict`` and ``residuals``."""
     y_sim, first = simulate_from_data(model, y, u)
-    return (y_sim, first, model.predict(y, u, horizon=horizon), model.residuals(y, u), None)
+    return (y_sim, first, model.predict(y, u, horizon=horizon), model.residuals(y, u), None,
+            None)
 
 
 def _unfused_report(monkeypatch, model, exp, **kw):

@@ -130,9 +130,18 @@ def as_input_matrix(u: ArrayLike, n_inputs: int, *, owner: str) -> NDArray[np.fl
     if arr.ndim != 2 or arr.shape[1] != n_inputs:
         want = "(N,) or (N, 1)" if n_inputs == 1 else f"(N, {n_inputs})"
         raise DataError(f"{owner}: u must have shape {want}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not _all_finite(arr):
         raise DataError(f"{owner}: u must be finite")
     return arr
+
+
+def _all_finite(arr: NDArray[np.float64]) -> bool:
+    """Whether every value is finite; one compiled pass for a long contiguous array."""
+    if arr.size < 1 << 16 or not arr.flags.c_contiguous:
+        return bool(np.all(np.isfinite(arr)))
+    from ._kernels import all_finite  # (compiled: loaded on first use)
+
+    return bool(all_finite(arr.reshape(-1)))
 
 
 def common_dt(dt1: float | None, dt2: float | None, *, what: str) -> float | None:

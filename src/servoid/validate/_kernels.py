@@ -8,8 +8,12 @@ They replace chains of ``lfilter`` calls and N-sample temporaries:
 * :func:`arx_from_data` runs ``A y_sim = Σ B_i u_i`` with the first ``m``
   samples of y as the initial conditions, writing y_sim once;
 * :func:`arx_pass` gives, for ``validate``, that simulation, the k-step
-  prediction, the one-step residuals and the residuals' sum and range in
-  one blocked pass (six filter passes and four reductions before);
+  prediction, the one-step residuals, the residuals' sum and range and
+  the moments of the fit metrics in one blocked pass (six filter passes
+  and eight reductions before);
+* :func:`add_moments` forms the moments every fit metric is a ratio of,
+  and :func:`error_pass` those of an output-error model with its
+  residuals and their sum and range, in one pass each;
 * :func:`decay_length` finds where the impulse response h of ``1/den``
   has died out, so the free responses (the lags of h) and their least
   squares fit need only that many rows instead of N.
@@ -20,7 +24,13 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["arx_from_data", "arx_pass", "decay_length", "impulse"]
+__all__ = ["MOMENTS", "add_moments", "add_signal_stats", "arx_from_data", "arx_pass",
+           "decay_length", "error_pass", "impulse"]
+
+#: Entries of a moments row (:func:`add_moments`): the count, the means of y and of
+#: d = y − ŷ less the shifts in the last two entries, Σ(y − ȳ)², Σ(d − d̄)², Σd², Σy²,
+#: and the shifts (the first samples of y and d).
+MOMENTS = 9
 
 #: Samples per block of :func:`arx_pass`: its FIR sums run tap by tap over a block
 #: (vectorised) while the block's inputs and buffers stay in the L1/L2 cache.
@@ -119,8 +129,110 @@ def _add_stats(x, st, row):  # type: ignore[no-untyped-def]  # pragma: no cover
         st[row, 1], st[row, 2] = _block_range(x, st[row, 1], st[row, 2])
 
 
+@numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"}, error_model="numpy")
+def _block_moments(y, h, acc):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # A block's moments about its own means (two sweeps of the block, which is in cache),
+    # merged into ``acc`` by Chan, Golub & LeVeque's update (1983). The values are first
+    # shifted by the first sample of y and of d (kept in ``acc``), so a signal that sits
+    # far from zero (1e8 ± 1) keeps the means, and so the merge, exact to its spread: a
+    # running mean near 1e8 would carry a rounding of 1e-8 into every merge. As exact as
+    # two passes over the record about the global means, for one pass's memory traffic.
+    # Reassociated (vectorised); a NaN or inf still comes through to the means.
+    nb = y.size
+    if nb == 0:
+        return
+    if acc[0] == 0.0:
+        acc[7] = y[0]
+        acc[8] = y[0] - h[0]
+    ky = acc[7]
+    kd = acc[8]
+    sy = 0.0
+    sd = 0.0
+    for i in range(nb):
+        v = y[i]
+        sy += v - ky
+        sd += (v - h[i]) - kd
+    my = sy / nb
+    md = sd / nb
+    qy = 0.0
+    qd = 0.0
+    e2 = 0.0
+    p = 0.0
+    for i in range(nb):
+        v = y[i]
+        d = v - h[i]
+        x = (v - ky) - my
+        z = (d - kd) - md
+        qy += x * x
+        qd += z * z
+        e2 += d * d
+        p += v * v
+    na = acc[0]
+    n = na + nb
+    dy = my - acc[1]
+    dd = md - acc[2]
+    w = nb / n
+    acc[1] += dy * w
+    acc[2] += dd * w
+    acc[3] += qy + dy * dy * na * w
+    acc[4] += qd + dd * dd * na * w
+    acc[5] += e2
+    acc[6] += p
+    acc[0] = n
+
+
 @numba.njit(cache=True, nogil=True)
-def arx_pass(a, bks, r1, rk, pk, y, u, m, sim, pred, eps, first, st):  # type: ignore[no-untyped-def]  # pragma: no cover
+def add_moments(y, h, acc):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Merge the moments of measured y and model ŷ = h into ``acc``.
+
+    ``acc`` is a zeroed row of :data:`MOMENTS` entries (or one that holds
+    the moments of other samples): the count, the means of y and of d = y
+    − ŷ less their shifts, Σ(y − ȳ)², Σ(d − d̄)², Σd², Σy², and the
+    shifts (the first samples of y and d).  One pass over blocks of 1024
+    samples; the means are NaN or ±inf when a value is not finite (or a
+    block's sum overflows, beyond ~1e305).
+    """
+    n = y.size
+    for t0 in range(0, n, 1024):
+        t1 = min(t0 + 1024, n)
+        _block_moments(y[t0:t1], h[t0:t1], acc)
+
+
+@numba.njit(cache=True, nogil=True)
+def add_signal_stats(x, st, row):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Add the sum of x to ``st[row, 0]`` and widen its range in columns 1–2.
+
+    One pass in blocks of :data:`_BLOCK` (error ~ε·(2048 + N/2048)); min
+    and max are meaningful only when the sum is finite.
+    """
+    for t0 in range(0, x.size, _BLOCK):
+        _add_stats(x[t0 : min(t0 + _BLOCK, x.size)], st, row)
+
+
+@numba.njit(cache=True, nogil=True)
+def error_pass(y, h, first, e, mo, st):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Residuals, fit moments and their sum and range, one pass.
+
+    From sample ``first`` on: ``e[t − first] = y[t] − h[t]`` (as numpy
+    subtracts), the moments of (y, h) merged into ``mo`` as by
+    :func:`add_moments`, and the sum, min and max of e into ``st[0]`` as by
+    :func:`add_signal_stats`.
+    """
+    n = y.size
+    for t0 in range(first, n, _BLOCK):
+        t1 = min(t0 + _BLOCK, n)
+        eb = e[t0 - first : t1 - first]
+        yb = y[t0:t1]
+        hb = h[t0:t1]
+        for i in range(t1 - t0):
+            eb[i] = yb[i] - hb[i]
+        for s in range(t0, t1, 1024):
+            _block_moments(y[s : min(s + 1024, t1)], h[s : min(s + 1024, t1)], mo)
+        _add_stats(eb, st, 0)
+
+
+@numba.njit(cache=True, nogil=True)
+def arx_pass(a, bks, r1, rk, pk, y, u, m, sim, pred, eps, first, st, p0, mo):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Simulation, k-step prediction and residuals of an ARX model, one pass.
 
     Block by block, with ``v = Σ_i B_i u_i`` (``bks`` row i, delay
@@ -133,7 +245,9 @@ def arx_pass(a, bks, r1, rk, pk, y, u, m, sim, pred, eps, first, st):  # type: i
     n_inputs rows, zeros then ±inf on entry) receives the sum, min and max
     of eps and of each input from sample ``first`` on, which the residual
     tests centre and scale by (min and max are meaningful only when the
-    sum is finite).
+    sum is finite).  ``mo`` (two zeroed rows of :data:`MOMENTS`) receives
+    the moments of (y, sim) from sample ``first`` on and of (y, pred) from
+    ``p0`` on, for the fit metrics.
     """
     n = y.size
     na = a.size
@@ -177,15 +291,13 @@ def arx_pass(a, bks, r1, rk, pk, y, u, m, sim, pred, eps, first, st):  # type: i
             _add_stats(eb[s0:], st, 0)
             for i in range(nu):
                 _add_stats(u[i][t0 + s0 : t1], st, i + 1)
-        # k-step prediction
-        _fir(rk, y, t0, t1, w)
+        # k-step prediction, formed in place
+        pb = pred[t0:t1]
+        _fir(rk, y, t0, t1, pb)
         for i in range(nu):
             _fir(pk[i], u[i], t0, t1, tmp)
             for t in range(nb):
-                w[t] += tmp[t]
-        pb = pred[t0:t1]
-        for t in range(nb):
-            pb[t] = w[t]
+                pb[t] += tmp[t]
         # the measured-start simulation
         sb = sim[t0:t1]
         start = 0
@@ -213,6 +325,13 @@ def arx_pass(a, bks, r1, rk, pk, y, u, m, sim, pred, eps, first, st):  # type: i
                 w2 = w1
                 w1 = acc
                 ss[i] = acc
+        # the fit metrics' moments, while the block is in cache
+        for s in range(max(first, t0), t1, 1024):
+            e = min(s + 1024, t1)
+            _block_moments(y[s:e], sim[s:e], mo[0])
+        for s in range(max(p0, t0), t1, 1024):
+            e = min(s + 1024, t1)
+            _block_moments(y[s:e], pred[s:e], mo[1])
 
 
 @numba.njit(cache=True, nogil=True)

@@ -13,7 +13,7 @@ from .._checks import as_bool, as_float, as_int, type_error
 from .._errors import DataError, ModelError, SimulationDivergedError, check_option
 from ..data import Experiment
 from ..data._experiment import check_experiment
-from ._metrics import fit_percent, metric_set
+from ._metrics import fit_of_moments, fit_percent, metric_set
 from ._residuals import ResidualAnalysis, analyse_residuals
 from ._simulate import (
     INITIALS,
@@ -303,6 +303,7 @@ def validate(
             f"horizon = {horizon} samples is not shorter than the {y.size}-sample validation "
             "record; a k-step prediction needs k below the record length (a few samples is usual)"
         )
+    moments = stats = None  # the fit metrics' moments and the residual stats, when a pass has them
     if replayable:
         y_sim, first, initial_used = model.replay(y, u, initial=initial)
         y_sim = np.asarray(y_sim, dtype=float)
@@ -313,37 +314,44 @@ def validate(
     elif is_fused:
         # the simulation, the k-step prediction and the residuals in one compiled pass
         skip = _transient(transient, y.size)
-        y_sim, first, y_pred, eps, stats = _arx_outputs(model, y, u, horizon, skip)
+        y_sim, first, y_pred, eps, stats, moments = _arx_outputs(model, y, u, horizon, skip)
         first += skip
         initial_used = "measured"
     else:
         y_sim, first, initial_used = simulate_model(model, y, u, initial=initial,
                                                     transient=transient)
-    _check_finite_run(y_sim, first, model, experiment)
+    if not has_noise_model(model):  # output error: every predictor is the simulation
+        # the residuals, their sum and range and the metrics' moments in one pass
+        moments, stats, e_run = _output_error_pass(y, y_sim, first)
+    # finite means of y and y − y_sim from `first` on: the run is finite there
+    if moments is None or not np.all(np.isfinite(moments[0, 1:3])):
+        _check_finite_run(y_sim, first, model, experiment)
     if max_lag is None:
         max_lag = _default_max_lag(y.size, first, experiment.name)
     if has_noise_model(model):
         if not is_fused:
             y_pred = np.asarray(model.predict(y, u, horizon=horizon), dtype=float)
             eps = np.asarray(model.residuals(y, u), dtype=float)
-        # The k-step predictor takes unknown samples before the record as zero. For an ARX
-        # model it is an FIR in y and u reaching back k − 1 + first samples, so from there on
-        # it is exact, as the simulation is from `first` on (measured initial conditions).
-        p0 = min(first + horizon - 1, len(y) - 2) if first > 0 else 0
-        e_run, sums = eps[first:], stats if is_fused else None
-    else:  # output error: every predictor is the simulation, with its initial state
+        p0 = _prediction_start(first, horizon, y.size)
+        e_run = eps[first:]
+    else:  # with its initial state
         y_pred, p0 = y_sim, first
-        e_run, sums = y[first:] - y_sim[first:], None
     clipped = 0
     if limits is not None:
         lo, hi = _limits(limits)
         clipped = int(np.count_nonzero((y_sim[first:] < lo) | (y_sim[first:] > hi)))
         y_sim, y_pred = np.clip(y_sim, lo, hi), np.clip(y_pred, lo, hi)
+        moments = None  # of the unclipped outputs
     ys, ss = y[first:], y_sim[first:]
-    metrics = metric_set(ys, ss)  # the five from one pair of passes
+    metrics = metric_set(ys, ss, None if moments is None else moments[0])  # the five at once
     # output error: the predictor is the simulation, from the same sample — the same fit
     same = y_pred is y_sim and p0 == first
-    prediction_fit = metrics["fit_percent"] if same else float(fit_percent(y[p0:], y_pred[p0:]))
+    if same:
+        prediction_fit = metrics["fit_percent"]
+    elif moments is not None and moments.shape[0] > 1:
+        prediction_fit = fit_of_moments(y[p0:], y_pred[p0:], moments[1])
+    else:
+        prediction_fit = float(fit_percent(y[p0:], y_pred[p0:]))
     return ValidationReport(
         output=outputs[0],
         time=_time_of(experiment),
@@ -358,7 +366,7 @@ def validate(
         relative_error=metrics["relative_error"],
         horizon=horizon,
         prediction_fit_percent=prediction_fit,
-        residuals=analyse_residuals(e_run, u[first:], max_lag, confidence, closed_loop, sums),
+        residuals=analyse_residuals(e_run, u[first:], max_lag, confidence, closed_loop, stats),
         experiment=experiment.name,
         prediction_first=p0,
         initial=initial_used,
@@ -434,7 +442,7 @@ def simulate_from_data(
 def _arx_outputs(
     model: Any, y: NDArray[np.float64], u: NDArray[np.float64], horizon: int, first: int = 0
 ) -> tuple[NDArray[np.float64], int, NDArray[np.float64], NDArray[np.float64],
-           NDArray[np.float64]]:
+           NDArray[np.float64], NDArray[np.float64]]:
     """Simulation, k-step prediction and residuals of an ARX model, one pass.
 
     The same values as :func:`simulate_from_data`, ``model.predict(y, u,
@@ -451,15 +459,17 @@ def _arx_outputs(
         Sum, min and max of ``eps[first + m:]`` and of each input there
         (``first``: samples skipped beyond the m initial conditions), for
         the residual tests.
+    moments : ndarray, shape (2, MOMENTS)
+        The fit metrics' moments of (y, y_sim) from ``first + m`` on and of
+        (y, y_pred) from where the prediction is exact
+        (:func:`_prediction_start`).
     """
     from ..models._kernels import all_finite
-    from ._kernels import arx_pass
+    from ._kernels import MOMENTS, arx_pass
 
     y, u = check_signals(y, u)
     u = u.reshape(len(y), -1)
     y = np.ascontiguousarray(y, dtype=float)
-    if not all_finite(y):
-        raise DataError("y must be finite")
     a = np.ascontiguousarray(model.a, dtype=float)
     bks = [np.concatenate([np.zeros(k), b]) for b, k in zip(model.b, model.nk, strict=True)]
     m = max(a.size - 1, *(bk.size - 1 for bk in bks))
@@ -477,9 +487,41 @@ def _arx_outputs(
     y_sim, y_pred, eps = np.empty(len(y)), np.empty(len(y)), np.empty(len(y))
     stats = np.zeros((1 + n_in, 3))
     stats[:, 1], stats[:, 2] = np.inf, -np.inf
+    moments = np.zeros((2, MOMENTS))
     arx_pass(a, b_rows, np.ascontiguousarray(r1), np.ascontiguousarray(rk), p_rows, y,
-             np.ascontiguousarray(u.T, dtype=float), m, y_sim, y_pred, eps, first, stats)
-    return y_sim, m, y_pred, eps, stats
+             np.ascontiguousarray(u.T, dtype=float), m, y_sim, y_pred, eps, first, stats,
+             _prediction_start(first, horizon, len(y)), moments)
+    # y[first:] is finite when the mean of y there is (the moments' first mean); only then
+    # does the check need no pass of its own beyond the first samples
+    if not (np.isfinite(moments[0, 1]) and all_finite(y[:first])) and not all_finite(y):
+        raise DataError("y must be finite")
+    return y_sim, m, y_pred, eps, stats, moments
+
+
+def _prediction_start(first: int, horizon: int, n: int) -> int:
+    """First sample of the k-step prediction the prediction fit is taken from.
+
+    The k-step predictor takes unknown samples before the record as zero.
+    For an ARX model it is an FIR in y and u reaching back k − 1 + first
+    samples, so from there on it is exact, as the simulation is from
+    ``first`` on (measured initial conditions).
+    """
+    return min(first + horizon - 1, n - 2) if first > 0 else 0
+
+
+def _output_error_pass(
+    y: NDArray[np.float64], y_sim: NDArray[np.float64], first: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Moments (one row), residual stats (one row) and residuals from ``first`` on."""
+    from ._kernels import MOMENTS, error_pass
+
+    y = np.ascontiguousarray(y, dtype=float)
+    y_sim = np.ascontiguousarray(y_sim, dtype=float)
+    moments = np.zeros((1, MOMENTS))
+    stats = np.array([[0.0, np.inf, -np.inf]])
+    e_run = np.empty(y.size - first)
+    error_pass(y, y_sim, first, e_run, moments[0], stats)
+    return moments, stats, e_run
 
 
 def _transient(transient: Any, n: int) -> int:

@@ -12,13 +12,17 @@ power of two, exactly) block by block inside the kernels, so no centred
 copy of the record is made: the correlations do not depend on scale, and
 it keeps products of data near 1e150 from overflowing. With one input, a
 single sweep forms every lag the white-residual tests need (ε·ε, u·ε, ε·u
-and u·u, their loads shared)."""
+and u·u, their loads shared). A long record is swept in two halves at once,
+one per core, and the halves are added in a fixed order, so the sums are
+the same with or without the second thread (:func:`_split_sums`)."""
 
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -27,11 +31,14 @@ from numpy.typing import ArrayLike, NDArray
 from .._checks import as_array
 from .._errors import DataError
 from .._lazy import stats
+from ._kernels import add_signal_stats
 
 __all__ = ["BLOCK", "ResidualAnalysis", "residual_analysis"]
 
 #: Samples per block of the correlation kernel (two blocks stay in L1 cache).
 BLOCK = 2048
+#: Residuals from which the lag sums run in two halves, one per core (:func:`_split_sums`).
+_SPLIT = 1 << 17
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,13 +162,14 @@ def analyse_residuals(
 ) -> ResidualAnalysis:
     """:func:`residual_analysis`, with the sums and ranges known or not.
 
-    ``known_sums`` (rows: the residuals, then each input; columns: sum, min,
-    max), when a pass that formed the residuals summed them already,
-    replaces the mean and range passes over the signals.
+    ``known_sums`` (rows: the residuals, then each input or none; columns:
+    sum, min, max), when a pass that formed the residuals summed them
+    already, replaces the pass over the signals it covers.
     """
     e_raw = as_array("residuals", residuals, finite=False).ravel()
     n = e_raw.size
-    e_mean = _known_mean(known_sums, 0, n)
+    e_stats = _stats_of([e_raw], None if known_sums is None else known_sums[:1])
+    e_mean = _known_mean(e_stats, 0, n)
     if not np.isfinite(e_mean):
         e_mean = _mean(e_raw)
     if not np.isfinite(e_mean):
@@ -173,11 +181,14 @@ def analyse_residuals(
     if uu is not None and uu.size % max(n, 1):
         raise DataError(f"u must have {n} samples per input (one per residual), got shape "
                         f"{uu.shape}")
-    uu = None if uu is None else uu.reshape(n, -1)
-    known = known_sums is not None and uu is not None and known_sums.shape[0] == 1 + uu.shape[1]
-    u_means = [] if uu is None else [
-        m if known and np.isfinite(m := _known_mean(known_sums, i + 1, n)) else _mean(col)
-        for i, col in enumerate(uu.T)
+    u_raw = [] if uu is None else [
+        np.ascontiguousarray(col, dtype=np.float64) for col in uu.reshape(n, -1).T
+    ]
+    known = known_sums is not None and known_sums.shape[0] == 1 + len(u_raw)
+    u_stats = _stats_of(u_raw, known_sums[1:] if known else None)
+    u_means = [
+        m if np.isfinite(m := _known_mean(u_stats, i, n)) else _mean(col)
+        for i, col in enumerate(u_raw)
     ]
     if not np.all(np.isfinite(u_means)):
         raise DataError("the input for the cross-correlation test has non-finite values")
@@ -190,10 +201,10 @@ def analyse_residuals(
     # centred, scaled signals (x − mean)·2^−k, 2^k the power of two above the peak, are formed
     # block by block inside the kernels (no N-sample copies; scaling by a power of two is
     # exact, so it leaves the correlations as they are); the means are finite, so every value is.
-    e = _Centred.of(e_raw, e_mean, _known_range(known_sums, 0, e_mean))
-    cols = [] if uu is None else [
-        _Centred.of(col, m, _known_range(known_sums, i + 1, m) if known else None)
-        for i, (col, m) in enumerate(zip(uu.T, u_means, strict=True))
+    e = _Centred.of(e_raw, e_mean, _known_range(e_stats, 0, e_mean))
+    cols = [
+        _Centred.of(col, m, _known_range(u_stats, i, m))
+        for i, (col, m) in enumerate(zip(u_raw, u_means, strict=True))
     ]
     single = len(cols) == 1
     if single:  # the common case: every lag the white-residual tests use, in one pass
@@ -276,8 +287,8 @@ def _centred_lags(a: _Centred, b: _Centred, first: int, last: int) -> NDArray[np
     """Σ_{t=0}^{N−1−τ} a(t)·b(t + τ) for τ = first…last of the centred signals."""
     if last < first:
         return np.zeros(0)
-    return _pair_kernel(a.raw, a.mean, a.scale, b.raw, b.mean, b.scale, int(first), int(last),
-                        BLOCK)
+    return _split_sums(_pair_kernel, a.size, a.raw, a.mean, a.scale, b.raw, b.mean, b.scale,
+                       int(first), int(last), BLOCK)
 
 
 def _centred_two_sided(a: _Centred, b: _Centred, max_lag: int) -> NDArray[np.float64]:
@@ -292,7 +303,42 @@ def _fused_sums(
     e: _Centred, u: _Centred, max_lag: int
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Σe(t)e(t+τ), Σu(t)e(t+τ), Σe(t)u(t+τ) for τ = 0…M and Σu(t)u(t+τ) for τ = 0…2M."""
-    return _fused_kernel(e.raw, e.mean, e.scale, u.raw, u.mean, u.scale, int(max_lag), BLOCK)
+    return _split_sums(_fused_kernel, e.size, e.raw, e.mean, e.scale, u.raw, u.mean, u.scale,
+                       int(max_lag), BLOCK)
+
+
+def _split_sums(kernel: Any, n: int, *args: Any) -> Any:
+    """``kernel(*args, lo, hi)`` summed over t in [0, n): in two halves for a long record.
+
+    The halves run at once, the second on a worker thread, unless numba is
+    held to one thread (``NUMBA_NUM_THREADS=1``, as fleet workers are); they
+    are added in the same order either way, so the sums do not depend on it.
+    """
+    if n < _SPLIT:
+        return kernel(*args, 0, n)
+    mid = (n // 2 // BLOCK) * BLOCK
+    pool = _worker()
+    if pool is None:
+        first, second = kernel(*args, 0, mid), kernel(*args, mid, n)
+    else:
+        later = pool.submit(kernel, *args, mid, n)
+        first, second = kernel(*args, 0, mid), later.result()
+    if isinstance(first, tuple):
+        return tuple(a + b for a, b in zip(first, second, strict=True))
+    return first + second
+
+
+_POOL: tuple[int, ThreadPoolExecutor] | None = None
+
+
+def _worker() -> ThreadPoolExecutor | None:
+    """The one worker thread of this process, or None when numba may use one thread."""
+    global _POOL
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        return None
+    if _POOL is None or _POOL[0] != os.getpid():  # a forked child has no worker thread
+        _POOL = (os.getpid(), ThreadPoolExecutor(1, thread_name_prefix="servoid-sums"))
+    return _POOL[1]
 
 
 def _xcorr(a: NDArray[np.float64], b: NDArray[np.float64], max_lag: int) -> NDArray[np.float64]:
@@ -305,6 +351,18 @@ def _lagged_sums(
 ) -> NDArray[np.float64]:
     # Σ_t a(t)·b(t + d) for d = −L…L (zero outside the record), unnormalised.
     return _two_sided(a, b, max_lag)
+
+
+def _stats_of(signals: list[NDArray[np.float64]],
+              known: NDArray[np.float64] | None) -> NDArray[np.float64]:
+    """Sum, min and max of each signal (rows): ``known``, or one compiled pass each."""
+    if known is not None:
+        return known
+    st = np.zeros((len(signals), 3))
+    st[:, 1], st[:, 2] = np.inf, -np.inf
+    for i, x in enumerate(signals):
+        add_signal_stats(x, st, i)
+    return st
 
 
 def _known_mean(sums: NDArray[np.float64] | None, row: int, n: int) -> float:
@@ -390,7 +448,7 @@ def _lag_products(
     if last < first:
         return np.zeros(0)
     # the centred kernel with mean 0 and scale 1: (x − 0)·1 is x exactly
-    return _pair_kernel(a, 0.0, 1.0, b, 0.0, 1.0, int(first), int(last), BLOCK)
+    return _pair_kernel(a, 0.0, 1.0, b, 0.0, 1.0, int(first), int(last), BLOCK, 0, a.size)
 
 
 def _independence_pvalue(
@@ -484,15 +542,15 @@ def _fill(x, mean, scale, start, buf):  # type: ignore[no-untyped-def]  # pragma
 
 
 @numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"}, error_model="numpy")
-def _pair_kernel(a, ma, sa, b, mb, sb, first, last, block):  # type: ignore[no-untyped-def]  # pragma: no cover
-    # out[τ − first] = Σ_t a_c(t)·b_c(t + τ), x_c = (x − m)·s formed per block in two small
-    # buffers (b's reaches `last` samples further, zero past the record, so no end cases)
-    n = a.size
+def _pair_kernel(a, ma, sa, b, mb, sb, first, last, block, lo, hi):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # out[τ − first] = Σ_t a_c(t)·b_c(t + τ) over t in [lo, hi), x_c = (x − m)·s formed per
+    # block in two small buffers (b's reaches `last` samples further, into the record past
+    # hi and zero past its end, so no end cases)
     out = np.zeros(last - first + 1)
     ab = np.empty(block)
     bb = np.empty(block + last + 4)
-    for start in range(0, n, block):
-        w = min(block, n - start)
+    for start in range(lo, hi, block):
+        w = min(block, hi - start)
         _fill(a, ma, sa, start, ab)
         _fill(b, mb, sb, start, bb)
         tau = first
@@ -529,73 +587,91 @@ def _pair_kernel(a, ma, sa, b, mb, sb, first, last, block):  # type: ignore[no-u
 
 
 @numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"}, error_model="numpy")
-def _fused_kernel(e, me, se, u, mu, su, m, block):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _fused_kernel(e, me, se, u, mu, su, m, block, lo, hi):  # type: ignore[no-untyped-def]  # pragma: no cover
     # For τ = 0…M: ee[τ] = Σ e_c(t)e_c(t+τ), ue[τ] = Σ u_c(t)e_c(t+τ), eu[τ] = Σ e_c(t)u_c(t+τ),
-    # uu[τ] = Σ u_c(t)u_c(t+τ); uu also for τ = M+1…2M. One sweep over blocks of the
-    # centred signals (formed in small buffers, zero past the record): each lag's four
-    # products share their loads, two lags per inner loop.
-    n = e.size
+    # uu[τ] = Σ u_c(t)u_c(t+τ); uu also for τ = M+1…2M; t in [lo, hi). One sweep over blocks
+    # of the centred signals (formed in small buffers, zero past the record). Three lags per inner
+    # loop share the loads of e_c(t) and u_c(t): 12 products for 8 loads, which keeps the
+    # two FMA units busy (two lags left it waiting on loads, four spilled registers); the
+    # input's far lags go eight at a time. Lags past M or 2M are summed and dropped.
     r = 2 * m
-    eb = np.empty(block + r + 2)
-    ub = np.empty(block + r + 2)
-    ee = np.zeros(m + 1)
-    ue = np.zeros(m + 1)
-    eu = np.zeros(m + 1)
-    uu = np.zeros(r + 1)
-    for start in range(0, n, block):
-        w = min(block, n - start)
+    eb = np.empty(block + r + 12)
+    ub = np.empty(block + r + 12)
+    ee = np.zeros(m + 3)
+    ue = np.zeros(m + 3)
+    eu = np.zeros(m + 3)
+    uu = np.zeros(r + 10)
+    for start in range(lo, hi, block):
+        w = min(block, hi - start)
         _fill(e, me, se, start, eb)
         _fill(u, mu, su, start, ub)
         tau = 0
         while tau <= m:
-            s0 = 0.0
-            s1 = 0.0
-            s2 = 0.0
-            s3 = 0.0
-            t0 = 0.0
-            t1 = 0.0
-            t2 = 0.0
-            t3 = 0.0
-            for t in range(w):  # lags τ and τ + 1 (the second unused past M)
+            e0 = eb[tau : tau + w]
+            e1 = eb[tau + 1 : tau + 1 + w]
+            e2 = eb[tau + 2 : tau + 2 + w]
+            u0 = ub[tau : tau + w]
+            u1 = ub[tau + 1 : tau + 1 + w]
+            u2 = ub[tau + 2 : tau + 2 + w]
+            s00 = s01 = s02 = s03 = 0.0
+            s10 = s11 = s12 = s13 = 0.0
+            s20 = s21 = s22 = s23 = 0.0
+            for t in range(w):
                 x = eb[t]
                 v = ub[t]
-                xe = eb[t + tau]
-                xu = ub[t + tau]
-                ye = eb[t + tau + 1]
-                yu = ub[t + tau + 1]
-                s0 += x * xe
-                s1 += v * xe
-                s2 += x * xu
-                s3 += v * xu
-                t0 += x * ye
-                t1 += v * ye
-                t2 += x * yu
-                t3 += v * yu
-            ee[tau] += s0
-            ue[tau] += s1
-            eu[tau] += s2
-            uu[tau] += s3
-            if tau + 1 <= m:
-                ee[tau + 1] += t0
-                ue[tau + 1] += t1
-                eu[tau + 1] += t2
-            uu[tau + 1] += t3
-            tau += 2
-        # τ is now the first lag of uu not yet summed (M + 1 or M + 2)
-        while tau + 1 <= r:
-            s0 = 0.0
-            s1 = 0.0
+                s00 += x * e0[t]
+                s01 += v * e0[t]
+                s02 += x * u0[t]
+                s03 += v * u0[t]
+                s10 += x * e1[t]
+                s11 += v * e1[t]
+                s12 += x * u1[t]
+                s13 += v * u1[t]
+                s20 += x * e2[t]
+                s21 += v * e2[t]
+                s22 += x * u2[t]
+                s23 += v * u2[t]
+            ee[tau] += s00
+            ue[tau] += s01
+            eu[tau] += s02
+            uu[tau] += s03
+            ee[tau + 1] += s10
+            ue[tau + 1] += s11
+            eu[tau + 1] += s12
+            uu[tau + 1] += s13
+            ee[tau + 2] += s20
+            ue[tau + 2] += s21
+            eu[tau + 2] += s22
+            uu[tau + 2] += s23
+            tau += 3
+        # τ is now the first lag of uu not yet summed (M + 1 … M + 3)
+        while tau <= r:
+            b0 = ub[tau : tau + w]
+            b1 = ub[tau + 1 : tau + 1 + w]
+            b2 = ub[tau + 2 : tau + 2 + w]
+            b3 = ub[tau + 3 : tau + 3 + w]
+            b4 = ub[tau + 4 : tau + 4 + w]
+            b5 = ub[tau + 5 : tau + 5 + w]
+            b6 = ub[tau + 6 : tau + 6 + w]
+            b7 = ub[tau + 7 : tau + 7 + w]
+            s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
             for t in range(w):
                 v = ub[t]
-                s0 += v * ub[t + tau]
-                s1 += v * ub[t + tau + 1]
+                s0 += v * b0[t]
+                s1 += v * b1[t]
+                s2 += v * b2[t]
+                s3 += v * b3[t]
+                s4 += v * b4[t]
+                s5 += v * b5[t]
+                s6 += v * b6[t]
+                s7 += v * b7[t]
             uu[tau] += s0
             uu[tau + 1] += s1
-            tau += 2
-        if tau <= r:
-            s0 = 0.0
-            for t in range(w):
-                s0 += ub[t] * ub[t + tau]
-            uu[tau] += s0
-    return ee, ue, eu, uu
-
+            uu[tau + 2] += s2
+            uu[tau + 3] += s3
+            uu[tau + 4] += s4
+            uu[tau + 5] += s5
+            uu[tau + 6] += s6
+            uu[tau + 7] += s7
+            tau += 8
+    return ee[: m + 1], ue[: m + 1], eu[: m + 1], uu[: r + 1]
