@@ -131,21 +131,27 @@ def aic_order(
     """Return the index into ``sizes`` whose column prefix minimises AIC.
 
     The candidate models are nested: model k uses the first ``sizes[k]``
-    columns of ``phi``, so one Cholesky factor R of the Gram matrix of
-    ``[phi, target]`` gives every residual sum of squares,
-    ``RSS_k = ‖y‖² − Σ_{i<n_k} R[i, −1]²``, and
+    columns of ``phi`` (see :func:`aic_order_gram`).
+    """
+    aug = np.column_stack([phi, target])
+    return aic_order_gram(aug.T @ aug, target.size, sizes)
+
+
+def aic_order_gram(gram: NDArray[np.float64], n: int, sizes: Sequence[int]) -> int:
+    """:func:`aic_order` from the Gram matrix of ``[phi, target]`` over n rows.
+
+    One Cholesky factor R of the column-scaled Gram matrix gives every
+    residual sum of squares, ``RSS_k = ‖y‖² − Σ_{i<n_k} R[i, −1]²``, and
     ``AIC_k = N·ln(RSS_k/N) + 2·n_k`` (Akaike 1974; Ljung, *System
     Identification*, 2nd ed., §16.4).
     """
-    n = target.size
-    aug = np.column_stack([phi, target])
-    scale = np.sqrt(np.einsum("ij,ij->j", aug, aug))
+    scale = np.sqrt(np.diag(gram).copy())
     scale[scale == 0] = 1.0
-    gram = (aug / scale).T @ (aug / scale)
-    ridge = 1e-12 * np.trace(gram) / gram.shape[0]
-    gram[np.diag_indices_from(gram)] += ridge  # keeps a rank-deficient prefix factorable
-    upper = np.linalg.cholesky(gram).T
-    total = float(target @ target)
+    scaled = gram / np.outer(scale, scale)
+    ridge = 1e-12 * np.trace(scaled) / scaled.shape[0]
+    scaled[np.diag_indices_from(scaled)] += ridge  # keeps a rank-deficient prefix factorable
+    upper = np.linalg.cholesky(scaled).T
+    total = float(gram[-1, -1])
     explained = np.concatenate([[0.0], np.cumsum(upper[:-1, -1] ** 2)]) * scale[-1] ** 2
     best, best_crit = 0, np.inf
     floor = total * 1e-300 + 1e-300

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,10 +40,9 @@ from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate
 from ..models import PolynomialModel, TransferFunction
 from ._channels import (
-    aic_order,
+    aic_order_gram,
     check_excites,
     check_name,
-    lag_matrix,
     output_name,
     single_name,
 )
@@ -252,17 +251,24 @@ def feedback_test(
             f"{head + m_lag + n_cols + 10} samples, got {max(lengths)}; use a longer record or "
             "a smaller max_lag"
         )
-    past, future, target = _regression(ss, us, n_max, head, m_lag)
-    n = n_max if order is not None else aic_order(past, target, [1 + 2 * k for k in range(
-        n_max + 1)])
+    # The regression is never formed: its columns are lags of s and u, so one Gram matrix of
+    # lagged products gives every fit, and the residuals come from the data with the fitted
+    # coefficients (memory a few N, not N × (2n + M) several times over).
+    cols = _Columns(n_max, m_lag)
+    gram, sums = _lagged_sums(ss, us, cols, head)
+    pt = np.r_[np.arange(cols.n_past), cols.target]
+    n = n_max if order is not None else aic_order_gram(gram[np.ix_(pt, pt)], n_rows, [
+        1 + 2 * k for k in range(n_max + 1)])
     k_r = 1 + 2 * n
-    # one Gram matrix of [restricted | future | target] serves every fit below
-    normal = _Normal(np.hstack([past[:, :k_r], future, target[:, None]]))
+    normal = _Normal(gram)
     restricted = np.arange(k_r)
-    full = np.arange(k_r + m_lag)
-    resid, rank_r = normal.residual(restricted, k_r + m_lag)
-    resid_f, rank_f = normal.residual(full, k_r + m_lag)
-    rss_r, rss_f = float(resid @ resid), float(resid_f @ resid_f)
+    future = cols.future
+    full = np.r_[restricted, future]
+    coef_r, rank_r = normal.solve(restricted, cols.target)
+    coef_f, rank_f = normal.solve(full, cols.target)
+    fit = _residual_sums(ss, us, cols, head, (restricted, coef_r), (full, coef_f),
+                         np.r_[restricted, future])
+    rss_r, rss_f = fit.squares
     q = rank_f - rank_r
     if q < 1:
         raise IdentifiabilityError(
@@ -274,8 +280,7 @@ def feedback_test(
     stat = ((rss_r - rss_f) / q) / (rss_f / dof_den) if rss_f > 0 else math.inf
     pvalue = float(stats.f.sf(stat, q, dof_den))
     # only the part of u(t + τ) its past does not explain can show the noise fed back
-    new_part, _ = normal.residual(restricted, np.arange(k_r, k_r + m_lag))
-    corr = _cross_correlation(resid, new_part)
+    corr = _new_part_correlation(normal, gram, sums, fit, restricted, future, n_rows)
     bound = float(stats.norm.ppf(0.5 + conf / 2) / np.sqrt(n_rows))
     return FeedbackTest(
         statistic=float(stat), pvalue=pvalue, dof=(int(q), int(dof_den)),
@@ -348,57 +353,141 @@ def _check_dt(model_dt: float, dt: float) -> None:
                          "model identified at the data rate")
 
 
-def _regression(
-    ss: list[NDArray[np.float64]], us: list[NDArray[np.float64]], n_max: int, head: int,
-    m_lag: int,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    # columns interleaved u(t), s(t−1), u(t−1), s(t−2), …, so order n is the first 2n + 1
-    past, future, target = [], [], []
+@dataclass(frozen=True)
+class _Columns:
+    """The test regression's columns as (signal, lag) of z = (s, u), in a shifted time.
+
+    Interleaved u(t), s(t−1), u(t−1), …, s(t−n), u(t−n) (so order k is the
+    first 2k + 1), then u(t+1)…u(t+M), then the target s(t).  Time is counted
+    from t' = t + M, so every lag is ≥ 0 and the rows t = head…N−M−1 are
+    t' = head + M…N−1.
+    """
+
+    n_max: int
+    m_lag: int
+
+    @property
+    def n_past(self) -> int:
+        return 2 * self.n_max + 1
+
+    @property
+    def future(self) -> NDArray[np.int64]:
+        return np.arange(self.n_past, self.n_past + self.m_lag)
+
+    @property
+    def target(self) -> int:
+        return self.n_past + self.m_lag
+
+    @property
+    def signal(self) -> NDArray[np.int64]:
+        past = [1] + [k % 2 for k in range(2 * self.n_max)]  # u, then s, u, s, u, …
+        return np.array(past + [1] * self.m_lag + [0], dtype=np.int64)
+
+    @property
+    def lag(self) -> NDArray[np.int64]:
+        m = self.m_lag
+        past = [m] + [m + 1 + k // 2 for k in range(2 * self.n_max)]
+        return np.array(past + [m - tau for tau in range(1, m + 1)] + [m], dtype=np.int64)
+
+    def view(self, z: tuple[NDArray[np.float64], ...], col: int,
+             start: int) -> NDArray[np.float64]:
+        """Column ``col`` over the rows t' = start…N−1 (a view of the signal)."""
+        x = z[int(self.signal[col])]
+        lag = int(self.lag[col])
+        return x[start - lag : x.size - lag]
+
+
+def _segments(ss: list[NDArray[np.float64]], us: list[NDArray[np.float64]], cols: _Columns,
+              head: int):  # type: ignore[no-untyped-def]
+    """(z, start) of each segment with rows: z = (s, u) centred on the segment."""
     for s, u in zip(ss, us, strict=True):
-        rows = np.arange(head, s.size - m_lag)
-        if rows.size == 0:
+        if s.size - cols.m_lag - head <= 0:
             continue
-        s0, u0 = s - s.mean(), u - u.mean()
-        cols = [u0[rows]]
-        for k in range(1, n_max + 1):
-            cols += [s0[rows - k], u0[rows - k]]
-        past.append(np.column_stack(cols))
-        future.append(lag_matrix(u0, rows, range(-1, -m_lag - 1, -1)))
-        target.append(s0[rows])
-    return np.vstack(past), np.vstack(future), np.concatenate(target)
+        yield (s - s.mean(), u - u.mean()), head + cols.m_lag
+
+
+def _lagged_sums(ss: list[NDArray[np.float64]], us: list[NDArray[np.float64]],
+                 cols: _Columns, head: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Gram matrix of the columns over every segment's rows, and each column's sum."""
+    from ..estimate._gram import lagged_gram
+
+    size = cols.target + 1
+    gram, sums = np.zeros((size, size)), np.zeros(size)
+    for z, start in _segments(ss, us, cols, head):
+        gram += lagged_gram(z, cols.signal, cols.lag, start)
+        sums += [float(np.sum(cols.view(z, c, start))) for c in range(size)]
+    return gram, sums
+
+
+class _Fit(NamedTuple):
+    """What the tests need of the residuals of the target's fits, summed over segments."""
+
+    squares: tuple[float, ...]  # Σ e² of each fit
+    total: float  # Σ e of the first fit
+    products: NDArray[np.float64]  # Σ e·x_c of the first fit's residual with the columns asked
+
+
+def _residual_sums(ss: list[NDArray[np.float64]], us: list[NDArray[np.float64]],
+                   cols: _Columns, head: int, first: tuple[NDArray[np.int64], NDArray[np.float64]],
+                   second: tuple[NDArray[np.int64], NDArray[np.float64]],
+                   against: NDArray[np.int64]) -> _Fit:
+    """Residuals e = s(t) − Σ c_j x_j(t) of two fits, from the data, one segment at a time."""
+    squares = [0.0, 0.0]
+    total = 0.0
+    products = np.zeros(against.size)
+    for z, start in _segments(ss, us, cols, head):
+        for k, (which, coef) in ((1, second), (0, first)):  # the first fit's residual last
+            e = np.array(cols.view(z, cols.target, start))
+            tmp = np.empty_like(e)
+            for c, w in zip(which, coef, strict=True):
+                np.multiply(cols.view(z, int(c), start), w, out=tmp)
+                e -= tmp
+            squares[k] += float(e @ e)
+        total += float(np.sum(e))
+        products += [float(e @ cols.view(z, int(c), start)) for c in against]
+    return _Fit((squares[0], squares[1]), total, products)
 
 
 class _Normal:
     """Least squares on column subsets of one column-scaled Gram matrix."""
 
-    def __init__(self, x: NDArray[np.float64]) -> None:
-        self.x = x
-        scale = np.sqrt(np.einsum("ij,ij->j", x, x))
+    def __init__(self, gram: NDArray[np.float64]) -> None:
+        scale = np.sqrt(np.diag(gram).copy())
         scale[scale == 0] = 1.0
         self.scale = scale
-        xs = x / scale
-        self.gram = xs.T @ xs
+        self.gram = gram / np.outer(scale, scale)
 
-    def residual(self, cols: NDArray[np.int64], target: int | NDArray[np.int64],
-                 rcond: float = 1e-10) -> tuple[NDArray[np.float64], int]:
-        """Residual of column(s) ``target`` on columns ``cols``, and the rank used."""
+    def solve(self, cols: NDArray[np.int64], target: int | NDArray[np.int64],
+              rcond: float = 1e-10) -> tuple[NDArray[np.float64], int]:
+        """Coefficients of column(s) ``target`` on columns ``cols``, and the rank used."""
         eig, vec = np.linalg.eigh(self.gram[np.ix_(cols, cols)])
         keep = eig > rcond * max(float(eig[-1]), 1e-300)
         rhs = self.gram[cols][:, target]
         shape = (-1,) + (1,) * (np.ndim(rhs) - 1)
         coef = vec[:, keep] @ ((vec[:, keep].T @ rhs) / eig[keep].reshape(shape))
-        t_scale = self.scale[target]
-        coef = coef / self.scale[cols].reshape(shape) * t_scale
-        return self.x[:, target] - self.x[:, cols] @ coef, int(keep.sum())
+        return coef / self.scale[cols].reshape(shape) * self.scale[target], int(keep.sum())
 
 
-def _cross_correlation(
-    resid: NDArray[np.float64], future: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    e = resid - resid.mean()
-    f = future - future.mean(axis=0)
-    norm = np.sqrt(float(e @ e) * np.sum(f * f, axis=0))
-    out = np.zeros(f.shape[1])
+def _new_part_correlation(normal: _Normal, gram: NDArray[np.float64], sums: NDArray[np.float64],
+                          fit: _Fit, restricted: NDArray[np.int64], future: NDArray[np.int64],
+                          n_rows: int) -> NDArray[np.float64]:
+    """Correlation of the restricted residual e with f_τ = u(t + τ) less its fit on the past.
+
+    From sums only: ⟨e, f_τ⟩ = ⟨e, u(t+τ)⟩ − c_τ·⟨e, x_past⟩, Σf_τ and ‖f_τ‖² from the Gram
+    matrix (c_τ the coefficients of u(t + τ) on the past), both centred on their means.
+    """
+    c, _ = normal.solve(restricted, future)  # (k_r, M)
+    k_r = restricted.size
+    ef = fit.products[k_r:] - c.T @ fit.products[:k_r]
+    f_sum = sums[future] - c.T @ sums[restricted]
+    g_rr = gram[np.ix_(restricted, restricted)]
+    f_sq = (np.diag(gram)[future] - 2.0 * np.einsum("rt,rt->t", c, gram[np.ix_(restricted, future)])
+            + np.einsum("rt,rs,st->t", c, g_rr, c))
+    e_mean = fit.total / n_rows
+    e_sq = fit.squares[0] - fit.total * e_mean
+    f_c = np.maximum(f_sq - f_sum * f_sum / n_rows, 0.0)
+    norm = np.sqrt(max(e_sq, 0.0) * f_c)
+    out = np.zeros(future.size)
     ok = norm > 0
-    out[ok] = (e @ f)[ok] / norm[ok]
+    out[ok] = (ef - e_mean * f_sum)[ok] / norm[ok]
     return out
