@@ -546,7 +546,7 @@ class ExperimentSpec:
         """
         path = self.data_path if path is None else Path(path)
         try:
-            raw = read_experiment(path, self.format, **self._reader_options(path))
+            raw = self._read(path)
         except MissingChannel as exc:
             raise self._missing(path, exc.name, exc.available) from None
         except ServoidError as exc:  # the readers advise Python keywords: name the TOML keys
@@ -664,6 +664,26 @@ class ExperimentSpec:
                 assert others is not None
                 channels.append(others.channel(ch.name))
         return exp.replace_channels(channels, dt=exp.dt * q)
+
+    def _read(self, path: Path) -> Experiment:
+        """The rig file as read, before calibration; the last file read is kept.
+
+        A workflow reads the record for the split and again for the
+        feedback test: an unchanged file (same size and modification time)
+        is not parsed twice.  The spec holds at most one raw record.
+        """
+        try:
+            st = path.stat()
+            key = (str(path), st.st_mtime_ns, st.st_size)
+        except OSError:
+            key = None  # the reader says what is wrong with the path
+        last = self.__dict__.get("_last_read")
+        if key is not None and last is not None and last[0] == key:
+            return last[1]  # type: ignore[no-any-return]
+        raw = read_experiment(path, self.format, **self._reader_options(path))
+        if key is not None:
+            object.__setattr__(self, "_last_read", (key, raw))
+        return raw
 
     def split_data(self, exp: Experiment | None = None) -> tuple[Experiment, Experiment]:
         """Estimation and validation parts as set in ``[split]``.
