@@ -53,6 +53,8 @@ __all__ = ["FeedbackTest", "feedback_test", "warn_if_feedback"]
 _MAX_ORDER = 30
 #: Rows per restricted-model parameter below which the order search stops growing.
 _ROWS_PER_PARAMETER = 10
+#: Rows of the residuals formed at a time (they are summed, never kept whole).
+_CHUNK = 1 << 16
 
 
 @dataclass(frozen=True, eq=False)
@@ -431,20 +433,31 @@ def _residual_sums(ss: list[NDArray[np.float64]], us: list[NDArray[np.float64]],
                    cols: _Columns, head: int, first: tuple[NDArray[np.int64], NDArray[np.float64]],
                    second: tuple[NDArray[np.int64], NDArray[np.float64]],
                    against: NDArray[np.int64]) -> _Fit:
-    """Residuals e = s(t) − Σ c_j x_j(t) of two fits, from the data, one segment at a time."""
+    """Sums of the residuals e = s(t) − Σ c_j x_j(t) of two fits, from the data.
+
+    Formed a chunk of rows at a time, so no residual of the record's length
+    is held: only the centred signals of the segment in hand.
+    """
     squares = [0.0, 0.0]
     total = 0.0
     products = np.zeros(against.size)
     for z, start in _segments(ss, us, cols, head):
-        for k, (which, coef) in ((1, second), (0, first)):  # the first fit's residual last
-            e = np.array(cols.view(z, cols.target, start))
-            tmp = np.empty_like(e)
-            for c, w in zip(which, coef, strict=True):
-                np.multiply(cols.view(z, int(c), start), w, out=tmp)
-                e -= tmp
-            squares[k] += float(e @ e)
-        total += float(np.sum(e))
-        products += [float(e @ cols.view(z, int(c), start)) for c in against]
+        views = {int(c): cols.view(z, int(c), start)
+                 for c in np.r_[first[0], second[0], against, cols.target]}
+        rows = views[cols.target].size
+        e = np.empty(min(rows, _CHUNK))
+        tmp = np.empty_like(e)
+        for lo in range(0, rows, _CHUNK):
+            hi = min(lo + _CHUNK, rows)
+            ec, tc = e[: hi - lo], tmp[: hi - lo]
+            for k, (which, coef) in ((1, second), (0, first)):  # the first fit's residual last
+                ec[:] = views[cols.target][lo:hi]
+                for c, w in zip(which, coef, strict=True):
+                    np.multiply(views[int(c)][lo:hi], w, out=tc)
+                    ec -= tc
+                squares[k] += float(ec @ ec)
+            total += float(np.sum(ec))
+            products += [float(ec @ views[int(c)][lo:hi]) for c in against]
     return _Fit((squares[0], squares[1]), total, products)
 
 
