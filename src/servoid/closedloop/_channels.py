@@ -15,7 +15,6 @@ __all__ = [
     "aic_order",
     "check_excites",
     "check_name",
-    "lag_matrix",
     "ls_fit",
     "output_name",
     "reference_name",
@@ -84,15 +83,6 @@ def check_excites(name: str, pieces: Sequence[NDArray[np.float64]], role: str) -
             f"{name!r} is constant ({low:.6g} over all {sum(p.size for p in pieces)} samples): "
             f"{fix}"
         )
-
-
-def lag_matrix(x: NDArray[np.float64], rows: NDArray[np.int64],
-               lags: Sequence[int]) -> NDArray[np.float64]:
-    """Columns ``x(t − k)`` for t in ``rows`` and k in ``lags`` (negative k: future)."""
-    out = np.empty((rows.size, len(lags)))
-    for j, k in enumerate(lags):
-        out[:, j] = x[rows - k]
-    return out
 
 
 def ls_fit(

@@ -144,10 +144,12 @@ def residual_analysis(
     Memory: about 0 N × 8 bytes beyond the inputs (the signals are centred
     block by block inside the kernels; O(M + 2048) floats of buffers).
 
-    Time O(N·M·(1 + n_inputs²)): about 10 ms for N = 10⁶, M = 25 and one
-    input with white residuals on the reference machine
-    (``benchmarks/bench_scaling.py``); coloured residuals add the input's
-    lagged products up to 6M for the null covariance (about twice that).
+    Time O(N·M·(1 + n_inputs²)): about 7 ms for N = 10⁶, M = 25 and one
+    input with white residuals on the reference machine, 10 ms on one
+    thread (``benchmarks/bench_scaling.py``; from 131 072 residuals the
+    sums run in two halves on two threads, the same numbers either way);
+    coloured residuals add the input's lagged products up to 6M for the
+    null covariance (about twice that).
     """
     return analyse_residuals(residuals, u, max_lag, confidence, causal, None)
 
