@@ -2,8 +2,9 @@
 
 A workflow needs the record for the split and again, whole, for the
 feedback test; at 1e6 rows the second CSV parse cost as long as the fit.
-The spec keeps its last raw read and reuses it while the file's size and
-modification time are unchanged.
+The spec keeps its last record, read, calibrated and preprocessed (not
+detrended), and reuses it while the file's size and modification time are
+unchanged.
 """
 
 import os

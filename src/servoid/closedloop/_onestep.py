@@ -534,9 +534,9 @@ def _rank_starts(
             if np.all(np.abs(z - z_opt) <= scale):
                 raise _Joined(k)
         parts, _ = _level_fit(problem, coefficients(to_theta(z)))
-        out = np.concatenate(parts)
-        out[~np.isfinite(out)] = 1e30  # a diverging simulation: finite, so the step is refused
-        return out
+        out = parts[0] if len(parts) == 1 else np.concatenate(parts)  # (no copy of one record)
+        # a diverging simulation: finite, so the step is refused (in place, no N-float mask)
+        return np.nan_to_num(out, copy=False, nan=1e30, posinf=1e30, neginf=1e30)
 
     lo = hi = None
     if bounds is not None:

@@ -545,48 +545,9 @@ class ExperimentSpec:
             A listed source channel is not in the file.
         """
         path = self.data_path if path is None else Path(path)
-        try:
-            raw = self._read(path)
-        except MissingChannel as exc:
-            raise self._missing(path, exc.name, exc.available) from None
-        except ServoidError as exc:  # the readers advise Python keywords: name the TOML keys
-            text = str(exc)
-            for old, new in _READER_WORDS.items():
-                text = text.replace(old, new)
-            if text == str(exc):
-                raise
-            raise _like(exc, text) from None
-        channels = []
-        for ch in self.channels:
-            try:
-                src = raw.channel(ch.source)
-            except ChannelError:
-                raise self._missing(path, ch.source, raw.names) from None
-            calibrated = ch.gain * src.values + ch.offset
-            unit = ch.unit
-            if unit is None:
-                unit = src.unit if (ch.gain == 1.0 and ch.offset == 0.0) else ""
-            channels.append(Channel(ch.name, ch.role, calibrated, unit))
-        if path == self.data_path and len(self.files) == 1:
-            name = self.source.stem if self.source is not None else Path(self.file).stem
-        else:
-            name = path.stem
-        exp = Experiment(tuple(channels), raw.dt, t0=raw.t0, name=name, notes=raw.notes)
-        pre = self.preprocess
-        if pre.lowpass is not None:
-            self._check_lowpass(exp, path)
-            exp = lowpass(exp, pre.lowpass, zero_phase=True)
-        if pre.decimate > 1:
-            if exp.n_samples <= pre.decimate:
-                raise FileFormatError(
-                    f"{self._origin}: [preprocess] decimate = {pre.decimate} needs at least "
-                    f"{pre.decimate + 1} samples, but {path} has {exp.n_samples}: lower "
-                    "decimate (the decimated record must still hold enough samples to fit and "
-                    "validate), or remove it"
-                )
-            exp = self._decimated(exp, path)
-        if detrend and pre.detrend != "none":
-            exp = _detrend(exp, pre.detrend)
+        exp = self._prepared(path)
+        if detrend and self.preprocess.detrend != "none":
+            exp = _detrend(exp, self.preprocess.detrend)
         return exp
 
     def _missing(self, path: Path, source: str, available: tuple[str, ...]) -> ChannelError:
@@ -665,25 +626,69 @@ class ExperimentSpec:
                 channels.append(others.channel(ch.name))
         return exp.replace_channels(channels, dt=exp.dt * q)
 
-    def _read(self, path: Path) -> Experiment:
-        """The rig file as read, before calibration; the last file read is kept.
+    def _prepared(self, path: Path) -> Experiment:
+        """The record calibrated and preprocessed, not detrended; the last one is kept.
 
-        A workflow reads the record for the split and again for the
+        A workflow reads the record for the split and again, whole, for the
         feedback test: an unchanged file (same size and modification time)
-        is not parsed twice.  The spec holds at most one raw record.
+        is read and preprocessed once.  The spec holds at most one record.
         """
         try:
             st = path.stat()
             key = (str(path), st.st_mtime_ns, st.st_size)
         except OSError:
             key = None  # the reader says what is wrong with the path
-        last = self.__dict__.get("_last_read")
+        last = self.__dict__.get("_last_prepared")
         if key is not None and last is not None and last[0] == key:
             return last[1]  # type: ignore[no-any-return]
-        raw = read_experiment(path, self.format, **self._reader_options(path))
+        exp = self._read_and_prepare(path)
         if key is not None:
-            object.__setattr__(self, "_last_read", (key, raw))
-        return raw
+            object.__setattr__(self, "_last_prepared", (key, exp))
+        return exp
+
+    def _read_and_prepare(self, path: Path) -> Experiment:
+        """Read the rig file, calibrate its channels and preprocess them (no detrend)."""
+        try:
+            raw = read_experiment(path, self.format, **self._reader_options(path))
+        except MissingChannel as exc:
+            raise self._missing(path, exc.name, exc.available) from None
+        except ServoidError as exc:  # the readers advise Python keywords: name the TOML keys
+            text = str(exc)
+            for old, new in _READER_WORDS.items():
+                text = text.replace(old, new)
+            if text == str(exc):
+                raise
+            raise _like(exc, text) from None
+        channels = []
+        for ch in self.channels:
+            try:
+                src = raw.channel(ch.source)
+            except ChannelError:
+                raise self._missing(path, ch.source, raw.names) from None
+            calibrated = ch.gain * src.values + ch.offset
+            unit = ch.unit
+            if unit is None:
+                unit = src.unit if (ch.gain == 1.0 and ch.offset == 0.0) else ""
+            channels.append(Channel(ch.name, ch.role, calibrated, unit))
+        if path == self.data_path and len(self.files) == 1:
+            name = self.source.stem if self.source is not None else Path(self.file).stem
+        else:
+            name = path.stem
+        exp = Experiment(tuple(channels), raw.dt, t0=raw.t0, name=name, notes=raw.notes)
+        pre = self.preprocess
+        if pre.lowpass is not None:
+            self._check_lowpass(exp, path)
+            exp = lowpass(exp, pre.lowpass, zero_phase=True)
+        if pre.decimate > 1:
+            if exp.n_samples <= pre.decimate:
+                raise FileFormatError(
+                    f"{self._origin}: [preprocess] decimate = {pre.decimate} needs at least "
+                    f"{pre.decimate + 1} samples, but {path} has {exp.n_samples}: lower "
+                    "decimate (the decimated record must still hold enough samples to fit and "
+                    "validate), or remove it"
+                )
+            exp = self._decimated(exp, path)
+        return exp
 
     def split_data(self, exp: Experiment | None = None) -> tuple[Experiment, Experiment]:
         """Estimation and validation parts as set in ``[split]``.

@@ -87,7 +87,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._checks import as_array, as_str_list, type_error
 from .._errors import DataError, ServoidWarning
-from .._lazy import signal as sps
 from .._lazy import stats
 from ._covariance import residual_ar
 
@@ -487,7 +486,10 @@ def _finite_moves(
         if not (np.isfinite(h) and h > 0):
             continue
         steps[k] = h
-        moved = []
+        # each side reduced to ‖r‖² and its whitened distance from r0 at once: no residual of
+        # the record's length is kept beyond the one in hand
+        squares: list[float | None] = []
+        bounds = []
         for sign in (1.0, -1.0):
             t = theta.copy()
             t[k] += sign * h
@@ -498,12 +500,17 @@ def _finite_moves(
                 # the model refuses θ there (a bound, an unstable or invalid set): this side of
                 # the check is not evaluated — the fit itself stands
                 r = np.full(0, np.nan)
-            moved.append(r if r.shape == r0.shape and np.all(np.isfinite(r)) else None)
-        if moved[0] is not None and moved[1] is not None and norms[k] > 0:
-            curv = (float(moved[0] @ moved[0]) - 2.0 * v0 + float(moved[1] @ moved[1])) / h**2
+            if r.shape != r0.shape or not np.all(np.isfinite(r)):
+                squares.append(None)
+                continue
+            squares.append(float(r @ r))
+            r = r0 - r
+            with np.errstate(divide="ignore"):  # a step that moves nothing: no finite floor
+                bounds.append(h**2 / _expm1(whiten(r)))
+            del r
+        if squares[0] is not None and squares[1] is not None and norms[k] > 0:
+            curv = (squares[0] - 2.0 * v0 + squares[1]) / h**2
             ratio[k] = curv / (2.0 * norms[k] ** 2)
-        with np.errstate(divide="ignore"):  # a step that moves nothing: no finite floor
-            bounds = [h**2 / _expm1(whiten(r0 - r)) for r in moved if r is not None]
         if bounds:
             floor[k] = float(np.sqrt(max(bounds)))
     return steps, ratio, floor
@@ -533,11 +540,26 @@ def _whitening(
             if not s2 > 0:
                 return float("inf")
             for a, b in spans:
-                w = delta[a:b] if ar.size == 1 else sps.lfilter(ar, [1.0], delta[a:b])
-                total += float(w @ w) / s2
+                total += _fir_energy(ar, delta[a:b]) / s2
         return total
 
     return information
+
+
+def _fir_energy(ar: NDArray[np.float64], x: NDArray[np.float64], chunk: int = 1 << 16) -> float:
+    """‖ar(q) x‖², x zero before its start, a chunk of samples at a time."""
+    if ar.size == 1:  # the AR model is monic: no filter
+        return float(x @ x)
+    p = ar.size - 1
+    total = 0.0
+    for lo in range(0, x.size, chunk):
+        hi = min(lo + chunk, x.size)
+        part = x[max(lo - p, 0) : hi]
+        if lo < p:  # the start of the record: zeros before it, as the filter starts from rest
+            part = np.concatenate([np.zeros(p - lo), part])
+        w = np.convolve(part, ar, mode="valid")
+        total += float(w @ w)
+    return total
 
 
 def _expm1(x: float) -> float:
