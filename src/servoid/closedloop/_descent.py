@@ -75,6 +75,7 @@ def descend(
         nfev += n
         a = jt @ jt.T
         g = jt @ e
+        del jt  # n record-length columns: not held through the trial steps
         d = np.maximum(np.diag(a).copy(), 1e-300)
         if not np.all(np.isfinite(a)) or not np.all(np.isfinite(g)):
             return Descent(x, cost, nfev, False)

@@ -248,11 +248,13 @@ def level_residuals(b, a, r, y, s0, level):  # type: ignore[no-untyped-def]  # p
 
     The least-squares problem of :func:`servoid.closedloop._onestep._level_fit`
     for one record, solved in closed form (a regression on the decay of the
-    step response with an intercept).  Returns ``(e[s0:], level, offset)``.
+    step response with an intercept).  Returns ``(e[s0:], level, offset)``,
+    e a view of the one record-length buffer the simulation was formed in
+    (with the step response, 2 N × 8 bytes in all).
     """
     n = r.size
     sim, step = lfilter_pair(b, a, r)
-    e = np.empty(n)
+    e = sim  # the error overwrites the simulation: no third record-length array
     check = 0.0
     for k in range(n):
         e[k] = y[k] - sim[k]
@@ -298,11 +300,10 @@ def level_residuals(b, a, r, y, s0, level):  # type: ignore[no-untyped-def]  # p
             slope = sde / sdd if sdd > 0.0 else 0.0
             lv = slope * se / sd
             off = (em - slope * dm) * se
-        out = np.empty(n - s0)
-        for k in range(s0, n):
-            out[k - s0] = e[k] - lv * (last - step[k]) - off
-        return out, lv, off
-    return e[s0:].copy(), lv, off
+        for k in range(s0, n):  # in place: each sample is read before it is written
+            e[k] = e[k] - lv * (last - step[k]) - off
+        return e[s0:], lv, off
+    return e[s0:], lv, off
 
 
 @numba.njit(cache=True, nogil=True)
