@@ -16,10 +16,10 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-import scipy.linalg as la
-import scipy.signal as sps
 from numpy.typing import NDArray
 
+from .._lazy import linalg as la
+from .._lazy import signal as sps
 from ..models import StateSpace, TransferFunction
 
 __all__ = ["Hold", "butterworth", "discrete_sos", "discretise", "realise"]

@@ -26,11 +26,11 @@ import dataclasses
 from typing import Literal
 
 import numpy as np
-import scipy.signal as sps
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import as_array, as_float, as_int, type_error
 from .._errors import DataError, ModelError, check_option
+from .._lazy import signal as sps
 from ..data import Experiment
 from ..models import StateSpace, TransferFunction
 from ..signals._checks import MAX_SAMPLES

@@ -44,10 +44,10 @@ from types import MappingProxyType
 from typing import Any, Literal
 
 import numpy as np
-import scipy.signal as sps
 from numpy.typing import NDArray
 
 from .._errors import DataError, OptionTypeError, check_option
+from .._lazy import signal as sps
 from ..actuators import (
     PNEUMATIC_NOMINAL,
     PneumaticParameters,

@@ -40,10 +40,10 @@ from types import MappingProxyType
 from typing import Any
 
 import numpy as np
-import scipy.signal as sps
 from numpy.typing import NDArray
 
 from .._errors import DataError, OptionTypeError, check_option
+from .._lazy import signal as sps
 from ..actuators import EhsaParameters, ReducedEhsa, full_order_closed_loop, simulate_ehsa
 from ..data import Channel, Experiment, decimate
 from ..models import StateSpace, TransferFunction

@@ -504,9 +504,8 @@ def _finite_moves(
                 squares.append(None)
                 continue
             squares.append(float(r @ r))
-            r = r0 - r
             with np.errstate(divide="ignore"):  # a step that moves nothing: no finite floor
-                bounds.append(h**2 / _expm1(whiten(r)))
+                bounds.append(h**2 / _expm1(whiten(r0, r)))  # of r0 − r, formed chunk-wise
             del r
         if squares[0] is not None and squares[1] is not None and norms[k] > 0:
             curv = (squares[0] - 2.0 * v0 + squares[1]) / h**2
@@ -518,8 +517,8 @@ def _finite_moves(
 
 def _whitening(
     r0: NDArray[np.float64], layout: Sequence[Sequence[int]], n_par: int
-) -> Callable[[NDArray[np.float64]], float]:
-    """``δ ↦ Σ_g ‖A_g(q) δ_g‖²/s_g²`` with each group's residual AR model."""
+) -> Callable[[NDArray[np.float64], NDArray[np.float64]], float]:
+    """``(x, y) ↦ Σ_g ‖A_g(q) δ_g‖²/s_g²``, δ = x − y, with each group's residual AR model."""
     n_all = r0.size
     dof_ratio = n_all / max(n_all - n_par, 1)  # σ_η² is a Σ/N mean: N/(N − d) as for σ̂²
     cuts: list[list[tuple[int, int]]] = []
@@ -534,27 +533,30 @@ def _whitening(
         ar, innovation = residual_ar([r0[a:b] for a, b in spans], sum(b - a for a, b in spans))
         models.append((spans, ar, innovation * dof_ratio))
 
-    def information(delta: NDArray[np.float64]) -> float:
+    def information(x: NDArray[np.float64], y: NDArray[np.float64]) -> float:
+        """The whitened energy of δ = x − y."""
         total = 0.0
         for spans, ar, s2 in models:
             if not s2 > 0:
                 return float("inf")
             for a, b in spans:
-                total += _fir_energy(ar, delta[a:b]) / s2
+                total += _fir_energy(ar, x[a:b], y[a:b]) / s2
         return total
 
     return information
 
 
-def _fir_energy(ar: NDArray[np.float64], x: NDArray[np.float64], chunk: int = 1 << 16) -> float:
-    """‖ar(q) x‖², x zero before its start, a chunk of samples at a time."""
-    if ar.size == 1:  # the AR model is monic: no filter
-        return float(x @ x)
+def _fir_energy(ar: NDArray[np.float64], x: NDArray[np.float64], y: NDArray[np.float64],
+                chunk: int = 1 << 16) -> float:
+    """‖ar(q)(x − y)‖², zero before the start, a chunk of samples at a time."""
     p = ar.size - 1
     total = 0.0
     for lo in range(0, x.size, chunk):
         hi = min(lo + chunk, x.size)
-        part = x[max(lo - p, 0) : hi]
+        part = x[max(lo - p, 0) : hi] - y[max(lo - p, 0) : hi]
+        if p == 0:  # the AR model is monic: no filter
+            total += float(part @ part)
+            continue
         if lo < p:  # the start of the record: zeros before it, as the filter starts from rest
             part = np.concatenate([np.zeros(p - lo), part])
         w = np.convolve(part, ar, mode="valid")
