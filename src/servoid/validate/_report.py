@@ -337,7 +337,7 @@ def validate(
             eps = np.asarray(model.residuals(y, u), dtype=float)
         p0 = _prediction_start(first, horizon, y.size)
         e_run = eps[first:]
-    else:  # with its initial state
+    else:  # output error: the predictor is the simulation, with its initial state
         y_pred, p0 = y_sim, first
     clipped = 0
     if limits is not None:
