@@ -29,3 +29,29 @@ def test_every_bucket_keeps_its_extremes_and_ends_in_time_order():
         assert yy[inside].min() == y[part].min() and yy[inside].max() == y[part].max()
         assert tt[inside][0] == t[part][0] and tt[inside][-1] == t[part][-1]
     assert tt[-1] == t[-1]  # the remainder after the last whole bucket is kept
+
+
+def test_the_zoom_of_a_long_record_stays_a_zoom():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    from servoid.data import Experiment
+    from servoid.models import PolynomialModel
+    from servoid.report._figures import _zoom
+    from servoid.validate import validate
+
+    rng = np.random.default_rng(1)
+    n = 400_000
+    u = rng.standard_normal(n)
+    model = PolynomialModel([1.0, -0.5], [np.array([1.0])], 1, 0.01)
+    y = np.asarray(model.simulate(u)) + 0.1 * rng.standard_normal(n)
+    report = validate(model, Experiment.from_arrays(0.01, u=u, y=y))
+    ax = Figure().add_subplot()
+    _zoom(ax, report, "")
+    assert ax.get_title().startswith("zoom: 5000 samples")  # not n/20 = 20 000
+    short = validate(model, Experiment.from_arrays(0.01, u=u[:20_000], y=y[:20_000]))
+    ax = Figure().add_subplot()
+    _zoom(ax, short, "")
+    assert ax.get_title().startswith("zoom: 999 samples")  # a twentieth of the 19 999 residuals

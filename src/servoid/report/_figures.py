@@ -30,6 +30,8 @@ def plot_validation(
 
 #: Buckets a long plotted signal is thinned to: wider than the figures in pixels.
 BUCKETS = 2000
+#: Most samples the zoom panel spans (a twentieth of the record up to this).
+_ZOOM = 5000
 
 
 def thinned(t: NDArray[np.float64], y: NDArray[np.float64],
@@ -100,7 +102,8 @@ def _zoom(ax: Axes, report: ValidationReport, label_unit: str) -> None:
     t, first = report.time, report.first
     error = np.abs(report.measured[first:] - report.simulated[first:])
     n = t.size - first
-    width = min(max(n // 20, 200), n)
+    # a twentieth of the record, 200 to _ZOOM samples: on a long record a twentieth is no zoom
+    width = min(max(n // 20, 200), _ZOOM, n)
     centre = first + (int(np.nanargmax(error)) if np.isfinite(error).any() else 0)
     lo = int(np.clip(centre - width // 2, first, t.size - width))
     part = slice(lo, lo + width)
