@@ -135,11 +135,14 @@ def test_arx_pass_moments_are_those_of_its_outputs(skip, horizon):
 
 
 def test_fused_arx_refuses_a_non_finite_initial_sample():
-    # the moments cover y from `first` on; a NaN before it must still be refused
+    # the moments cover y from `first` on; a NaN before it must still be refused. With
+    # na = 1 and three input taps, first = m = 3 and neither the recursion (y(2) starts it)
+    # nor a residual from t = 3 on (y(t − 1)) reads y(0): only the check of y[:first] sees it
+    model = PolynomialModel([1.0, -0.5], [np.array([1.0, 0.5, 0.2])], 1, DT)
     y, u = _arx_record(500, 9)
     y[0] = np.nan
     with pytest.raises(DataError, match="finite"):
-        _arx_outputs(ARX, y, u[:, None], 3)
+        _arx_outputs(model, y, u[:, None], 1)
 
 
 def test_output_error_report_from_the_pass_equals_the_formulas():

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -257,7 +258,8 @@ def feedback_test(
     # lagged products gives every fit, and the residuals come from the data with the fitted
     # coefficients (memory a few N, not N × (2n + M) several times over).
     cols = _Columns(n_max, m_lag)
-    gram, sums = _lagged_sums(ss, us, cols, head)
+    centred = _segments(ss, us, cols, head)
+    gram, sums = _lagged_sums(centred, cols)
     pt = np.r_[np.arange(cols.n_past), cols.target]
     n = n_max if order is not None else aic_order_gram(gram[np.ix_(pt, pt)], n_rows, [
         1 + 2 * k for k in range(n_max + 1)])
@@ -268,7 +270,7 @@ def feedback_test(
     full = np.r_[restricted, future]
     coef_r, rank_r = normal.solve(restricted, cols.target)
     coef_f, rank_f = normal.solve(full, cols.target)
-    fit = _residual_sums(ss, us, cols, head, (restricted, coef_r), (full, coef_f),
+    fit = _residual_sums(centred, cols, (restricted, coef_r), (full, coef_f),
                          np.r_[restricted, future])
     rss_r, rss_f = fit.squares
     q = rank_f - rank_r
@@ -380,12 +382,12 @@ class _Columns:
     def target(self) -> int:
         return self.n_past + self.m_lag
 
-    @property
+    @cached_property
     def signal(self) -> NDArray[np.int64]:
         past = [1] + [k % 2 for k in range(2 * self.n_max)]  # u, then s, u, s, u, …
         return np.array(past + [1] * self.m_lag + [0], dtype=np.int64)
 
-    @property
+    @cached_property
     def lag(self) -> NDArray[np.int64]:
         m = self.m_lag
         past = [m] + [m + 1 + k // 2 for k in range(2 * self.n_max)]
@@ -399,23 +401,25 @@ class _Columns:
         return x[start - lag : x.size - lag]
 
 
+#: A segment of the test: z = (s, u) centred on the segment, and its first row t'.
+_Segment = tuple[tuple[NDArray[np.float64], NDArray[np.float64]], int]
+
+
 def _segments(ss: list[NDArray[np.float64]], us: list[NDArray[np.float64]], cols: _Columns,
-              head: int):  # type: ignore[no-untyped-def]
-    """(z, start) of each segment with rows: z = (s, u) centred on the segment."""
-    for s, u in zip(ss, us, strict=True):
-        if s.size - cols.m_lag - head <= 0:
-            continue
-        yield (s - s.mean(), u - u.mean()), head + cols.m_lag
+              head: int) -> list[_Segment]:
+    """The segments with rows, centred once for the Gram sums and the residual sums."""
+    return [((s - s.mean(), u - u.mean()), head + cols.m_lag)
+            for s, u in zip(ss, us, strict=True) if s.size - cols.m_lag - head > 0]
 
 
-def _lagged_sums(ss: list[NDArray[np.float64]], us: list[NDArray[np.float64]],
-                 cols: _Columns, head: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _lagged_sums(segments: list[_Segment],
+                 cols: _Columns) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Gram matrix of the columns over every segment's rows, and each column's sum."""
     from ..estimate._gram import lagged_gram
 
     size = cols.target + 1
     gram, sums = np.zeros((size, size)), np.zeros(size)
-    for z, start in _segments(ss, us, cols, head):
+    for z, start in segments:
         gram += lagged_gram(z, cols.signal, cols.lag, start)
         sums += [float(np.sum(cols.view(z, c, start))) for c in range(size)]
     return gram, sums
@@ -429,19 +433,19 @@ class _Fit(NamedTuple):
     products: NDArray[np.float64]  # Σ e·x_c of the first fit's residual with the columns asked
 
 
-def _residual_sums(ss: list[NDArray[np.float64]], us: list[NDArray[np.float64]],
-                   cols: _Columns, head: int, first: tuple[NDArray[np.int64], NDArray[np.float64]],
+def _residual_sums(segments: list[_Segment], cols: _Columns,
+                   first: tuple[NDArray[np.int64], NDArray[np.float64]],
                    second: tuple[NDArray[np.int64], NDArray[np.float64]],
                    against: NDArray[np.int64]) -> _Fit:
     """Sums of the residuals e = s(t) − Σ c_j x_j(t) of two fits, from the data.
 
     Formed a chunk of rows at a time, so no residual of the record's length
-    is held: only the centred signals of the segment in hand.
+    is held beyond the centred signals.
     """
     squares = [0.0, 0.0]
     total = 0.0
     products = np.zeros(against.size)
-    for z, start in _segments(ss, us, cols, head):
+    for z, start in segments:
         views = {int(c): cols.view(z, int(c), start)
                  for c in np.r_[first[0], second[0], against, cols.target]}
         rows = views[cols.target].size

@@ -192,9 +192,14 @@ def add_moments(y, h, acc):  # type: ignore[no-untyped-def]  # pragma: no cover
     samples; the means are NaN or ±inf when a value is not finite (or a
     block's sum overflows, beyond ~1e305).
     """
-    n = y.size
-    for t0 in range(0, n, 1024):
-        t1 = min(t0 + 1024, n)
+    _moments_between(y, h, 0, y.size, acc)
+
+
+@numba.njit(cache=True, nogil=True)
+def _moments_between(y, h, lo, hi, acc):  # type: ignore[no-untyped-def]  # pragma: no cover
+    # the moments of samples lo…hi − 1, merged into acc in blocks of 1024 from lo
+    for t0 in range(lo, hi, 1024):
+        t1 = min(t0 + 1024, hi)
         _block_moments(y[t0:t1], h[t0:t1], acc)
 
 
@@ -226,8 +231,7 @@ def error_pass(y, h, first, e, mo, st):  # type: ignore[no-untyped-def]  # pragm
         hb = h[t0:t1]
         for i in range(t1 - t0):
             eb[i] = yb[i] - hb[i]
-        for s in range(t0, t1, 1024):
-            _block_moments(y[s : min(s + 1024, t1)], h[s : min(s + 1024, t1)], mo)
+        _moments_between(y, h, t0, t1, mo)
         _add_stats(eb, st, 0)
 
 
@@ -326,12 +330,8 @@ def arx_pass(a, bks, r1, rk, pk, y, u, m, sim, pred, eps, first, st, p0, mo):  #
                 w1 = acc
                 ss[i] = acc
         # the fit metrics' moments, while the block is in cache
-        for s in range(max(first, t0), t1, 1024):
-            e = min(s + 1024, t1)
-            _block_moments(y[s:e], sim[s:e], mo[0])
-        for s in range(max(p0, t0), t1, 1024):
-            e = min(s + 1024, t1)
-            _block_moments(y[s:e], pred[s:e], mo[1])
+        _moments_between(y, sim, max(first, t0), t1, mo[0])
+        _moments_between(y, pred, max(p0, t0), t1, mo[1])
 
 
 @numba.njit(cache=True, nogil=True)
