@@ -352,10 +352,18 @@ class Experiment:
                           ("channel", "role", "unit", "min", "max", "mean"), rows)
 
     def plot(self) -> Any:
-        """Every channel against time, one axes per channel, as a matplotlib Figure."""
-        from matplotlib.figure import Figure
+        """Plot every channel against time, one axes per channel.
 
-        fig = Figure(figsize=(8.0, 1.6 + 1.5 * len(self.channels)))
+        Returns
+        -------
+        matplotlib.figure.Figure
+            A figure made by pyplot: Jupyter shows it inline (once, also as a
+            cell's value), and in a script ``plt.show()`` or ``plt.savefig()``
+            acts on it. Close it with ``plt.close(fig)`` when done.
+        """
+        from .._pyplot import pyplot_figure
+
+        fig = pyplot_figure((8.0, 1.6 + 1.5 * len(self.channels)))
         axes = fig.subplots(len(self.channels), 1, sharex=True, squeeze=False)[:, 0]
         t = self.t0 + self.dt * np.arange(self.n_samples)
         for ax, ch in zip(axes, self.channels, strict=True):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -57,17 +58,20 @@ def thinned(t: NDArray[np.float64], y: NDArray[np.float64],
     return t[keep], y[keep]
 
 
-def validation_figure(report: ValidationReport, unit: str = "") -> Figure:
+def validation_figure(report: ValidationReport, unit: str = "", *,
+                      new: Callable[[tuple[float, float]], Figure] = new_figure) -> Figure:
     """Save measured vs simulated output, its error and a zoom.
 
     The samples before ``report.first`` (measured initial conditions or an
     excluded transient) are shaded; ``unit`` defaults to the report's. The
     zoom panel shows a twentieth of the record (at least 200 samples)
     around the largest simulation error, where a reviewer should look.
+    ``new(figsize)`` makes the figure: pyplot-free for reports, a pyplot
+    figure for ``ValidationReport.plot``.
     """
     t = report.time
     first = report.first
-    fig = new_figure((9, 7.5))
+    fig = new((9, 7.5))
     grid = fig.add_gridspec(3, 1, height_ratios=[3, 1, 2.2])
     ax = fig.add_subplot(grid[0])
     ax_err = fig.add_subplot(grid[1], sharex=ax)

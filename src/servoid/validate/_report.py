@@ -180,10 +180,19 @@ class ValidationReport:
                           ("metric", "value"), rows, note=" ".join(self.notes()))
 
     def plot(self) -> Any:
-        """The validation figure (measured, simulated, predicted, error, zoom) as a Figure."""
+        """Plot measured, simulated and predicted output, the error and a zoom.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            A figure made by pyplot: Jupyter shows it inline (once, also as a
+            cell's value), and in a script ``plt.show()`` or ``plt.savefig()``
+            acts on it. Close it with ``plt.close(fig)`` when done.
+        """
+        from .._pyplot import pyplot_figure
         from ..report._figures import validation_figure
 
-        return validation_figure(self)
+        return validation_figure(self, new=pyplot_figure)
 
     def __str__(self) -> str:
         r = self.residuals
