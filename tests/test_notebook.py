@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import ast
+import json
+import sys
 from pathlib import Path
 
 import nbformat
@@ -14,15 +16,25 @@ NOTEBOOK = Path(__file__).parents[1] / "examples" / "study1.ipynb"
 
 @pytest.fixture(scope="module")
 def executed(tmp_path_factory, request):
-    """The notebook after a python3 kernel (ipykernel) ran every cell."""
+    """The notebook after an IPython kernel (ipykernel) of this Python ran every cell."""
     folder = tmp_path_factory.mktemp("notebook")
-    # The kernel inherits this environment: without MPLBACKEND, ipykernel selects the inline
-    # backend as Jupyter does for a user. A test runner's MPLBACKEND=Agg would hide figures.
+    # A kernel spec of its own, so that a user's "python3" spec of another Python is not
+    # used; the kernel's files (connection, history) stay in the scratch folder.
+    spec = folder / "jupyter" / "kernels" / "servoid-test"
+    spec.mkdir(parents=True)
+    (spec / "kernel.json").write_text(json.dumps({
+        "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+        "display_name": "servoid test", "language": "python"}))
     patch = pytest.MonkeyPatch()
     request.addfinalizer(patch.undo)
+    patch.setenv("JUPYTER_PATH", str(folder / "jupyter"))
+    patch.setenv("JUPYTER_RUNTIME_DIR", str(folder / "runtime"))
+    patch.setenv("IPYTHONDIR", str(folder / "ipython"))
+    # The kernel inherits this environment: without MPLBACKEND, ipykernel selects the inline
+    # backend as Jupyter does for a user. A test runner's MPLBACKEND=Agg would hide figures.
     patch.delenv("MPLBACKEND", raising=False)
     notebook = nbformat.read(NOTEBOOK, as_version=4)
-    NotebookClient(notebook, timeout=600, kernel_name="python3",
+    NotebookClient(notebook, timeout=600, kernel_name="servoid-test",
                    resources={"metadata": {"path": str(folder)}}).execute()
     return [cell for cell in notebook.cells if cell.cell_type == "code"]
 
