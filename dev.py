@@ -137,8 +137,8 @@ def _write_lock(pins: list[str], extras: str, summary: str) -> None:
         "# Do not edit: `python3 dev.py lock` rewrites it (the newest releases the ranges allow,",
         "# written only when the whole suite passes with them).",
         f"# Made on {datetime.date.today().isoformat()} with Python {platform.python_version()} "
-        f"on {sysconfig.get_platform()}{' (' + libc + ')' if libc else ''}, "
-        "under this machine's pip configuration (`pip config list`).",
+        f"on {sysconfig.get_platform()}{' (' + libc + ')' if libc else ''},",
+        "# under this machine's pip configuration (`pip config list`).",
         "# Packages a platform needs that this one did not install are not pinned.",
         f"# Suite: {summary}",
     ]
