@@ -118,12 +118,15 @@ def _python_rows(quick: bool) -> list[Result]:
 @contextlib.contextmanager
 def _python_kernel() -> Iterator[None]:
     """Swap the compiled helpers for their Python functions (py_func reads globals)."""
-    saved = kernel.rhs, kernel._stop
-    kernel.rhs, kernel._stop = kernel.rhs.py_func, kernel._stop.py_func
+    names = ("rhs", "_stop", "rk4_step", "_rates", "_limits")
+    saved = [getattr(kernel, name) for name in names]
+    for name, fn in zip(names, saved, strict=True):
+        setattr(kernel, name, fn.py_func)
     try:
         yield
     finally:
-        kernel.rhs, kernel._stop = saved
+        for name, fn in zip(names, saved, strict=True):
+            setattr(kernel, name, fn)
 
 
 if __name__ == "__main__":

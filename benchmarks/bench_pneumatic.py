@@ -151,6 +151,7 @@ def _python_kernel() -> Iterator[None]:
     """Swap the compiled helpers for their Python functions (py_func reads globals)."""
     swaps = [
         (kernel, "rhs"), (kernel, "flows"), (kernel, "piston_force"),
+        (kernel, "rk4_step"), (kernel, "_rates"), (kernel, "_limits"),
         (kernel, "orifice_mass_flow_nb"), (kernel, "three_regime_nb"),
         (flow_mod, "psi_ellipse_nb"), (flow_mod, "psi_saint_venant_nb"),
         (friction_mod, "three_regime_nb"),

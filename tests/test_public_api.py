@@ -10,7 +10,7 @@ import pytest
 PACKAGES = ["servoid", "servoid.data", "servoid.signals", "servoid.models", "servoid.estimate",
             "servoid.validate", "servoid.report", "servoid.workflows", "servoid.cli",
             "servoid.actuators", "servoid.closedloop", "servoid.bench", "servoid.datasets",
-            "servoid.multistep", "servoid.nonlinear"]
+            "servoid.multistep", "servoid.nonlinear", "servoid.integrate"]
 
 
 def _isort_key(name: str) -> tuple[int, str]:

@@ -23,6 +23,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from ..integrate import rk4_step
 from ._ehsa_params import EhsaParameters
 
 __all__ = ["N_PARAMS", "integrate", "pack", "rhs"]
@@ -81,7 +82,7 @@ def _stop(x: float, v: float, a: float, lim: float) -> tuple[float, float]:
     return v, a
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def rhs(
     xf: float, vf: float, z: float, vz: float, xs: float, pl: float, y: float, vy: float,
     r: float, p: NDArray[np.float64], linear: bool, friction: bool,
@@ -125,6 +126,45 @@ def rhs(
     return dxf, af, vz, az, dxs, dpl, dy, ay
 
 
+@numba.njit(cache=True, inline="always")
+def _rates(t, x, r, ctx):  # type: ignore[no-untyped-def]  # pragma: no cover
+    p, linear, friction = ctx
+    return rhs(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], r, p, linear, friction)
+
+
+@numba.njit(cache=True, inline="always")
+def _limits(t, x, before, r, ctx):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Post-step hook: inelastic travel limits, then stiction of a piston at rest."""
+    p, linear, friction = ctx
+    if linear:
+        return x
+    xf, vf, z, vz, xs, pl, y, vy = x
+    xfmax = p[_XFMAX]
+    if xf > xfmax:
+        xf = xfmax
+        vf = min(vf, 0.0)
+    elif xf < -xfmax:
+        xf = -xfmax
+        vf = max(vf, 0.0)
+    xs = min(max(xs, -p[_XSMAX]), p[_XSMAX])
+    stroke = p[_STROKE]
+    if y > stroke:
+        y = stroke
+        vy = min(vy, 0.0)
+    elif y < -stroke:
+        y = -stroke
+        vy = max(vy, 0.0)
+    # stop exactly if the piston came to rest (or reversed) and the force at rest
+    # cannot break away
+    if (
+        friction
+        and (abs(vy) <= p[_EPS] or vy * before[7] < 0.0)
+        and abs(p[_AP] * pl - p[_KL] * y - p[_FEXT]) <= p[_FS]
+    ):
+        vy = 0.0
+    return xf, vf, z, vz, xs, pl, y, vy
+
+
 @numba.njit(cache=True)
 def integrate(
     y_r: NDArray[np.float64], y_r_past: float, decimation: int, delay: int, h: float,
@@ -138,76 +178,19 @@ def integrate(
     ``y_r[(k − delay) // decimation]`` (``y_r_past`` for k < delay):
     zero-order hold on the sample grid, delayed by ``delay`` steps.
     """
-    xf, vf, z, vz, xs, pl, y, vy = x0[0], x0[1], x0[2], x0[3], x0[4], x0[5], x0[6], x0[7]
-    h2 = 0.5 * h
-    h6 = h / 6.0
-    n = y_r.size
-    xfmax = p[_XFMAX]
-    xsmax = p[_XSMAX]
-    stroke = p[_STROKE]
-    for i in range(n):
-        out[i, 0] = y
-        out[i, 1] = vy
-        out[i, 2] = pl
-        out[i, 3] = xs
-        out[i, 4] = xf
+    x = (x0[0], x0[1], x0[2], x0[3], x0[4], x0[5], x0[6], x0[7])
+    ctx = (p, linear, friction)
+    for i in range(y_r.size):
+        out[i, 0] = x[6]
+        out[i, 1] = x[7]
+        out[i, 2] = x[5]
+        out[i, 3] = x[4]
+        out[i, 4] = x[0]
         for m in range(decimation):
             j = i * decimation + m - delay
             r = y_r_past if j < 0 else y_r[j // decimation]
-            vy_start = vy
-            a0, a1, a2, a3, a4, a5, a6, a7 = rhs(
-                xf, vf, z, vz, xs, pl, y, vy, r, p, linear, friction)
-            b0, b1, b2, b3, b4, b5, b6, b7 = rhs(
-                xf + h2 * a0, vf + h2 * a1, z + h2 * a2, vz + h2 * a3,
-                xs + h2 * a4, pl + h2 * a5, y + h2 * a6, vy + h2 * a7,
-                r, p, linear, friction)
-            c0, c1, c2, c3, c4, c5, c6, c7 = rhs(
-                xf + h2 * b0, vf + h2 * b1, z + h2 * b2, vz + h2 * b3,
-                xs + h2 * b4, pl + h2 * b5, y + h2 * b6, vy + h2 * b7,
-                r, p, linear, friction)
-            d0, d1, d2, d3, d4, d5, d6, d7 = rhs(
-                xf + h * c0, vf + h * c1, z + h * c2, vz + h * c3,
-                xs + h * c4, pl + h * c5, y + h * c6, vy + h * c7,
-                r, p, linear, friction)
-            xf += h6 * (a0 + 2.0 * (b0 + c0) + d0)
-            vf += h6 * (a1 + 2.0 * (b1 + c1) + d1)
-            z += h6 * (a2 + 2.0 * (b2 + c2) + d2)
-            vz += h6 * (a3 + 2.0 * (b3 + c3) + d3)
-            xs += h6 * (a4 + 2.0 * (b4 + c4) + d4)
-            pl += h6 * (a5 + 2.0 * (b5 + c5) + d5)
-            y += h6 * (a6 + 2.0 * (b6 + c6) + d6)
-            vy += h6 * (a7 + 2.0 * (b7 + c7) + d7)
-            if linear:
-                continue
-            # project onto the travel ranges (inelastic stops)
-            if xf > xfmax:
-                xf = xfmax
-                vf = min(vf, 0.0)
-            elif xf < -xfmax:
-                xf = -xfmax
-                vf = max(vf, 0.0)
-            xs = min(max(xs, -xsmax), xsmax)
-            if y > stroke:
-                y = stroke
-                vy = min(vy, 0.0)
-            elif y < -stroke:
-                y = -stroke
-                vy = max(vy, 0.0)
-            # stop exactly if the piston came to rest (or reversed) and the
-            # force at rest cannot break away
-            if (
-                friction
-                and (abs(vy) <= p[_EPS] or vy * vy_start < 0.0)
-                and abs(p[_AP] * pl - p[_KL] * y - p[_FEXT]) <= p[_FS]
-            ):
-                vy = 0.0
+            x, _ = rk4_step(_rates, _limits, 0.0, x, r, ctx, h)
     final = np.empty(8)
-    final[0] = xf
-    final[1] = vf
-    final[2] = z
-    final[3] = vz
-    final[4] = xs
-    final[5] = pl
-    final[6] = y
-    final[7] = vy
+    for k in range(8):
+        final[k] = x[k]
     return final

@@ -32,6 +32,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from ..integrate import rk4_step
 from ._flow import orifice_mass_flow_nb
 from ._friction import three_regime_nb
 from ._pneumatic_params import PneumaticParameters
@@ -147,6 +148,39 @@ def rhs(
     return vv, av, dp1, dp2, dx, ak, m1, m2, u, fp, ffr
 
 
+@numba.njit(cache=True, inline="always")
+def _rates(t, x, w, ctx):  # type: ignore[no-untyped-def]  # pragma: no cover
+    uff, r, fext, stuck = w
+    kp, kd, closed, p, kind, blend = ctx
+    return rhs(x[0], x[1], x[2], x[3], x[4], x[5], uff, r, fext, kp, kd, closed, stuck, p,
+               kind, blend)
+
+
+@numba.njit(cache=True, inline="always")
+def _limits(t, x, before, w, ctx):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Post-step hook: (state, stuck, ok): pressure check, end stops, sticking."""
+    _, _, fext, stuck = w
+    p = ctx[3]
+    xv, vv, p1, p2, xk, vk = x
+    if not (p1 > 0.0 and p2 > 0.0 and math.isfinite(p1) and math.isfinite(p2)):
+        return x, stuck, False
+    lim = p[_XLIM]
+    if xk > lim:
+        xk = lim
+        vk = min(vk, 0.0)
+    elif xk < -lim:
+        xk = -lim
+        vk = max(vk, 0.0)
+    if (
+        not stuck
+        and (abs(vk) <= p[_EPS] or vk * before[5] < 0.0)
+        and abs(piston_force(p1, p2, fext, p)) <= p[_FHAFT]
+    ):
+        stuck = True
+        vk = 0.0
+    return (xv, vv, p1, p2, xk, vk), stuck, True
+
+
 @numba.njit(cache=True)
 def integrate(
     u: NDArray[np.float64], r: NDArray[np.float64], fext: NDArray[np.float64],
@@ -162,13 +196,10 @@ def integrate(
     status :data:`BAD_PRESSURE` stops at the first step that leaves a
     non-positive or non-finite pressure.
     """
-    xv, vv, p1, p2, xk, vk = x0[0], x0[1], x0[2], x0[3], x0[4], x0[5]
+    x = (x0[0], x0[1], x0[2], x0[3], x0[4], x0[5])
     stuck = stuck0
-    h2 = 0.5 * h
-    h6 = h / 6.0
-    lim = p[_XLIM]
+    ctx = (kp, kd, closed, p, kind, blend)
     fh = p[_FHAFT]
-    eps = p[_EPS]
     status = OK
     bad_step = -1
     for i in range(u.size):
@@ -176,67 +207,36 @@ def integrate(
         ri = r[i]
         fe = fext[i]
         for m in range(decimation):
-            if stuck and abs(piston_force(p1, p2, fe, p)) > fh:
+            if stuck and abs(piston_force(x[2], x[3], fe, p)) > fh:
                 stuck = False  # breakaway
-            a0, a1, a2, a3, a4, a5, m1, m2, ua, fp, ffr = rhs(
-                xv, vv, p1, p2, xk, vk, uf, ri, fe, kp, kd, closed, stuck, p, kind, blend)
+            (x_new, stuck_new, ok), k1 = rk4_step(_rates, _limits, 0.0, x, (uf, ri, fe, stuck),
+                                                  ctx, h)
             if m == 0:
-                out[i, 0] = xv
-                out[i, 1] = p1
-                out[i, 2] = p2
-                out[i, 3] = m1
-                out[i, 4] = m2
-                out[i, 5] = xk
-                out[i, 6] = vk
-                out[i, 7] = a5
-                out[i, 8] = ua
-                out[i, 9] = fp
-                out[i, 10] = ffr
+                out[i, 0] = x[0]
+                out[i, 1] = x[2]
+                out[i, 2] = x[3]
+                out[i, 3] = k1[6]
+                out[i, 4] = k1[7]
+                out[i, 5] = x[4]
+                out[i, 6] = x[5]
+                out[i, 7] = k1[5]
+                out[i, 8] = k1[8]
+                out[i, 9] = k1[9]
+                out[i, 10] = k1[10]
                 out[i, 11] = 1.0 if stuck else 0.0
-                out[i, 12] = vv
-            b0, b1, b2, b3, b4, b5, _, _, _, _, _ = rhs(
-                xv + h2 * a0, vv + h2 * a1, p1 + h2 * a2, p2 + h2 * a3,
-                xk + h2 * a4, vk + h2 * a5, uf, ri, fe, kp, kd, closed, stuck, p, kind, blend)
-            c0, c1, c2, c3, c4, c5, _, _, _, _, _ = rhs(
-                xv + h2 * b0, vv + h2 * b1, p1 + h2 * b2, p2 + h2 * b3,
-                xk + h2 * b4, vk + h2 * b5, uf, ri, fe, kp, kd, closed, stuck, p, kind, blend)
-            d0, d1, d2, d3, d4, d5, _, _, _, _, _ = rhs(
-                xv + h * c0, vv + h * c1, p1 + h * c2, p2 + h * c3,
-                xk + h * c4, vk + h * c5, uf, ri, fe, kp, kd, closed, stuck, p, kind, blend)
-            v_start = vk
-            xv += h6 * (a0 + 2.0 * (b0 + c0) + d0)
-            vv += h6 * (a1 + 2.0 * (b1 + c1) + d1)
-            p1 += h6 * (a2 + 2.0 * (b2 + c2) + d2)
-            p2 += h6 * (a3 + 2.0 * (b3 + c3) + d3)
-            xk += h6 * (a4 + 2.0 * (b4 + c4) + d4)
-            vk += h6 * (a5 + 2.0 * (b5 + c5) + d5)
-            if not (p1 > 0.0 and p2 > 0.0 and math.isfinite(p1) and math.isfinite(p2)):
+                out[i, 12] = x[1]
+            if not ok:
                 status = BAD_PRESSURE
                 bad_step = i * decimation + m
+                x = x_new
                 break
-            if xk > lim:
-                xk = lim
-                vk = min(vk, 0.0)
-            elif xk < -lim:
-                xk = -lim
-                vk = max(vk, 0.0)
-            if (
-                not stuck
-                and (abs(vk) <= eps or vk * v_start < 0.0)
-                and abs(piston_force(p1, p2, fe, p)) <= fh
-            ):
-                stuck = True
-                vk = 0.0
+            x, stuck = x_new, stuck_new
         if status != OK:
             for j in range(i, u.size):
                 for c in range(out.shape[1]):
                     out[j, c] = np.nan
             break
     final = np.empty(6)
-    final[0] = xv
-    final[1] = vv
-    final[2] = p1
-    final[3] = p2
-    final[4] = xk
-    final[5] = vk
+    for k in range(6):
+        final[k] = x[k]
     return final, stuck, status, bad_step

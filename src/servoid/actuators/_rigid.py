@@ -51,6 +51,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._checks import as_array, as_float
 from .._errors import DataError, ModelError, OptionTypeError, check_option
+from ..integrate import keep, rk4_step
 
 __all__ = ["CascadeController", "RigidAxis", "RigidLoopResponse", "simulate_rigid_loop"]
 
@@ -423,7 +424,7 @@ def _exact_step(p, force, h, state):  # type: ignore[no-untyped-def]  # pragma: 
     state[0], state[1] = q, v
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _accel(p, net, v):  # type: ignore[no-untyped-def]  # pragma: no cover
     if v > 0.0:
         return (net - p[1] * v - p[2]) / p[0]
@@ -432,16 +433,16 @@ def _accel(p, net, v):  # type: ignore[no-untyped-def]  # pragma: no cover
     return net / p[0]
 
 
+@numba.njit(cache=True, inline="always")
+def _rates(t, x, net, p):  # type: ignore[no-untyped-def]  # pragma: no cover
+    return x[1], _accel(p, net, x[1])
+
+
 @numba.njit(cache=True)
 def _rk4_steps(p, force, h, substeps, state):  # type: ignore[no-untyped-def]  # pragma: no cover
     net = force - p[5]
-    q, v = state[0], state[1]
+    x = (state[0], state[1])
     dh = h / substeps
     for _ in range(substeps):
-        k1q, k1v = v, _accel(p, net, v)
-        k2q, k2v = v + 0.5 * dh * k1v, _accel(p, net, v + 0.5 * dh * k1v)
-        k3q, k3v = v + 0.5 * dh * k2v, _accel(p, net, v + 0.5 * dh * k2v)
-        k4q, k4v = v + dh * k3v, _accel(p, net, v + dh * k3v)
-        q += dh * (k1q + 2.0 * k2q + 2.0 * k3q + k4q) / 6.0
-        v += dh * (k1v + 2.0 * k2v + 2.0 * k3v + k4v) / 6.0
-    state[0], state[1] = q, v
+        x, _ = rk4_step(_rates, keep, 0.0, x, net, p, dh)
+    state[0], state[1] = x[0], x[1]

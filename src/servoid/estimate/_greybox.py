@@ -47,6 +47,7 @@ from .._errors import (
     check_option,
 )
 from .._lazy import integrate, optimize
+from ..integrate import keep, rk4_step
 from ..data import Experiment
 from ._covariance import (
     GREYBOX_COVARIANCES,
@@ -645,6 +646,23 @@ def _make_simulator(
             return u[k]
         return u[k] + frac * (u[k + 1] - u[k])
 
+    times = t.tolist()  # floats: a numpy scalar per stage costs more than the arithmetic
+    slope = np.diff(u, axis=0) if hold == "foh" else u
+    held = [0.0, None]  # the last stage's time and input (the two midpoint stages share one)
+
+    def rates(tt: float, x: NDArray[np.float64], k: int, theta: NDArray[np.float64]
+              ) -> NDArray[np.float64]:
+        if hold == "zoh" or tt == times[k]:
+            uk = u[k]
+        elif tt == held[0]:
+            uk = held[1]
+        else:
+            uk = u[k] + (tt - times[k]) / (times[k + 1] - times[k]) * slope[k]
+            held[0], held[1] = tt, uk
+        return np.asarray(rhs(tt, x, uk, theta), dtype=float)
+
+    step, unconstrained = rk4_step.py_func, keep.py_func  # the user's Python rhs: run as Python
+
     def run_rk4(theta: NDArray[np.float64]) -> NDArray[np.float64]:
         x = initial(theta)
         xs = np.full((t.size, x.size), np.nan)
@@ -652,14 +670,7 @@ def _make_simulator(
         for k in range(t.size - 1):
             h = (t[k + 1] - t[k]) / substeps
             for j in range(substeps):
-                tk = t[k] + j * h
-                f0, fm, f1 = j / substeps, (j + 0.5) / substeps, (j + 1) / substeps
-                k1 = np.asarray(rhs(tk, x, u_at(k, f0), theta), dtype=float)
-                um = u_at(k, fm)
-                k2 = np.asarray(rhs(tk + h / 2, x + h / 2 * k1, um, theta), dtype=float)
-                k3 = np.asarray(rhs(tk + h / 2, x + h / 2 * k2, um, theta), dtype=float)
-                k4 = np.asarray(rhs(tk + h, x + h * k3, u_at(k, f1), theta), dtype=float)
-                x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+                x, _ = step(rates, unconstrained, t[k] + j * h, x, k, theta, h)
             if not np.all(np.isfinite(x)):
                 return outputs_of(xs, theta)  # diverged: the rest stays NaN
             xs[k + 1] = x

@@ -47,6 +47,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._errors import ModelError
+from ..integrate import rk4_step
 
 __all__ = ["OdeSystem", "make_system", "user_error"]
 
@@ -204,7 +205,7 @@ def make_system(
         n_outputs, kind = 1, "index"
     bounds = tuple(np.ascontiguousarray(b, dtype=float)
                    for b in (state_lower, state_upper, input_lower, input_upper))
-    plain = _make_kernel(rhs, output, takes_time, kind, jit=False)
+    plain = _make_kernel(rhs, output, takes_time, kind, n_states, jit=False)
     system = OdeSystem(rhs, output, n_states, n_inputs, n_outputs, takes_time, *bounds,
                        compiled=False, note="", source=source, path=path, _kernel=plain,
                        _plain=plain)
@@ -218,7 +219,7 @@ def make_system(
 
         fast = _COMPILED.get(key) if key is not None else None
         if fast is None:
-            fast = _make_kernel(rhs, output, takes_time, kind, jit=True)
+            fast = _make_kernel(rhs, output, takes_time, kind, n_states, jit=True)
         got = np.empty_like(expected)
         fast(np.ascontiguousarray(x0, dtype=float), probe_u, np.ascontiguousarray(p, dtype=float),
              1e-3, 1, *bounds, got)
@@ -296,8 +297,13 @@ def _numbers(value: Any, source: str, what: str) -> NDArray[np.float64]:
 
 
 def _make_kernel(rhs: Callable[..., Any], output: Callable[..., Any] | int, takes_time: bool,
-                 kind: str, *, jit: bool) -> Callable[..., Any]:
-    """The RK4 integrator over the user's functions, plain or compiled."""
+                 kind: str, nx: int, *, jit: bool) -> Callable[..., Any]:
+    """The RK4 integrator over the user's functions, plain or compiled.
+
+    The integrator carries the state as a tuple of ``nx`` floats (unrolled
+    arithmetic, nothing allocated per step) and hands the user's functions
+    an array holding it.
+    """
     if jit:
         import numba
 
@@ -332,52 +338,37 @@ def _make_kernel(rhs: Callable[..., Any], output: Callable[..., Any] | int, take
                     ys[k, i] = o[i]
     write = dec(write)
 
-    def rates(t: float, xs: Any, uk: Any, p: Any, lo: Any, hi: Any, out: Any) -> None:
-        d = f(t, xs, uk, p)
-        for i in range(xs.size):
-            r = d[i]
-            # a clamped state does not move further out (overflow, a full tank)
-            if (xs[i] >= hi[i] and r > 0.0) or (xs[i] <= lo[i] and r < 0.0):
-                r = 0.0
-            out[i] = r
+    as_state, fill, rates_of, project = _state_helpers(nx, dec, jit)
+
+    def rates(t: float, x: Any, uk: Any, ctx: Any) -> Any:
+        p, lo, hi, xa = ctx
+        fill(xa, x)
+        return rates_of(f(t, xa, uk, p), x, lo, hi)
+
+    def clamp(t: float, x: Any, before: Any, uk: Any, ctx: Any) -> Any:
+        return project(x, ctx[1], ctx[2])
 
     rates = dec(rates)
+    clamp = dec(clamp)
+    step = rk4_step if jit else rk4_step.py_func
 
     def kernel(x0: Any, u: Any, p: Any, dt: float, substeps: int, lo: Any, hi: Any,
                ulo: Any, uhi: Any, ys: Any) -> None:
         n, m = u.shape
-        nx = x0.size
-        x = np.empty(nx)
-        xt = np.empty(nx)
-        k1 = np.empty(nx)
-        k2 = np.empty(nx)
-        k3 = np.empty(nx)
-        k4 = np.empty(nx)
+        xa = np.empty(nx)  # the state as the user's functions see it: an array
         uk = np.empty(m)
-        for i in range(nx):
-            x[i] = min(max(x0[i], lo[i]), hi[i])
+        x = project(as_state(x0), lo, hi)
+        ctx = (p, lo, hi, xa)
         h = dt / substeps
         for k in range(n):
             for j in range(m):
                 uk[j] = min(max(u[k, j], ulo[j]), uhi[j])
-            write(x, uk, p, ys, k)
+            fill(xa, x)
+            write(xa, uk, p, ys, k)
             if k == n - 1:
                 break
             for s in range(substeps):
-                t = (k * substeps + s) * h
-                rates(t, x, uk, p, lo, hi, k1)
-                for i in range(nx):
-                    xt[i] = x[i] + 0.5 * h * k1[i]
-                rates(t + 0.5 * h, xt, uk, p, lo, hi, k2)
-                for i in range(nx):
-                    xt[i] = x[i] + 0.5 * h * k2[i]
-                rates(t + 0.5 * h, xt, uk, p, lo, hi, k3)
-                for i in range(nx):
-                    xt[i] = x[i] + h * k3[i]
-                rates(t + h, xt, uk, p, lo, hi, k4)
-                for i in range(nx):
-                    x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-                    x[i] = min(max(x[i], lo[i]), hi[i])
+                x, _ = step(rates, clamp, (k * substeps + s) * h, x, uk, ctx, h)
             finite = True
             for i in range(nx):
                 if not math.isfinite(x[i]):
@@ -389,3 +380,41 @@ def _make_kernel(rhs: Callable[..., Any], output: Callable[..., Any] | int, take
                 return
 
     return dec(kernel)
+
+
+def _state_helpers(nx: int, dec: Callable[..., Any], jit: bool
+                   ) -> tuple[Callable[..., Any], ...]:
+    """``as_state``, ``fill``, ``rates_of`` and ``project`` for ``nx`` states, through ``dec``.
+
+    Written out for the state's size, so that the compiled integrator keeps
+    the state in registers: ``as_state(a)`` is the tuple of an array,
+    ``fill(xa, x)`` copies the tuple into the user's array,
+    ``rates_of`` turns what the user returned into a tuple of rates, zero
+    where a clamped state would move further out (overflow, a full tank),
+    ``project`` puts the state back onto its range after a step.  Compiled,
+    the rate test is a function (numba inlines it); in Python it is written
+    out, a call per state costing more than the test.
+    """
+    idx = range(nx)
+    rate = ("_rate(d[{i}], x[{i}], lo[{i}], hi[{i}]), " if jit else
+            "0.0 if (x[{i}] >= hi[{i}] and d[{i}] > 0.0) or (x[{i}] <= lo[{i}] and "
+            "d[{i}] < 0.0) else float(d[{i}]), ")
+    source = (
+        "def as_state(a):\n    return (" + "".join(f"a[{i}], " for i in idx) + ")\n"
+        "def fill(xa, x):\n"
+        + "".join(f"    xa[{i}] = x[{i}]\n" for i in idx)
+        + "def rates_of(d, x, lo, hi):\n    return ("
+        + "".join(rate.format(i=i) for i in idx) + ")\n"
+        + "def project(x, lo, hi):\n    return ("
+        + "".join(f"min(max(x[{i}], lo[{i}]), hi[{i}]), " for i in idx) + ")\n"
+    )
+    namespace: dict[str, Any] = {"_rate": dec(_rate)}
+    exec(source, namespace)  # noqa: S102 — text built here from an integer
+    return tuple(dec(namespace[name]) for name in ("as_state", "fill", "rates_of", "project"))
+
+
+def _rate(r: float, x: float, lo: float, hi: float) -> float:
+    """A state's rate, zero where it sits at a clamp and would move further out."""
+    if (x >= hi and r > 0.0) or (x <= lo and r < 0.0):
+        return 0.0
+    return float(r)
