@@ -270,15 +270,15 @@ def _refuse_foreign(targets: Sequence[Path], inputs: Sequence[Path], overwrite: 
 
     A target may be replaced when ``overwrite``; when an interrupted run's
     stale lock names it; or, with ``own_run`` (a re-render into the run's
-    folder), when the folder's complete manifest lists it.  Returns the
-    existing targets an interrupted run left.
+    folder), when the folder's manifest lists it with its SHA-256 of now.
+    Returns the existing targets an interrupted run left.
     """
     check_outputs(targets, inputs, overwrite=True)
     if overwrite:
         return []
     folder = lock.folder
     complete = _complete(folder / MANIFEST)
-    ours = _manifest_names(folder / MANIFEST) if own_run and complete else set()
+    ours = _unchanged(folder / MANIFEST) if own_run else set()
     left = []
     for path in targets:
         if not path.exists() and not path.is_symlink():
@@ -359,10 +359,27 @@ def _complete(manifest: Path) -> bool:
         doc = json.loads(manifest.read_text(encoding="utf-8"))
         files = doc["files"]
         return bool(doc.get("complete")) and all(
-            (manifest.parent / f["name"]).is_file()
+            _plain(f["name"]) and (manifest.parent / f["name"]).is_file()
             and sha256(manifest.parent / f["name"]) == f["sha256"] for f in files)
     except (OSError, ValueError, KeyError, TypeError):
         return False
+
+
+def _unchanged(manifest: Path) -> set[str]:
+    """The manifest and the files it lists that still have their SHA-256."""
+    try:
+        doc = json.loads(manifest.read_text(encoding="utf-8"))
+        return {MANIFEST, *(str(f["name"]) for f in doc["files"]
+                            if _plain(f["name"]) and (manifest.parent / f["name"]).is_file()
+                            and sha256(manifest.parent / f["name"]) == f["sha256"])}
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        return set()
+
+
+def _plain(name: object) -> bool:
+    """A manifest entry names a file of the folder itself (never a path out of it)."""
+    return isinstance(name, str) and name not in ("", ".", "..") and "/" not in name \
+        and "\\" not in name and "\0" not in name
 
 
 def _manifest_names(manifest: Path) -> set[str]:
