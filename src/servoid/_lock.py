@@ -21,8 +21,9 @@ journal (:attr:`FolderLock.inherited`), the files an interrupted run may
 have left half done, which the new run may replace.  The lock is removed
 when the run ends, whatever the way.
 
-Without ``fcntl`` (Windows) a lock is taken for a live run: the message
-names the file to delete when no servoid runs.
+Without ``flock`` (Windows, some network file systems) a lock found in
+place is taken for a live run's: the message names the file to delete when
+no servoid runs there.
 """
 
 from __future__ import annotations
@@ -153,7 +154,14 @@ def hold_folder(folder: str | os.PathLike[str], *,
             with _GUARD:
                 held._depth -= 1
         return
-    lock = _acquire(folder, subfolders)
+    made = _missing_folders(folder)
+    try:
+        lock = _acquire(folder, subfolders, made)
+    except BaseException:
+        for path in reversed(made):
+            with suppress(OSError):
+                path.rmdir()  # only an empty folder goes
+        raise
     with _GUARD:
         _HELD[resolved] = lock
     try:
@@ -198,8 +206,7 @@ def sha256_file(path: Path) -> str:
 # -- private ------------------------------------------------------------------------------
 
 
-def _acquire(folder: Path, subfolders: Sequence[str]) -> FolderLock:
-    made = _missing_folders(folder)
+def _acquire(folder: Path, subfolders: Sequence[str], made: list[Path]) -> FolderLock:
     token = secrets.token_hex(8)
     info = {"servoid_lock": 1, "pid": os.getpid(), "host": socket.gethostname(),
             "command": " ".join(sys.argv)[:500], "started": time.time(), "token": token,
@@ -241,8 +248,7 @@ def _new_lock(folder: Path, info: dict[str, Any]) -> int:
     tmp = _tmp_name(folder, info["token"])
     fd = os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_RDWR, 0o644)
     try:
-        if fcntl is not None:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        _flock(fd)  # our own new file: nobody else can hold it
         os.write(fd, json.dumps(info, indent=1).encode())
         os.fsync(fd)
     except BaseException:
@@ -265,11 +271,8 @@ def _take_stale(path: Path, fd: int, folder: Path,
         old = os.open(path, os.O_RDWR)
     except FileNotFoundError:
         return None
-    try:
-        if fcntl is None:
-            raise BlockingIOError
-        fcntl.flock(old, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
+    locked = _flock(old)
+    if not locked:
         if not _same_file(path, old):  # the live lock we opened was replaced: look again
             os.close(old)
             return None
@@ -281,10 +284,12 @@ def _take_stale(path: Path, fd: int, folder: Path,
         who = f"process {dead.get('pid', '?')}"
         if dead.get("command"):
             who += f" ({dead['command']})"
-        hint = "" if fcntl is not None else (f"; if no servoid runs, delete {path}")
+        hint = "" if locked is False else (
+            f" (this file system cannot tell a live run from a dead one: if no servoid runs "
+            f"there, delete {path})")
         raise OutputExistsError(
             f"{folder} is in use by another servoid run ({who}); one run owns a folder at a "
-            f"time: wait for it to end, or choose another --out{hint}") from None
+            f"time: wait for it to end, or choose another --out{hint}")
     if not _same_file(path, old):  # replaced or removed since we opened it
         os.close(old)
         return None
@@ -295,6 +300,19 @@ def _take_stale(path: Path, fd: int, folder: Path,
     fd = _new_lock(folder, info)
     os.replace(tmp, path)
     return old, fd, dead
+
+
+def _flock(fd: int) -> bool | None:
+    """Take the exclusive flock of ``fd`` without waiting: True, False (held), None (no flock)."""
+    if fcntl is None:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    except OSError:  # a file system without flock (some network mounts)
+        return None
+    return True
 
 
 def _same_file(path: Path, fd: int) -> bool:

@@ -24,7 +24,6 @@ from pathlib import Path
 from typing import Any
 
 from .. import __version__
-from .._lock import FolderLock, hold_folder
 from .._checks import as_bool, as_mapping, as_path, read_json, type_error
 from .._errors import (
     FileFormatError,
@@ -33,6 +32,7 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._lock import FolderLock, hold_folder
 from .._progress import stage
 from ..data import ExperimentSpec, load_experiment_spec
 from ._common import check_outputs, check_sizes, report_options, sha256, spec_inputs
