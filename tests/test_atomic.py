@@ -6,6 +6,7 @@ import os
 import stat
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import pytest
@@ -135,3 +136,35 @@ def test_temporary_files_in_a_held_folder_carry_the_runs_token(tmp_path):
     with hold_folder(tmp_path / "gone"):
         pass
     assert not (tmp_path / "gone").exists()  # a folder the lock made, left empty, goes
+
+
+def test_a_lock_file_servoid_did_not_write_is_refused_never_deleted(tmp_path):
+    (tmp_path / LOCK).write_text("a user's notes")
+    with pytest.raises(OutputExistsError, match="not a lock servoid wrote"):
+        with hold_folder(tmp_path):
+            pass
+    assert (tmp_path / LOCK).read_text() == "a user's notes"
+    assert [p.name for p in tmp_path.iterdir()] == [LOCK]
+
+
+def test_without_hard_links_the_lock_is_made_in_place(tmp_path, monkeypatch):
+    def no_links(*args):
+        raise PermissionError("no hard links on this file system")
+
+    monkeypatch.setattr(os, "link", no_links)
+    with hold_folder(tmp_path) as lock:
+        assert lock.token in (tmp_path / LOCK).read_text()
+        errors = []
+
+        def second():  # another thread is another run
+            try:
+                with hold_folder(tmp_path):
+                    pass
+            except OutputExistsError as exc:
+                errors.append(str(exc))
+
+        worker = threading.Thread(target=second)
+        worker.start()
+        worker.join()
+        assert len(errors) == 1 and "in use by another servoid run" in errors[0]
+    assert not (tmp_path / LOCK).exists()

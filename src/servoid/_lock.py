@@ -95,9 +95,10 @@ class FolderLock:
         names.update(_relative(self.folder, Path(p)) for p in paths)
         self._info["files"] = sorted(names)
         data = json.dumps(self._info, indent=1).encode()
-        os.lseek(self._fd, 0, os.SEEK_SET)
-        os.ftruncate(self._fd, 0)
-        os.write(self._fd, data)
+        # the journal only grows: written over the old one, then cut to length, it is never
+        # an empty file (a run killed in between leaves the old or the new journal)
+        os.pwrite(self._fd, data, 0)
+        os.ftruncate(self._fd, len(data))
         os.fsync(self._fd)
 
 
@@ -219,6 +220,12 @@ def _acquire(folder: Path, subfolders: Sequence[str], made: list[Path]) -> Folde
             os.link(_tmp_name(folder, token), path)
         except FileExistsError:
             pass
+        except OSError:  # a file system without hard links: create the lock in place
+            direct = _direct_lock(path, info)
+            if direct is not None:
+                os.close(fd)
+                return FolderLock(folder, token, made=made, _fd=direct, _info=info,
+                                  _thread=threading.get_ident())
         else:
             os.unlink(_tmp_name(folder, token))
             return FolderLock(folder, token, made=made, _fd=fd, _info=info,
@@ -232,11 +239,9 @@ def _acquire(folder: Path, subfolders: Sequence[str], made: list[Path]) -> Folde
             os.close(fd)
             continue
         old_fd, fd, dead = taken
-        inherited = frozenset(str(n) for n in dead.get("files", ()) if isinstance(n, str))
-        info["files"] = sorted(inherited)
-        lock = FolderLock(folder, token, inherited, made, fd, [old_fd], info,
+        # our lock already journals the dead run's files (so a run killed now passes them on)
+        lock = FolderLock(folder, token, frozenset(info["files"]), made, fd, [old_fd], info,
                           _thread=threading.get_ident())
-        lock.claim([])  # the inherited journal, in our lock, before anything is swept
         _sweep(folder, dead)
         return lock
     raise OutputExistsError(f"{folder} keeps changing owner: another servoid run starts and "
@@ -255,6 +260,22 @@ def _new_lock(folder: Path, info: dict[str, Any]) -> int:
         os.close(fd)
         os.unlink(tmp)
         raise
+    return fd
+
+
+def _direct_lock(path: Path, info: dict[str, Any]) -> int | None:
+    """The lock created in place (O_EXCL) where links fail; None when one is there.
+
+    For a moment it is empty: a run that finds it so takes it for a lock
+    it cannot read and refuses, never deletes it.
+    """
+    try:
+        fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_RDWR, 0o644)
+    except FileExistsError:
+        return None
+    _flock(fd)
+    os.write(fd, json.dumps(info, indent=1).encode())
+    os.fsync(fd)
     return fd
 
 
@@ -294,6 +315,16 @@ def _take_stale(path: Path, fd: int, folder: Path,
         os.close(old)
         return None
     dead = _read(old)
+    info["files"] = sorted(str(n) for n in dead.get("files", ()) if isinstance(n, str))
+    if dead.get("servoid_lock") != 1:  # not a lock servoid wrote: never ours to delete
+        os.close(old)
+        os.close(fd)
+        with suppress(FileNotFoundError):
+            os.unlink(_tmp_name(folder, info["token"]))
+        raise OutputExistsError(
+            f"{path} is there and is not a lock servoid wrote, so servoid cannot tell whether "
+            f"another run owns {folder}: if no servoid runs there, delete {path}; or choose "
+            "another --out")
     # ours replaces it: the dead lock's inode stays flock-ed by us until we release
     tmp = _tmp_name(folder, info["token"])
     os.close(fd)
