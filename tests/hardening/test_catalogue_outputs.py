@@ -217,11 +217,16 @@ def test_excite_bench_and_demo_keep_a_users_file(rig, capsys):
     assert main(["excite", "prbs", "--register", "5", "--dt", "0.01", "--out",
                  str(rig / "signal.csv")]) == 1
     (rig / "ehsa.toml").write_text("mine")
+    (rig / "batch").mkdir()
+    (rig / "batch" / "units.csv").write_text("mine")
     before = _tree(rig)
+    assert main(["bench", "fleet", "--out", str(rig / "batch"), "--units", "3", "--corrupt",
+                 "0", "--register", "5"]) == 1
+    assert not (rig / "batch" / "units").exists()  # refused before any unit was written
     assert main(["bench", "ehsa", "--out", str(rig), "--format", "csv"]) == 1
     assert main(["demo", "--out", str(rig)]) == 1
     err = capsys.readouterr().err
-    assert err.count("--overwrite") >= 3
+    assert err.count("--overwrite") >= 4
     assert _tree(rig) == before
 
 
