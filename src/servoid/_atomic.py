@@ -1,7 +1,15 @@
-"""Atomic file output: write to a temporary file, then rename into place."""
+"""Atomic file output: write to a temporary file, then rename into place.
+
+A temporary file is named ``.<target>.<random>.tmp``.  In a folder this
+process owns (:func:`servoid._lock.hold_folder`) the random part is the
+run's token, recorded in the folder's lock, followed by a counter: a later
+run that finds the lock of a dead run deletes exactly those files.  Nothing
+is ever deleted because its name merely looks like a temporary file.
+"""
 
 from __future__ import annotations
 
+import itertools
 import os
 import secrets
 from collections.abc import Iterator
@@ -9,8 +17,11 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ._errors import MissingFileError, OutputExistsError
+from ._lock import temporary_token
 
 __all__ = ["atomic_path", "check_writable"]
+
+_COUNTER = itertools.count()
 
 
 def check_writable(path: str | os.PathLike[str], overwrite: bool = False) -> Path:
@@ -41,7 +52,9 @@ def atomic_path(path: str | os.PathLike[str], overwrite: bool = False) -> Iterat
         raise MissingFileError(
             f"cannot write {target}: the folder {target.parent} does not exist; create it first"
         )
-    tmp = target.parent / f".{target.name}.{secrets.token_hex(6)}.tmp"
+    token = temporary_token(target.parent)
+    mark = secrets.token_hex(8) if token is None else f"{token}.{next(_COUNTER)}"
+    tmp = target.parent / f".{target.name}.{mark}.tmp"
     # O_EXCL: never reuse a name; mode 0666 lets the kernel apply the user's umask.
     os.close(os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
     try:

@@ -173,3 +173,55 @@ def test_missing_results_and_bad_usage(capsys, tmp_path):
 
 def _arx(saved):
     return PolynomialModel(saved["a"], tuple(saved["b"]), tuple(saved["nk"]), saved["dt"])
+
+
+HOSTILE = [
+    'x"""; __import__("pathlib").Path("PWNED").write_text("1"); """',
+    "x'''; __import__('pathlib').Path('PWNED').write_text('1'); '''",
+    'x\\"\\\\"; __import__("pathlib").Path("PWNED").write_text("1") #',
+    'x\n__import__("pathlib").Path("PWNED").write_text("1")\n',
+    "x\\\n__import__('pathlib').Path('PWNED').write_text('1')",
+]
+
+
+@pytest.mark.parametrize("name", HOSTILE)
+def test_python_export_escapes_every_name(capsys, tmp_path, name, monkeypatch):
+    """A results file named like code: the script compiles, runs, and runs nothing else."""
+    tf = TransferFunction([0.5], [1.0, -0.5], 0.01)
+    results = _results(tmp_path, tf, name=f"{name}.json")
+    (tmp_path / "results.json").write_bytes(results.read_bytes())
+    models = {"G": tf, 'odd"""name\n__import__': tf}  # a model name is escaped the same way
+    from servoid.cli._export import _python
+
+    for text in (_python({"G": tf}, results), _python(models, results)):
+        compile(text, "exported.py", "exec")
+        script = tmp_path / "exported.py"
+        script.write_text(text, encoding="utf-8")
+        monkeypatch.chdir(tmp_path)
+        namespace = runpy.run_path(str(script))
+        assert not (tmp_path / "PWNED").exists()
+        assert set(namespace["models"]) <= set(models) and namespace["G"].dt == 0.01
+        assert namespace["__doc__"].endswith(f"{results.name}; needs python-control.")
+    code, _, err = run(capsys, "export", str(results), "--to", "python", "--out",
+                       str(tmp_path / "cli.py"))
+    assert code == 0, err
+    namespace = runpy.run_path(str(tmp_path / "cli.py"))
+    assert not (tmp_path / "PWNED").exists() and "G" in namespace
+
+
+def test_export_never_replaces_its_input(capsys, tmp_path):
+    results = _results(tmp_path, TransferFunction([0.5], [1.0, -0.5], 0.01))
+    before = results.read_bytes()
+    code, _, err = run(capsys, "export", str(results), "--to", "json", "--out", str(results),
+                       "--overwrite")
+    assert code == 1 and "an input of this export" in err
+    assert results.read_bytes() == before
+
+
+def test_an_empty_out_is_a_usage_error(capsys, tmp_path, monkeypatch):
+    results = _results(tmp_path, TransferFunction([0.5], [1.0, -0.5], 0.01))
+    monkeypatch.chdir(tmp_path)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code, _, err = run(capsys, "export", str(results), "--to", "json", "--out", "")
+    assert code == 2 and "empty path" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before

@@ -268,7 +268,8 @@ def test_report_needs_allow_code_and_an_unchanged_model_file(run, tmp_path, caps
     assert not trace.exists()
     before = json.loads(results.read_text(encoding="utf-8"))
     (base / "out" / "report.html").unlink()
-    code = main(["report", str(results), "--allow-code"])  # into the run's own folder
+    code = main(["report", str(results), "--allow-code",  # into the run's own folder
+                 "--experiment", str(base / "tanks.toml")])
     assert code == 0, capsys.readouterr().err
     assert trace.exists()  # this time the model file ran
     again = json.loads(results.read_text(encoding="utf-8"))
@@ -282,7 +283,8 @@ def test_report_needs_allow_code_and_an_unchanged_model_file(run, tmp_path, caps
     (folder / "results.json").write_text(json.dumps(data), encoding="utf-8")
     shutil.copy(base / "out" / "manifest.json", folder / "manifest.json")
     with pytest.raises(OutputExistsError, match=r"not the model file this run fitted"):
-        rerender(folder / "results.json", tmp_path / "third", allow_code=True)
+        rerender(folder / "results.json", tmp_path / "third", allow_code=True,
+                 experiment=base / "tanks.toml")
 
 
 def test_the_python_integrator_travels_too(run, new_record, tmp_path):
@@ -317,3 +319,57 @@ def test_a_model_whose_function_is_in_no_file_is_not_saved(tmp_path):
         save_model(model, tmp_path / "m.json")
     assert not list(tmp_path.iterdir())
     assert model.to_dict()["model_file"] is None  # results.json then has nothing to load
+
+
+def test_report_runs_the_bytes_it_hashed_not_a_file_swapped_after(run, tmp_path, monkeypatch):
+    """A model file swapped between the hash check and the run: the swapped code never runs."""
+    import servoid.workflows._results as results_module
+
+    base, _, _ = run
+    results = base / "out" / "results.json"
+    model = base / "tanks.py"
+    original = model.read_bytes()
+    evil = b'from pathlib import Path\nPath(__file__).with_name("evil.txt").write_text("ran")\n'
+    checked = results_module.sha256
+    seen = hashlib.sha256(original).hexdigest()
+
+    def check_then_swap(path):
+        if Path(path).resolve() != model.resolve():
+            return checked(path)
+        model.write_bytes(evil)  # the swap lands just after each check saw the original
+        return seen
+
+    monkeypatch.setattr(results_module, "sha256", check_then_swap)
+    try:
+        with pytest.raises(servoid.ModelError, match="not the model file this run fitted"):
+            rerender(results, tmp_path / "swapped", allow_code=True,
+                     experiment=base / "tanks.toml")
+    finally:
+        model.write_bytes(original)
+    assert not (base / "evil.txt").exists()
+    assert not (tmp_path / "swapped").exists()
+
+
+@pytest.mark.parametrize("where", ["top", "rhs"])
+def test_a_model_file_calling_sys_exit_is_an_error_naming_it(run, tmp_path, capsys, where):
+    base, _, _ = run
+    folder = tmp_path / "exits"
+    folder.mkdir()
+    for name in ("est.csv", "val.csv"):
+        shutil.copy(base / name, folder / name)
+    code = (base / "tanks.py").read_text(encoding="utf-8")
+    if where == "top":
+        code = "import sys\nsys.exit(0)\n" + code
+    else:
+        code = code.replace("def rhs(", "def _rhs(") + (
+            "\n\ndef rhs(x, u, p):\n    import sys\n    sys.exit(0)\n")
+    (folder / "tanks.py").write_text(code, encoding="utf-8")
+    (folder / "tanks.toml").write_text(TOML.replace("[identify]\n",
+                                                    "[identify]\ncompile = false\n"),
+                                       encoding="utf-8")
+    with pytest.raises(servoid.ModelError, match=r"sys\.exit\(0\).*tanks\.py"):
+        identify(folder / "tanks.toml", allow_code=True, write=False)
+    assert main(["identify", str(folder / "tanks.toml"), "--allow-code"]) == 1
+    err = capsys.readouterr().err
+    assert "sys.exit(0)" in err and "tanks.py" in err
+    assert not (folder / "tanks-results").exists()

@@ -70,23 +70,47 @@ def test_a_missing_truth_file_is_an_error(rig):
         identify(_toml(rig, {"truth": "nope.json"}), write=False)
 
 
-def test_an_interrupted_run_is_replaced_and_its_temporary_files_swept(rig):
+def _killed_run(out, files, token="0123456789abcdef"):
+    """What a run killed half way leaves: its lock (no process holds it) and a temporary file."""
+    lock = {"servoid_lock": 1, "pid": 999999, "token": token, "folders": ["."],
+            "files": files}
+    (out / ".servoid.lock").write_text(json.dumps(lock))
+    (out / f".report.html.{token}.0.tmp").write_text("half")
+
+
+def test_an_interrupted_run_is_replaced_and_only_its_temporary_files_swept(rig):
     path = _toml(rig)
     out = rig / "res"
     first = identify(path, out)
     manifest = json.loads((out / "manifest.json").read_text())
     assert {f["name"] for f in manifest["files"]} == {p.name for p in first.files} - {
         "manifest.json"}
-    # a run killed before its manifest: results without manifest, a temporary file left over
+    assert not (out / ".servoid.lock").exists()  # removed at the end of the run
+    # a run killed before its manifest: results without manifest, its lock, its temporary file
     (out / "manifest.json").unlink()
-    (out / ".report.html.0123456789ab.tmp").write_text("half")
+    _killed_run(out, sorted(p.name for p in first.files))
+    (out / ".notes.0123456789ab.tmp").write_text("the user's")  # only named like servoid's
     with pytest.warns(ServoidWarning, match="interrupted earlier run"):
         identify(path, out)
-    assert not (out / ".report.html.0123456789ab.tmp").exists()
-    assert (out / "manifest.json").exists()
+    assert not (out / ".report.html.0123456789abcdef.0.tmp").exists()
+    assert (out / ".notes.0123456789ab.tmp").read_text() == "the user's"
+    assert (out / "manifest.json").exists() and not (out / ".servoid.lock").exists()
     # a complete run is protected as before
     with pytest.raises(OutputExistsError, match="earlier run; pass --overwrite"):
         identify(path, out)
+
+
+def test_results_without_a_lock_or_manifest_are_not_servoids_to_replace(rig):
+    path = _toml(rig)
+    out = rig / "res"
+    out.mkdir()
+    (out / "report.html").write_text("the user's own report")
+    with pytest.raises(OutputExistsError, match="only with --overwrite"):
+        identify(path, out)
+    assert (out / "report.html").read_text() == "the user's own report"
+    assert sorted(p.name for p in out.iterdir()) == ["report.html"]
+    identify(path, out, overwrite=True)
+    assert (out / "manifest.json").exists()
 
 
 def test_a_changed_file_makes_the_manifest_incomplete(rig):
@@ -94,8 +118,36 @@ def test_a_changed_file_makes_the_manifest_incomplete(rig):
     out = rig / "res"
     identify(path, out)
     (out / "report.html").write_text("edited by hand")
-    with pytest.warns(ServoidWarning, match="interrupted"):
+    with pytest.raises(OutputExistsError, match="only with --overwrite"):
         identify(path, out)
+    assert (out / "report.html").read_text() == "edited by hand"
+
+
+def test_a_folder_a_live_run_holds_is_refused(rig):
+    from servoid._lock import hold_folder
+
+    path = _toml(rig)
+    out = rig / "res"
+    with hold_folder(out):  # a live run here (this process)
+        before = _snapshot(rig)
+        # another thread, as another run would: refused at once, nothing written
+        import threading
+
+        errors = []
+        worker = threading.Thread(target=lambda: _catch(errors, identify, path, out))
+        worker.start()
+        worker.join()
+        assert len(errors) == 1 and isinstance(errors[0], OutputExistsError)
+        assert "in use by another servoid run" in str(errors[0])
+        assert _snapshot(rig) == before
+    identify(path, out)  # released: the folder is free again
+
+
+def _catch(errors, fn, *args):
+    try:
+        fn(*args)
+    except Exception as exc:  # noqa: BLE001 — the test inspects it
+        errors.append(exc)
 
 
 def test_a_prediction_horizon_beyond_the_record_is_refused(rig):

@@ -37,21 +37,38 @@ def test_load_results_gives_models_and_parameters(run):
 
 def test_report_is_rewritten_from_unchanged_inputs_only(run, capsys, tmp_path):
     out = tmp_path / "again"
-    assert main(["report", str(run / "r" / "results.json"), "--out", str(out)]) == 0
+    results = run / "r" / "results.json"
+    toml = run / "b" / "ehsa.toml"
+    # the experiment file is outside the run's folder: read only when the command line names it
+    assert main(["report", str(results), "--out", str(out)]) == 1
+    assert f"--experiment {toml}" in capsys.readouterr().err
+    assert not out.exists()
+    assert main(["report", str(results), "--out", str(out), "--experiment", str(toml)]) == 0
     capsys.readouterr()
     assert (out / "report.html").is_file()
-    before = json.loads((run / "r" / "results.json").read_text(encoding="utf-8"))
+    before = json.loads(results.read_text(encoding="utf-8"))
     after = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert after["parameters"] == before["parameters"]
-    toml = run / "b" / "ehsa.toml"
+    # another complete run in --out is not the run's own: --overwrite, or refused
+    assert main(["report", str(results), "--out", str(out), "--experiment", str(toml)]) == 1
+    assert "--overwrite" in capsys.readouterr().err
     original = toml.read_text(encoding="utf-8")
     try:
         toml.write_text(original + "\n# edited\n", encoding="utf-8")
-        with pytest.raises(OutputExistsError, match="is not the file this run read"):
-            servoid.workflows.rerender(run / "r" / "results.json", tmp_path / "x")
-        assert main(["report", str(run / "r" / "results.json")]) == 1
+        with pytest.raises(OutputExistsError, match="is not the experiment file this run read"):
+            servoid.workflows.rerender(results, tmp_path / "x", experiment=toml)
+        assert main(["report", str(results), "--experiment", str(toml)]) == 1
     finally:
         toml.write_text(original, encoding="utf-8")
+    data = next(p for p in toml.parent.iterdir() if p.suffix in (".csv", ".tdms"))
+    saved = data.read_bytes()
+    try:
+        data.write_bytes(saved[:-1] + bytes([saved[-1] ^ 1]))
+        with pytest.raises(OutputExistsError, match="is not the file this run read"):
+            servoid.workflows.rerender(results, tmp_path / "y", experiment=toml)
+    finally:
+        data.write_bytes(saved)
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
 
 
 def test_load_results_refuses_other_files(tmp_path):

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._atomic import atomic_path
+from .._atomic import atomic_path, check_writable
 from .._checks import as_path
 from .._errors import DataError
 from ..actuators import SET_B, EhsaParameters
@@ -130,6 +130,8 @@ def write_virtual_fleet(
     from ..signals import prbs
 
     root = as_path("folder", folder)
+    for name in ("units.csv", "truth.csv", "fleet.toml"):  # refused before any unit is written
+        check_writable(root / name, overwrite)
     root.mkdir(parents=True, exist_ok=True)
     gen = np.random.default_rng(seed)
     excitation = prbs(register, clock=clock, amplitude=1e-3, periods=1, dt=1e-3)

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from .._progress import stage
-from ._flags import at_least, finite, folder_out, in_flags, positive
+from ._flags import at_least, finite, folder_out, in_flags, out_path, positive
 
 __all__ = ["BENCH_FIDELITIES", "PNEUMATIC_TEST_NAMES", "add_bench"]
 
@@ -89,7 +89,7 @@ def add_bench(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
                       help="noise seed (default: %(default)s)")
     ehsa.add_argument("--format", choices=("tdms", "csv"), default="tdms",
                       help="rig file format (default: %(default)s)")
-    ehsa.add_argument("--out", type=Path, required=True,
+    ehsa.add_argument("--out", type=out_path, required=True,
                       help="output folder for ehsa.tdms|csv, ehsa.toml and truth.json")
     ehsa.add_argument("--overwrite", action="store_true",
                       help="replace files of an earlier run in --out")
@@ -193,7 +193,7 @@ def _add_pneumatic(rigs: Any, json_flag: Callable[[argparse.ArgumentParser], Non
         "<test>.tdms|csv and <test>.toml per test, pneumatic.toml (method "
         "pneumatic-multistep) and truth.json.",
     )
-    pn.add_argument("--out", type=Path, required=True,
+    pn.add_argument("--out", type=out_path, required=True,
                     help="output folder for the rig files, TOMLs and truth.json")
     pn.add_argument("--tests", nargs="+", default=list(names), metavar="TEST",
                     help=f"tests to run, among {', '.join(names)} (default: all)")

@@ -7,7 +7,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ._flags import in_flags
+from ._flags import in_flags, out_path
 
 __all__ = ["add_excite"]
 
@@ -73,7 +73,7 @@ def _common(p: argparse.ArgumentParser, json_flag: Callable[[argparse.ArgumentPa
     p.add_argument("--offset", type=float, default=0.0, help="operating point (default: 0)")
     p.add_argument("--channel", default="r", help="channel name in the file (default: r)")
     p.add_argument("--unit", default="V", help="unit of the channel (default: V)")
-    p.add_argument("--out", type=Path, required=True, help="output file, .csv or .tdms")
+    p.add_argument("--out", type=out_path, required=True, help="output file, .csv or .tdms")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     p.add_argument("--max-samples", type=int, default=200_000_000,
                    help="refuse a longer signal (default: %(default)s, 1.6 GB as float64)")

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import keyword
+import math
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
+
+from ._flags import out_path
 
 __all__ = ["add_export"]
 
@@ -32,7 +36,7 @@ def add_export(commands: Any, json_flag: Callable[[argparse.ArgumentParser], Non
                         help="output format")
     export.add_argument("--model", metavar="NAME",
                         help="export only this model (the command lists the names)")
-    export.add_argument("--out", type=Path, help="file to write (default: model.mat, "
+    export.add_argument("--out", type=out_path, help="file to write (default: model.mat, "
                         "model.json or model.py beside RESULTS; model_NAME.* with --model)")
     export.add_argument("--overwrite", action="store_true", help="replace an existing file")
     json_flag(export)
@@ -43,12 +47,20 @@ def add_export(commands: Any, json_flag: Callable[[argparse.ArgumentParser], Non
         description="Write report.html, the figures and results.json of a run again from the "
         "experiment file it names, after checking that every input is byte-for-byte the one "
         "the run read (the SHA-256 in its manifest.json); a changed input is refused. "
-        "The identification runs again, so a grey-box run (method = \"greybox\") needs "
-        "--allow-code, and its Python model file must be unchanged too.",
+        "Only files in the run's folder or named on the command line are read: an "
+        "experiment file elsewhere (the usual <experiment>-results layout) is named with "
+        "--experiment. The identification runs again, so a grey-box run (method = "
+        "\"greybox\") needs --allow-code, and its Python model file must be unchanged too; "
+        "the code that runs is the bytes that were checked.",
     )
     report.add_argument("results", type=Path, help="results.json written by servoid identify")
-    report.add_argument("--out", type=Path,
+    report.add_argument("--experiment", type=out_path, metavar="TOML",
+                        help="the run's experiment file, when it is not in the run's folder "
+                        "(it must be the file the run read)")
+    report.add_argument("--out", type=out_path,
                         help="folder for the new report (default: the run's own folder)")
+    report.add_argument("--overwrite", action="store_true",
+                        help="replace files in --out that are not the run's own")
     report.add_argument("--allow-code", action="store_true",
                         help="let a grey-box run's Python model file run again (method = "
                         "\"greybox\"); check the file first")
@@ -59,7 +71,8 @@ def add_export(commands: Any, json_flag: Callable[[argparse.ArgumentParser], Non
 def _run_report(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..workflows import rerender
 
-    result = rerender(args.results, args.out, allow_code=args.allow_code)
+    result = rerender(args.results, args.out, experiment=args.experiment,
+                      allow_code=args.allow_code, overwrite=args.overwrite)
     return ({"files": [str(f) for f in result.files]},
             f"{result}\nwritten: {result.folder}")
 
@@ -115,6 +128,7 @@ def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
         raise DataError(f"--out {out} does not end in {suffix}, which --to {args.to} writes: "
                         f"name the file {out.with_suffix(suffix).name}, or pick the --to "
                         "that matches it")
+    _refuse_inputs(out, args.results, record)
     if args.to == "mat":
         write_mat(models, out, overwrite=args.overwrite)
     else:
@@ -158,17 +172,23 @@ def _json_record(model: Any, data: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _python(models: Mapping[str, Any], results: Path) -> str:
+    """A python-control script; every string in it is a ``repr`` literal, never raw text.
+
+    A file or model name may hold quotes, newlines or code: it enters the
+    script only as a Python string literal (``repr``) or a checked
+    identifier, so running the script runs nothing but the models.
+    """
     from .._errors import ModelError
     from ..models import PolynomialModel, StateSpace, TransferFunction
 
-    lines = [f'"""Models exported by servoid from {results.name}; needs python-control."""',
-             "", "import control", ""]
+    doc = f"Models exported by servoid from {results.name}; needs python-control."
+    lines = [repr(doc), "", "import control", "", "models = {}"]
     for name, model in models.items():
         if isinstance(model, PolynomialModel):
             if model.n_inputs != 1:
                 raise ModelError(f"{name} is a PolynomialModel with {model.n_inputs} inputs and "
                                  "control.tf holds one; export it --to mat or --to json")
-            lines.append(f"# {name}: transfer function from the input; the noise model "
+            lines.append(f"# {name!r}: transfer function from the input; the noise model "
                          "C/(A·D) is not exported")
             model = model.transfer_function(input=0)
         dt = 0 if model.dt is None else model.dt
@@ -178,12 +198,48 @@ def _python(models: Mapping[str, Any], results: Path) -> str:
                     f"{name} has a delay of {model.delay!r} s and python-control transfer "
                     "functions have none; export it --to mat or --to json (both keep "
                     "InputDelay), or discretise it with servoid.models.c2d first")
-            lines.append(f"{name} = control.tf({_list(model.num)}, {_list(model.den)}, {dt!r})")
+            value = f"control.tf({_list(model.num)}, {_list(model.den)}, {_float(dt)})"
         elif isinstance(model, StateSpace):
             mats = ", ".join(_list(getattr(model, k)) for k in "ABCD")
-            lines.append(f"{name} = control.ss({mats}, {dt!r})")
+            value = f"control.ss({mats}, {_float(dt)})"
+        else:
+            continue
+        lines.append(f"models[{name!r}] = {value}")
+        if name.isidentifier() and not keyword.iskeyword(name) and name != "models" \
+                and name != "control" and name.isascii():
+            lines.append(f"{name} = models[{name!r}]")
     return "\n".join(lines) + "\n"
 
 
+def _float(value: float) -> str:
+    """A float as Python source: ``repr`` reads back exactly; inf and nan spelled out."""
+    value = float(value)
+    return repr(value) if math.isfinite(value) else f"float({str(value)!r})"
+
+
 def _list(values: Any) -> str:
-    return repr(values.tolist())  # Python floats: repr reads back exactly
+    """Nested lists of floats as Python source (repr of each float: exact)."""
+    import numpy as np
+
+    def source(v: Any) -> str:
+        if isinstance(v, list):
+            return "[" + ", ".join(source(x) for x in v) + "]"
+        return _float(v)
+
+    return source(np.asarray(values, dtype=float).tolist())
+
+
+def _refuse_inputs(out: Path, results: Path, record: Mapping[str, Any] | None) -> None:
+    """The export never writes over what it reads, ``--overwrite`` or not."""
+    from .._errors import OutputExistsError
+
+    inputs = [results, results.parent / "manifest.json"]
+    if record is not None:  # a grey-box model's code: named, never written
+        inputs += [Path(record[k]) for k in ("model_file", "output_file")
+                   if isinstance(record.get(k), str)]
+    target = out.resolve()
+    for path in inputs:
+        if target == path.resolve():
+            raise OutputExistsError(f"refusing to write {out}: it is {path}, an input of this "
+                                    "export (--overwrite never replaces an input); choose "
+                                    "another --out")

@@ -9,6 +9,7 @@ a parameter becomes the flag that sets it.
 
 from __future__ import annotations
 
+import argparse
 import math
 import re
 from collections.abc import Iterator, Mapping
@@ -17,7 +18,7 @@ from pathlib import Path
 
 from .._errors import DataError, ServoidError
 
-__all__ = ["at_least", "finite", "folder_out", "in_flags", "positive", "reword"]
+__all__ = ["at_least", "finite", "folder_out", "in_flags", "out_path", "positive", "reword"]
 
 
 def finite(flag: str, value: float, unit: str = "") -> float:
@@ -39,6 +40,19 @@ def at_least(flag: str, value: int, minimum: int) -> int:
     if value < minimum:
         raise DataError(f"{flag} must be an integer >= {minimum}, got {value}")
     return value
+
+
+def out_path(value: str) -> Path:
+    """The ``type`` of an ``--out`` (or other path) flag: a path, never an empty string.
+
+    ``Path("")`` is ``.``: an empty ``--out ""`` (an unset shell variable)
+    would write into the working directory, among the inputs.
+    """
+    if not value.strip():
+        raise argparse.ArgumentTypeError(
+            "got an empty path (an unset shell variable?): name a file or folder, or leave "
+            "the flag out for its default")
+    return Path(value)
 
 
 def folder_out(flag: str, path: Path) -> Path:

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ._flags import at_least, finite, folder_out
+from ._flags import at_least, finite, folder_out, out_path
 
 __all__ = ["add_bench_fleet", "add_fleet"]
 
@@ -26,7 +26,7 @@ def add_fleet(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
         "same inputs (--force redoes them). See docs/fleets.md.",
     )
     fleet.add_argument("fleet", type=Path, help="fleet file (.toml)")
-    fleet.add_argument("--out", type=Path, help="results folder (default: [report] folder, "
+    fleet.add_argument("--out", type=out_path, help="results folder (default: [report] folder, "
                        "else <fleet>-results beside the fleet file)")
     fleet.add_argument("--workers", type=int, default=None,
                        help="worker processes of the local Dask cluster (default: one per "
@@ -37,6 +37,9 @@ def add_fleet(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
                        help="identify every record again, also those already done")
     fleet.add_argument("--allow-outside", action="store_true",
                        help="let [report] folder point outside the fleet file's folder")
+    fleet.add_argument("--overwrite", action="store_true",
+                       help="replace files in the results folder that an earlier servoid "
+                       "fleet did not write there (the inputs never)")
     fleet.add_argument("--quiet", action="store_true", help="no progress on stderr")
     json_flag(fleet)
     fleet.set_defaults(run=_run_fleet)
@@ -54,7 +57,7 @@ def _run_fleet(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
                           "own workers run the records: give one of them")
     result = run_fleet(args.fleet, args.out, scheduler=args.scheduler, workers=args.workers,
                        force=args.force, allow_outside=args.allow_outside,
-                       progress=not (args.quiet or args.json))
+                       progress=not (args.quiet or args.json), overwrite=args.overwrite)
     if result.interrupted:
         print(str(result), file=sys.stderr)
         raise KeyboardInterrupt
@@ -71,7 +74,7 @@ def add_bench_fleet(rigs: Any, json_flag: Callable[[argparse.ArgumentParser], No
         "optional ageing drift of the leakage and --corrupt damaged files; plus units.csv, "
         "truth.csv and fleet.toml with acceptance limits. Then: servoid fleet OUT/fleet.toml.",
     )
-    fleet.add_argument("--out", type=Path, default=Path("servoid-fleet"),
+    fleet.add_argument("--out", type=out_path, default=Path("servoid-fleet"),
                        help="folder (default: %(default)s)")
     fleet.add_argument("--units", type=int, default=24, help="units (default: %(default)s)")
     fleet.add_argument("--bad-every", type=int, default=8,

@@ -18,6 +18,7 @@ from typing import Any, NoReturn
 
 from .. import __version__
 from .._errors import ServoidError, ServoidWarning
+from ._flags import out_path
 
 __all__ = ["main"]
 
@@ -113,7 +114,7 @@ def _parser() -> argparse.ArgumentParser:
         description="Design a PRBS, rehearse the test on a servo with known dynamics, write the "
         "rig file and experiment TOML, identify, validate, and print truth vs estimate.",
     )
-    demo.add_argument("--out", default="servoid-demo", help="folder for the demo's files "
+    demo.add_argument("--out", type=out_path, default="servoid-demo", help="folder for the demo's files "
                       "(default: %(default)s; an earlier demo's files there are replaced)")
     demo.add_argument("--seed", type=int, default=2026, help="noise seed (default: %(default)s)")
     demo.add_argument("--overwrite", action="store_true",
@@ -129,7 +130,7 @@ def _parser() -> argparse.ArgumentParser:
         "the methods and their [identify] keys.",
     )
     identify.add_argument("experiment", type=Path, help="experiment file (.toml)")
-    identify.add_argument("--out", type=Path, help="results folder (default: [report] folder, "
+    identify.add_argument("--out", type=out_path, help="results folder (default: [report] folder, "
                           "else <experiment>-results beside the TOML)")
     identify.add_argument("--overwrite", action="store_true",
                           help="replace results of an earlier run (inputs are never overwritten)")

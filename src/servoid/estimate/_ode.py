@@ -118,12 +118,12 @@ class OdeSystem:
             self._kernel(*args, ys)
         except ModelError:
             raise
-        except Exception as exc:  # noqa: BLE001 — the user's code failed: say where, no traceback
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 — the user's code failed: say where
             if self.compiled and self._plain is not None:
                 # compiled code keeps no line numbers: the same step in Python names the line
                 try:
                     self._plain(*args, np.empty_like(ys))
-                except Exception as plain_exc:  # noqa: BLE001
+                except (Exception, SystemExit) as plain_exc:  # noqa: BLE001
                     raise user_error(plain_exc, self.source, self.path) from None
             raise user_error(exc, self.source, self.path) from None
         return ys
@@ -250,6 +250,10 @@ def user_error(exc: BaseException, source: str, path: Path | None) -> ModelError
             where = f"{path.name}, line {f.lineno}, in {f.name}"
             if f.line:
                 where += f": {f.line.strip()}"
+    if isinstance(exc, SystemExit):  # sys.exit() would end servoid with no results
+        return ModelError(f"the model code called sys.exit({exc.code!r}) ({where}): a model "
+                          "function must return its values, not end the program; remove the "
+                          "call (raise an exception to report a problem)")
     message = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
     return ModelError(f"the model code failed ({where}): {type(exc).__name__}"
                       + (f": {message}" if message else ""))
@@ -283,7 +287,7 @@ def _call(fn: Callable[..., Any], args: tuple[Any, ...], source: str, path: Path
     try:
         with np.errstate(all="ignore"):
             return fn(*args)
-    except Exception as exc:  # noqa: BLE001 — user code may raise anything
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 — user code may raise anything
         raise user_error(exc, source, path) from None
 
 

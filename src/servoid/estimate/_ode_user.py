@@ -9,7 +9,12 @@ usual but it cannot shadow or be shadowed by an installed module.
 Executing it runs arbitrary code: the caller decides whether it may (the
 workflows ask for ``--allow-code``).  An error raised
 while executing it becomes a :class:`~servoid.ModelError` naming the file
-and the line.
+and the line; so does ``sys.exit()`` (``SystemExit``), which would otherwise
+end servoid with the user's exit code and no results.  ``os._exit()`` ends
+the process without any Python code running after it, so it cannot be
+caught: the command dies with that exit code and writes nothing (a results
+folder keeps no partial file, and its stale lock is taken over by the next
+run).  Ctrl-C (``KeyboardInterrupt``) stays an interruption.
 
 A fitted model that is saved keeps a reference to this code, not the code:
 the file's path, its SHA-256 and the function names (:func:`code_ref`).
@@ -22,7 +27,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import inspect
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import Any, NamedTuple
@@ -30,8 +35,8 @@ from typing import Any, NamedTuple
 from .._errors import MissingFileError, ModelError, OptionError
 from ._ode import user_error
 
-__all__ = ["FunctionRef", "code_ref", "file_sha256", "load_function", "load_recorded",
-           "parse_ref"]
+__all__ = ["FunctionRef", "code_ref", "executed_sha256", "file_sha256", "load_function",
+           "load_recorded", "parse_ref"]
 
 #: module global holding the SHA-256 of the bytes a user's file was executed from
 _DIGEST = "__servoid_sha256__"
@@ -59,7 +64,8 @@ def parse_ref(value: str, key: str) -> FunctionRef:
 
 
 def load_function(ref: FunctionRef, base: Path, key: str,
-                  modules: dict[Path, ModuleType] | None = None) -> tuple[
+                  modules: dict[Path, ModuleType] | None = None,
+                  expected: Mapping[str, str] | None = None) -> tuple[
                       Callable[..., Any], Path]:
     """Execute the file ``ref`` names and return the function.
 
@@ -74,6 +80,10 @@ def load_function(ref: FunctionRef, base: Path, key: str,
     modules : dict, optional
         Files already executed in this run (path → module), so that the
         model and output functions of one file share one module.
+    expected : mapping, optional
+        Resolved file path → the SHA-256 its bytes must have (a re-render
+        of a recorded run; a file not in it is refused): the file is read
+        once, and the bytes that were hashed are the bytes executed.
 
     Returns
     -------
@@ -96,7 +106,18 @@ def load_function(ref: FunctionRef, base: Path, key: str,
     cache = {} if modules is None else modules
     module = cache.get(path)
     if module is None:
-        module = _execute(path)
+        text = path.read_bytes()
+        if expected is not None:
+            digest = expected.get(str(path))
+            now = hashlib.sha256(text).hexdigest()
+            if digest is None or now != digest:
+                fitted = f"SHA-256 {digest}, now {now}" if digest else "the run recorded no " \
+                    "such file"
+                raise ModelError(
+                    f"{key} = \"{ref.file}:{ref.function}\": {path} is not the model file "
+                    f"this run fitted ({fitted}): the report would describe other code; "
+                    "restore the file, or run servoid identify --allow-code instead")
+        module = _execute(path, text)
         cache[path] = module
     fn = getattr(module, ref.function, None)
     if fn is None or not callable(fn):
@@ -111,6 +132,11 @@ def load_function(ref: FunctionRef, base: Path, key: str,
 def file_sha256(path: Path) -> str:
     """The SHA-256 of a file's bytes, as hex."""
     return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def executed_sha256(module: ModuleType) -> str:
+    """The SHA-256 of the bytes a user's file was executed from (:func:`load_function`)."""
+    return str(module.__dict__[_DIGEST])
 
 
 def code_ref(fn: Callable[..., Any], name: str, what: str) -> tuple[Path, str]:
@@ -222,7 +248,7 @@ def _execute(path: Path, text: bytes | None = None) -> ModuleType:
         text = path.read_bytes() if text is None else text
         code = compile(text, str(path), "exec")
         exec(code, module.__dict__)  # noqa: S102 — the caller was allowed to run this file
-    except Exception as exc:  # noqa: BLE001 — user code may raise anything
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 — user code may raise anything
         raise user_error(exc, path.name, path) from None
     # the exact bytes its functions come from: a model saved later names them, not the file
     # as it is then

@@ -15,7 +15,6 @@ from __future__ import annotations
 import json
 import logging
 import os
-import re
 import threading
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -23,6 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from .._atomic import atomic_path
+from .._checks import as_bool
+from .._lock import FolderLock, hold_folder, ledger, sha256_file, write_ledger
 from .._errors import OptionError, OptionTypeError
 from .._progress import Progress
 from ._result import FleetResult, assemble
@@ -31,7 +32,6 @@ from ._task import identify_record, identify_records, record_inputs, record_key
 
 __all__ = ["run_fleet"]
 
-_TEMPORARY = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp$")
 # One thread per worker process: BLAS and numba pools would only compete for the same cores.
 _WORKER_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
                "NUMBA_NUM_THREADS": "1"}
@@ -54,6 +54,7 @@ def run_fleet(
     force: bool = False,
     progress: bool = True,
     allow_outside: bool = False,
+    overwrite: bool = False,
 ) -> FleetResult:
     """Identify every record of a fleet and write its table, summary and report.
 
@@ -76,6 +77,10 @@ def run_fleet(
         Show progress on stderr.
     allow_outside : bool
         Let ``[report] folder`` point outside the fleet file's folder.
+    overwrite : bool
+        Replace files in the folder that an earlier ``servoid fleet`` did
+        not write (or that changed since); without it they are refused
+        before any record runs.  The fleet's inputs are never written.
 
     Returns
     -------
@@ -88,12 +93,20 @@ def run_fleet(
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                 or workers < 1):
         raise OptionTypeError(f"workers must be a whole number >= 1 (--workers); got {workers!r}")
+    overwrite = as_bool("overwrite", overwrite)
     folder = _folder(spec, out, allow_outside)
     store = folder / "records"
     _protect(spec, folder)
-    store.mkdir(parents=True, exist_ok=True)
-    _sweep(folder)
-    _sweep(store)
+    with hold_folder(folder, subfolders=("records",)) as lock:  # one fleet run owns the folder
+        _refuse_foreign(folder, overwrite, lock)
+        store.mkdir(exist_ok=True)
+        return _run_locked(spec, folder, store, lock, scheduler, workers, force, progress)
+
+
+def _run_locked(spec: FleetSpec, folder: Path, store: Path, lock: FolderLock,
+                scheduler: str | None, workers: int | None, force: bool,
+                progress: bool) -> FleetResult:
+    """:func:`run_fleet` in a folder it holds."""
     # a local cluster starts (its workers import servoid) while the inputs are hashed here,
     # unless the store looks complete (a re-run that may need no worker at all)
     early = force or sum(1 for _ in store.glob("*.json")) < len(spec.records)
@@ -132,7 +145,10 @@ def run_fleet(
             bar.close()
             pool.release()  # the workers shut down while the table and report are written
         result = assemble(spec, outcomes, keys, folder, interrupted=interrupted)
-        return result.write()
+        lock.claim([folder / name for name in FleetResult.FILES])
+        written = result.write()
+        write_ledger(folder, written.files, "servoid fleet")
+        return written
     finally:
         pool.close()
 
@@ -379,9 +395,19 @@ def _protect(spec: FleetSpec, folder: Path) -> None:
                                     f"would replace the input {path}; choose another --out")
 
 
-def _sweep(folder: Path) -> None:
-    if folder.is_dir():
-        for path in folder.iterdir():
-            if _TEMPORARY.match(path.name) and path.is_file():
-                path.unlink()
+def _refuse_foreign(folder: Path, overwrite: bool, lock: FolderLock) -> None:
+    """Refuse outputs that an earlier fleet run here did not write, unless ``overwrite``."""
+    from .._errors import OutputExistsError
 
+    if overwrite:
+        return
+    ours = ledger(folder)
+    for name in FleetResult.FILES:
+        path = folder / name
+        if not (path.exists() or path.is_symlink()) or name in lock.inherited:
+            continue
+        if name not in ours or not path.is_file() or sha256_file(path) != ours[name]:
+            raise OutputExistsError(
+                f"{path} exists and is not a file an earlier servoid fleet wrote here (or it "
+                "changed since): servoid replaces it only with --overwrite (overwrite=True); "
+                "or choose another --out")

@@ -21,6 +21,7 @@ from typing import Any
 
 from .._checks import as_int
 from .._errors import OutputExistsError
+from .._lock import hold_folder
 from ..bench import BenchRun, EhsaBench, run, write_bench_files
 from ..signals import prbs
 from ._closedloop import ClosedLoopIdentification
@@ -104,17 +105,18 @@ def run_demo(
     excitation = prbs(11, clock=10, amplitude=1e-3, dt=bench.dt)
     # the outermost folder this call creates: on failure it goes, with what the call wrote
     created = next((p for p in (*reversed(out.parents), out) if not p.exists()), None)
-    out.mkdir(parents=True, exist_ok=True)
-    try:
-        (out / _MARKER).write_text("written by servoid demo; its files here may be replaced\n")
-        record = run(bench, excitation, rng=seed)
-        files = write_bench_files(record, out, format="tdms", overwrite=True)
-        toml = next(p for p in files if p.suffix == ".toml")
-        result = identify(toml, out / "report", overwrite=True)
-    except BaseException:
-        if created is not None:  # a folder this call made holds only this call's files
-            shutil.rmtree(created, ignore_errors=True)
-        raise
+    with hold_folder(out):  # one demo at a time in a folder
+        try:
+            (out / _MARKER).write_text("written by servoid demo; its files here may be "
+                                       "replaced\n")
+            record = run(bench, excitation, rng=seed)
+            files = write_bench_files(record, out, format="tdms", overwrite=True)
+            toml = next(p for p in files if p.suffix == ".toml")
+            result = identify(toml, out / "report", overwrite=True)
+        except BaseException:
+            if created is not None:  # a folder this call made holds only this call's files
+                shutil.rmtree(created, ignore_errors=True)
+            raise
     if not isinstance(result, ClosedLoopIdentification):  # the bench's TOML asks for closedloop
         raise TypeError(f"the demo's experiment file gave {type(result).__name__}")
     return DemoResult(record, result, tuple(files))

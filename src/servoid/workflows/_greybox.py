@@ -51,10 +51,10 @@ from ..estimate import GreyboxParameter
 from ..estimate._diagnostics import MAX_STARTS
 from ..estimate._ode import make_system
 from ..estimate._ode_model import fit_ode
-from ..estimate._ode_user import load_function, parse_ref
+from ..estimate._ode_user import executed_sha256, load_function, parse_ref
 from ..report import Page
 from ._arx import OUTPUT
-from ._common import sha256, warnings_as_notes
+from ._common import warnings_as_notes
 from ._lti import IdentificationResult, lti_result
 from ._options import boolean, choice, integer, number, optional
 from ._registry import Method, Option
@@ -122,14 +122,16 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     output = options["output"] or estimation.names_of("y")[0]
     lower, upper, u_lower, u_upper = _saturations(options["saturation"], states, inputs)
     modules: dict[Path, Any] = {}
-    rhs, path = load_function(rhs_ref, base, model_key, modules)
+    pinned = options.get("code_sha256")  # a re-render: run only the bytes the run fitted
+    rhs, path = load_function(rhs_ref, base, model_key, modules, pinned)
     measure: Any = 0
     out_source, out_hash, out_cache = "", "", ""
     if options["output_function"] is not None:
         out_key = f"{_WHERE} output_function"
         out_ref = parse_ref(options["output_function"], out_key)
-        measure, out_path = load_function(out_ref, base, out_key, modules)
-        out_source, out_hash = f"{out_ref.file}:{out_ref.function}", sha256(out_path)
+        measure, out_path = load_function(out_ref, base, out_key, modules, pinned)
+        out_source = f"{out_ref.file}:{out_ref.function}"
+        out_hash = executed_sha256(modules[out_path])
         out_cache = f"{out_path}:{out_ref.function}"  # as a saved model's loader keys it
     theta0 = np.array([p.value for p in params])
     u = np.ascontiguousarray(estimation.signal("u"), dtype=float).reshape(
@@ -138,8 +140,8 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                          state_upper=upper, input_lower=u_lower, input_upper=u_upper,
                          source=f"{rhs_ref.file}:{rhs_ref.function}", output_source=out_source,
                          path=path, compile=options["compile"],
-                         cache_key=(str(path), sha256(path), rhs_ref.function, out_cache,
-                                    out_hash))
+                         cache_key=(str(path), executed_sha256(modules[path]), rhs_ref.function,
+                                    out_cache, out_hash))
     if system.n_outputs != 1:
         raise OptionError(f"{_WHERE} output_function = \"{options['output_function']}\" returns "
                           f"{system.n_outputs} outputs; it must return the one measured output "

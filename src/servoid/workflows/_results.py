@@ -6,7 +6,8 @@ approach's continuous plant and closed loop) and the parameter summary with
 standard deviations and intervals. :func:`rerender` writes the report of a
 results folder again from the run's own experiment file, after checking
 that every input is byte-for-byte the one the run read (its manifest's
-SHA-256), so the new report describes the same data.
+SHA-256), so the new report describes the same data; it reads only files
+in the run's folder or named by its caller.
 
 A grey-box run (``method = "greybox"``) holds a model that calls the user's
 Python file: it is rebuilt, and the run re-rendered, only with
@@ -16,6 +17,7 @@ the SHA-256 recorded at the fit.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 from collections.abc import Mapping
@@ -24,8 +26,14 @@ from pathlib import Path
 from typing import Any
 
 from .._checks import as_bool, as_path, read_json
-from .._errors import FileFormatError, OptionError, OutputExistsError, ServoidError
-from ._common import sha256
+from .._errors import (
+    FileFormatError,
+    MissingFileError,
+    OptionError,
+    OutputExistsError,
+    ServoidError,
+)
+from ._common import sha256, spec_inputs
 from ._summary import RecordSummary, summarise
 
 __all__ = ["Results", "greybox_record", "load_results", "rerender"]
@@ -136,8 +144,17 @@ def greybox_record(path: str | Path) -> dict[str, Any] | None:
 
 
 def rerender(results: str | Path, out: str | Path | None = None, *,
-             allow_code: bool = False) -> Any:
+             experiment: str | Path | None = None, allow_code: bool = False,
+             overwrite: bool = False) -> Any:
     """Write a run's report again from its unchanged inputs.
+
+    Only files inside the run's folder, or named by the caller, are read:
+    the experiment file ``results.json`` names is used as is only when it
+    lies in the run's folder (with every file it reads); one elsewhere must
+    be named (``experiment``, ``--experiment``), so an edited results file
+    cannot make servoid run an experiment of its choosing.  Every input
+    must have the SHA-256 the run's manifest records; they are read once,
+    from the paths resolved here, whatever the working directory.
 
     Parameters
     ----------
@@ -145,28 +162,37 @@ def rerender(results: str | Path, out: str | Path | None = None, *,
         ``results.json`` of the run (its folder holds ``manifest.json``).
     out : path, optional
         Folder for the new report and results; default the run's own folder
-        (its files are replaced).
+        (its files, as its complete manifest lists them, are replaced).
+    experiment : path, optional
+        The run's experiment file (needed when it is not in the run's
+        folder); it must be the file the run read, byte for byte.
     allow_code : bool
         Let a grey-box run execute its Python model file again (the
-        identification is re-run); without it such a run is refused.
+        identification is re-run); without it such a run is refused.  The
+        code that runs is the bytes whose SHA-256 was checked.
+    overwrite : bool
+        Replace files in ``out`` that are not the run's own.
 
     Raises
     ------
     OptionError
-        A grey-box run without ``allow_code=True`` (its file is named).
+        A grey-box run without ``allow_code=True`` (its file is named), or
+        an experiment file outside the run's folder not named by the caller.
     OutputExistsError
         An input changed since the run (the message names it; for a
         grey-box run the Python file too): run ``servoid identify``
-        instead.
+        instead; or a file in ``out`` that is not the run's own.
     """
-    from ._run import MANIFEST, identify
+    from ._run import _identify
 
     allow_code = as_bool("allow_code", allow_code)
-    path = as_path("results file", results)
+    overwrite = as_bool("overwrite", overwrite)
+    path = as_path("results file", results).resolve()
+    folder = path.parent
     data = read_json(path, "results file")
     _check_results(data, path)
-    source = data.get("experiment_file") or data.get("campaign_file")
-    if not source:
+    recorded = data.get("experiment_file") or data.get("campaign_file")
+    if not isinstance(recorded, str) or not recorded:
         raise FileFormatError(f"{path} does not name its experiment file; {_FIX}")
     code = _code_files(data)
     if data.get("method") == "greybox" and not allow_code:
@@ -176,27 +202,113 @@ def rerender(results: str | Path, out: str | Path | None = None, *,
             f"{path} is a run of method = \"greybox\", whose model is Python code ({listed}), "
             "and re-rendering runs the identification again: check the file, then run servoid "
             "report with --allow-code (allow_code=True in servoid.workflows.rerender)")
-    manifest_path = path.parent / MANIFEST
-    try:
-        manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
-        inputs = manifest["inputs"]
-    except (OSError, ValueError, KeyError, TypeError):
-        raise FileFormatError(f"{manifest_path} is missing or damaged, so the inputs of this run "
-                              f"cannot be checked; {_FIX}") from None
-    for entry in inputs:
-        read = Path(entry["path"])
-        if not read.is_file() or sha256(read) != entry["sha256"]:
-            raise OutputExistsError(
-                f"{read} is not the file this run read (missing or changed since): the report "
-                f"would describe other data; run servoid identify {source} instead")
+    inputs = _manifest_inputs(folder)
+    named = experiment is not None
+    source = (as_path("experiment", experiment).resolve() if named
+              else _recorded_experiment(recorded, inputs, path))
+    if not named and not source.is_relative_to(folder):
+        raise OptionError(
+            f"{path} names its experiment file {source}, outside the run's folder {folder}; "
+            "servoid report reads only files in the run's folder or named on its command line: "
+            f"check that it is the file you mean, then pass --experiment {source} "
+            "(experiment= in servoid.workflows.rerender)")
+    spec = _spec_from_checked(source, inputs, data, path)
+    for file in spec_inputs(spec):
+        file = file.resolve()
+        if not named and not file.is_relative_to(folder):
+            raise OptionError(
+                f"the experiment file {source} reads {file}, outside the run's folder {folder}; "
+                "servoid report reads only files in the run's folder or named on its command "
+                f"line: pass --experiment {source} if it is the file you mean")
+        _check_input(file, inputs, source)
     for file, digest in code:  # the model code is an input the manifest does not list
+        if not named and not file.resolve().is_relative_to(folder):
+            raise OptionError(
+                f"{path} names the model code {file}, outside the run's folder {folder}; "
+                "servoid report runs only code in the run's folder or named by the experiment "
+                f"file on its command line: pass --experiment {source}")
         if not file.is_file() or sha256(file) != digest:
             raise OutputExistsError(
                 f"{file} is not the model file this run fitted (missing or changed since its "
                 f"SHA-256 {digest}): the report would describe other code; run servoid "
                 f"identify {source} --allow-code instead")
-    folder = path.parent if out is None else as_path("out", out)
-    return identify(source, folder, overwrite=True, allow_outside=True, allow_code=allow_code)
+    pinned = {str(f.resolve()): d for f, d in code}
+    target = folder if out is None else as_path("out", out)
+    own = out is None or target.resolve() == folder
+    return _identify(spec, target, overwrite=overwrite, write=True, truth=None,
+                     allow_outside=True, max_bytes=None, allow_code=allow_code, own_run=own,
+                     code_sha256=pinned if allow_code else None)
+
+
+def _manifest_inputs(folder: Path) -> dict[Path, str]:
+    """The run's inputs as its manifest lists them: absolute path → SHA-256."""
+    from ._run import MANIFEST
+
+    manifest_path = folder / MANIFEST
+    try:
+        manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
+        inputs = {Path(e["path"]): e["sha256"] for e in manifest["inputs"]}
+        if not all(p.is_absolute() and isinstance(d, str) for p, d in inputs.items()):
+            raise ValueError
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        raise FileFormatError(f"{manifest_path} is missing or damaged, so the inputs of this run "
+                              f"cannot be checked; {_FIX}") from None
+    return inputs
+
+
+def _recorded_experiment(recorded: str, inputs: Mapping[Path, str], path: Path) -> Path:
+    """The experiment file a results file names, as the manifest recorded it (absolute).
+
+    A run records the path it was given, perhaps relative to a working
+    directory that is gone; the manifest records every input resolved.
+    The experiment file is the manifest input the recorded path ends with,
+    so the answer does not depend on where the report is made.
+    """
+    wanted = Path(recorded)
+    if wanted.is_absolute():
+        return wanted.resolve()
+    tail = [p for p in wanted.parts if p not in (".", "..")]
+    found = [p for p in inputs if list(p.parts[-len(tail):]) == tail] if tail else []
+    if len(found) != 1:
+        raise FileFormatError(
+            f"{path} names its experiment file as {recorded!r}, relative to a folder it does not "
+            "record, and its manifest lists "
+            f"{'no' if not found else 'more than one'} input of that name: pass the experiment "
+            "file with --experiment (experiment= in servoid.workflows.rerender)")
+    return found[0]
+
+
+def _spec_from_checked(source: Path, inputs: Mapping[Path, str], data: Mapping[str, Any],
+                       path: Path) -> Any:
+    """The experiment file parsed from the very bytes whose SHA-256 was checked."""
+    import tomllib
+
+    from ..data import ExperimentSpec
+
+    try:
+        text = source.read_bytes()
+    except OSError:
+        raise MissingFileError(f"{source}: no such experiment file; pass the file the run read "
+                               "with --experiment") from None
+    digest = hashlib.sha256(text).hexdigest()
+    if inputs.get(source) != digest:
+        raise OutputExistsError(
+            f"{source} is not the experiment file this run read (missing from its manifest or "
+            f"changed since): the report would describe another experiment; run servoid "
+            f"identify {source} instead")
+    try:
+        doc = tomllib.loads(text.decode("utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise FileFormatError(f"{source}: not a valid TOML file ({exc})") from None
+    return ExperimentSpec.from_dict(doc, base_dir=source.parent, source=source)
+
+
+def _check_input(file: Path, inputs: Mapping[Path, str], source: Path) -> None:
+    if file not in inputs or not file.is_file() or sha256(file) != inputs[file]:
+        raise OutputExistsError(
+            f"{file} is not the file this run read (missing from its manifest, or changed "
+            f"since): the report would describe other data; run servoid identify {source} "
+            "instead")
 
 
 def _check_results(data: object, path: Path) -> None:

@@ -1,10 +1,16 @@
 """Identify from a TOML experiment file: spec → method → result → files.
 
 A results folder is complete when its ``manifest.json`` — written last —
-lists every file with its SHA-256 and every file is there unchanged.  A
-folder with results but no complete manifest holds an interrupted run: its
-files are replaced without ``--overwrite`` (with a warning), and temporary
-files an earlier run left behind are swept first.
+lists every file with its SHA-256 and every file is there unchanged.
+
+One run owns the folder from before the fit to the manifest
+(:func:`servoid._lock.hold_folder`): a second run into it is refused.  The
+lock journals the files the run sets out to write, so a run killed half
+way leaves a stale lock naming them: the next run replaces those (with a
+warning) and deletes the temporary files named with the dead run's token.
+Any other file already there — an earlier complete run's, one edited since,
+one the user put there — is replaced only with ``--overwrite``, and an
+input of the run never.
 """
 
 from __future__ import annotations
@@ -12,9 +18,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import re
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +32,7 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._lock import FolderLock, hold_folder
 from .._progress import stage
 from ..data import ExperimentSpec, load_experiment_spec
 from ._common import check_outputs, check_sizes, report_options, sha256, spec_inputs
@@ -39,8 +45,6 @@ __all__ = ["MANIFEST", "get_method", "identify", "method_names", "write_results"
 
 #: The file a complete run writes last.
 MANIFEST = "manifest.json"
-# what servoid._atomic names its temporary files: .<target>.<12 hex>.tmp
-_TEMPORARY = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp$")
 
 # [loop] describes the rig (what is known about its feedback) and may stay whatever the method;
 # a [validation] record that a method cannot use would be silently ignored, so it is refused.
@@ -124,12 +128,29 @@ def identify(
         out = as_path("out", out)
     if truth is not None:
         truth = as_mapping("truth", truth)
+    return _identify(spec, out, overwrite=overwrite, write=write, truth=truth,
+                     allow_outside=allow_outside, max_bytes=max_bytes, allow_code=allow_code)
+
+
+def _identify(spec: ExperimentSpec | str | os.PathLike[str], out: Path | None, *,
+              overwrite: bool, write: bool, truth: Mapping[str, float] | None,
+              allow_outside: bool, max_bytes: int | None, allow_code: bool,
+              own_run: bool = False, code_sha256: Mapping[str, str] | None = None) -> Any:
+    """:func:`identify` with its arguments checked, and what only a re-render asks.
+
+    ``own_run`` lets the files of the complete run in the folder be
+    replaced (a re-render into the run's own folder); ``code_sha256`` maps
+    a grey-box model file (resolved path) to the SHA-256 its code must
+    have, checked on the very bytes that run.
+    """
     if not isinstance(spec, ExperimentSpec):
         spec = load_experiment_spec(spec)
     method = get_method(spec.identify.get("method", "arx"))
     options = method.parse(spec.identify)
     if allow_code:  # never an [identify] key: only the caller may let a file run code
         options["allow_code"] = True
+        if code_sha256 is not None:
+            options["code_sha256"] = dict(code_sha256)
     _check_tables(spec, method)
     report = report_options(spec.report)
     if truth is None and "truth" in report and spec.source is not None:
@@ -142,25 +163,30 @@ def identify(
     _check_channels(spec, method, options)
     if max_bytes is not None:
         check_sizes([*spec.data_paths, *spec.validation_paths], max_bytes)
-    folder = _folder(spec, out, allow_outside) if write else None
-    if folder is not None:  # before a fit that may take minutes, what can be known now
-        _check_folder(folder, spec, overwrite)
-    with stage(f"identifying ({method.name})"):
-        result = method.run(spec, options, truth)
-    if folder is None:
-        return result
-    with stage("writing the figures and the report"):
-        return write_results(result, folder, overwrite=overwrite)
+    if not write:
+        with stage(f"identifying ({method.name})"):
+            return method.run(spec, options, truth)
+    folder = _folder(spec, out, allow_outside)
+    _check_folder_path(folder)
+    with hold_folder(folder) as lock:  # the folder is this run's until its manifest is written
+        # before a fit that may take minutes, what can be known now
+        _check_folder(folder, spec, overwrite, lock, own_run)
+        with stage(f"identifying ({method.name})"):
+            result = method.run(spec, options, truth)
+        with stage("writing the figures and the report"):
+            return _write(result, folder, overwrite, lock, own_run)
 
 
 def write_results(result: Identification, folder: str | os.PathLike[str], *,
                   overwrite: bool = False) -> Any:
     """Write a result's figures, report, results and manifest.
 
-    Nothing is written until every target is known to be free (or
-    ``overwrite``, or left by an interrupted run) and none is an input of
-    the run; ``manifest.json`` is written last, so a complete manifest
-    marks a complete run.
+    The folder is locked for the writing (a run already writing there is
+    refused).  Nothing is written until every target is known to be free,
+    or left by an interrupted run of servoid (named in its stale lock), or
+    ``overwrite``; an input of the run is never written.
+    ``manifest.json`` is written last, so a complete manifest marks a
+    complete run.
 
     Returns
     -------
@@ -174,75 +200,103 @@ def write_results(result: Identification, folder: str | os.PathLike[str], *,
                          "servoid.workflows.identify(..., write=False) returns)")
     folder = as_path("folder", folder)
     overwrite = as_bool("overwrite", overwrite)
+    _check_folder_path(folder)
+    with hold_folder(folder) as lock:
+        return _write(result, folder, overwrite, lock, False)
+
+
+def _write(result: Identification, folder: Path, overwrite: bool, lock: FolderLock,
+           own_run: bool) -> Any:
+    """:func:`write_results` in a folder this run holds."""
     figures = result.figures()
     targets = {name: folder / name for name in ("results.json", "report.html", *figures)}
     manifest = folder / MANIFEST
-    check_outputs([*targets.values(), manifest], list(result.inputs()), overwrite=True)
-    _sweep_temporary(folder)
-    left = [p for p in (*targets.values(), manifest) if p.exists()]
-    interrupted = bool(left) and not _complete(manifest)
-    if interrupted and not overwrite:
-        warnings.warn(f"{folder} holds an interrupted earlier run (no complete {MANIFEST}); its "
-                      "files are replaced", ServoidWarning, stacklevel=3)
-    check_outputs([*targets.values(), manifest], list(result.inputs()),
-                  overwrite or interrupted)
-    replace = overwrite or interrupted
-    made = _missing_folders(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    if replace and manifest.exists():
+    replaced = _refuse_foreign([*targets.values(), manifest], list(result.inputs()), overwrite,
+                               lock, own_run)
+    if replaced and not overwrite and not own_run:
+        warnings.warn(f"{folder} holds an interrupted earlier run (its lock names "
+                      f"{', '.join(sorted(p.name for p in replaced))}); those files are "
+                      "replaced", ServoidWarning, stacklevel=4)
+    lock.claim([*targets.values(), manifest])  # a run killed from here on left these half done
+    if manifest.exists():
         manifest.unlink()  # from here on the folder is incomplete until the new manifest lands
     new = [p for p in targets.values() if not p.exists()]
     try:
         for name, writer in figures.items():
-            writer(targets[name], replace)
+            writer(targets[name], True)
         from ..report import write_html, write_json
 
-        write_json(result.to_dict(), targets["results.json"], overwrite=replace)
+        write_json(result.to_dict(), targets["results.json"], overwrite=True)
         page = result.page(targets)
         done = {n: p for n, p in targets.items() if n != "report.html"}
         page = dataclasses.replace(page, meta=(*page.meta, *provenance(result, done)),
                                    sections=(verdict_section(result.to_dict()), *page.sections))
-        write_html(page, targets["report.html"], overwrite=replace)
+        write_html(page, targets["report.html"], overwrite=True)
         write_json(_manifest(result, targets), manifest, overwrite=False)
     except BaseException:
         # no half-written results: what this run created goes (files it replaced are
-        # already gone, and the missing manifest marks the folder incomplete)
+        # already gone, and the missing manifest marks the folder incomplete); the folder
+        # is this run's, so nothing of another run's is deleted here
         for path in new:
             path.unlink(missing_ok=True)
-        for path in reversed(made):
-            if path.is_dir() and not any(path.iterdir()):
-                path.rmdir()
         raise
     return dataclasses.replace(result, folder=folder,  # type: ignore[type-var]
                                files=(*targets.values(), manifest))
 
 
-def _missing_folders(folder: Path) -> list[Path]:
-    """``folder`` and its parents that do not exist yet, outermost first."""
-    missing = []
-    for path in (folder, *folder.parents):
-        if path.exists():
-            break
-        missing.append(path)
-    return missing[::-1]
-
-
-def _check_folder(folder: Path, spec: ExperimentSpec, overwrite: bool) -> None:
-    """Refuse a results folder that cannot take this run, before the run.
-
-    The figure names depend on the result; the fixed names, the inputs and
-    an earlier complete run are known now.  :func:`write_results` checks
-    everything again once the result is there.
-    """
+def _check_folder_path(folder: Path) -> None:
     if folder.exists() and not folder.is_dir():
         raise OutputExistsError(
             f"{folder} is a file, not a folder; results go into a folder: pass --out <folder> "
             "(or change [report] folder)"
         )
+
+
+def _check_folder(folder: Path, spec: ExperimentSpec, overwrite: bool, lock: FolderLock,
+                  own_run: bool) -> None:
+    """Refuse a results folder that cannot take this run, before the run.
+
+    The figure names depend on the result; the fixed names and the inputs
+    are known now.  :func:`_write` checks everything again once the result
+    is there.
+    """
     fixed = [folder / name for name in ("results.json", "report.html", MANIFEST)]
-    check_outputs(fixed, list(spec_inputs(spec)), overwrite=True)
-    if not overwrite and (folder / MANIFEST).exists() and _complete(folder / MANIFEST):
-        check_outputs([folder / MANIFEST], [], overwrite=False)
+    _refuse_foreign(fixed, list(spec_inputs(spec)), overwrite, lock, own_run)
+
+
+def _refuse_foreign(targets: Sequence[Path], inputs: Sequence[Path], overwrite: bool,
+                    lock: FolderLock, own_run: bool) -> list[Path]:
+    """Refuse targets that are inputs, or files servoid did not leave here for this run.
+
+    A target may be replaced when ``overwrite``; when an interrupted run's
+    stale lock names it; or, with ``own_run`` (a re-render into the run's
+    folder), when the folder's manifest lists it with its SHA-256 of now.
+    Returns the existing targets an interrupted run left.
+    """
+    check_outputs(targets, inputs, overwrite=True)
+    if overwrite:
+        return []
+    folder = lock.folder
+    complete = _complete(folder / MANIFEST)
+    ours = _unchanged(folder / MANIFEST) if own_run else set()
+    left = []
+    for path in targets:
+        if not path.exists() and not path.is_symlink():
+            continue
+        if path.name in ours:
+            continue
+        if path.name in lock.inherited:
+            left.append(path)
+            continue
+        if complete and path.name in _manifest_names(folder / MANIFEST):
+            raise OutputExistsError(f"{path} exists from an earlier run; pass --overwrite "
+                                    "(overwrite=True) or choose another folder")
+        raise OutputExistsError(
+            f"{path} exists and is not a file of this run or of an interrupted servoid run "
+            "(neither a complete manifest.json nor the lock of a run killed there lists it "
+            "as it is): servoid replaces it only with --overwrite (overwrite=True); or choose "
+            "another folder")
+    return left
 
 
 def _check_channels(spec: ExperimentSpec, method: Method, options: Mapping[str, Any]) -> None:
@@ -305,19 +359,33 @@ def _complete(manifest: Path) -> bool:
         doc = json.loads(manifest.read_text(encoding="utf-8"))
         files = doc["files"]
         return bool(doc.get("complete")) and all(
-            (manifest.parent / f["name"]).is_file()
+            _plain(f["name"]) and (manifest.parent / f["name"]).is_file()
             and sha256(manifest.parent / f["name"]) == f["sha256"] for f in files)
     except (OSError, ValueError, KeyError, TypeError):
         return False
 
 
-def _sweep_temporary(folder: Path) -> None:
-    """Remove temporary files an interrupted earlier run left in ``folder``."""
-    if not folder.is_dir():
-        return
-    for path in folder.iterdir():
-        if _TEMPORARY.match(path.name) and path.is_file():
-            path.unlink()
+def _unchanged(manifest: Path) -> set[str]:
+    """The manifest and the files it lists that still have their SHA-256."""
+    try:
+        doc = json.loads(manifest.read_text(encoding="utf-8"))
+        return {MANIFEST, *(str(f["name"]) for f in doc["files"]
+                            if _plain(f["name"]) and (manifest.parent / f["name"]).is_file()
+                            and sha256(manifest.parent / f["name"]) == f["sha256"])}
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        return set()
+
+
+def _plain(name: object) -> bool:
+    """A manifest entry names a file of the folder itself (never a path out of it)."""
+    return isinstance(name, str) and name not in ("", ".", "..") and "/" not in name \
+        and "\\" not in name and "\0" not in name
+
+
+def _manifest_names(manifest: Path) -> set[str]:
+    """The manifest and the files it lists (call after :func:`_complete`)."""
+    doc = json.loads(manifest.read_text(encoding="utf-8"))
+    return {MANIFEST, *(str(f["name"]) for f in doc["files"])}
 
 
 def _check_tables(spec: ExperimentSpec, method: Method) -> None:
