@@ -77,3 +77,19 @@ def test_load_results_refuses_other_files(tmp_path):
         load_results(tmp_path / "x.json")
     with pytest.raises(servoid.MissingFileError):
         load_results(tmp_path / "none.json")
+
+
+def test_report_of_the_default_layout_needs_no_experiment_flag(tmp_path, capsys):
+    # <dir>/ehsa.toml wrote <dir>/ehsa-results: the folder holding both is the run's, known from
+    # the results folder's own path, so the report is remade from any working directory
+    assert main(["bench", "ehsa", "--out", str(tmp_path / "b"), "--register", "9"]) == 0
+    assert main(["identify", str(tmp_path / "b" / "ehsa.toml")]) == 0
+    results = tmp_path / "b" / "ehsa-results" / "results.json"
+    capsys.readouterr()
+    assert main(["report", str(results), "--out", str(tmp_path / "again")]) == 0
+    assert (tmp_path / "again" / "report.html").is_file()
+    # a results folder renamed away from the default layout is no longer the experiment's
+    moved = tmp_path / "b" / "elsewhere"
+    results.parent.rename(moved)
+    assert main(["report", str(moved / "results.json"), "--out", str(tmp_path / "x")]) == 1
+    assert "--experiment" in capsys.readouterr().err

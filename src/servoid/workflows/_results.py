@@ -150,9 +150,11 @@ def rerender(results: str | Path, out: str | Path | None = None, *,
 
     Only files inside the run's folder, or named by the caller, are read:
     the experiment file ``results.json`` names is used as is only when it
-    lies in the run's folder (with every file it reads); one elsewhere must
-    be named (``experiment``, ``--experiment``), so an edited results file
-    cannot make servoid run an experiment of its choosing.  Every input
+    lies in the run's folder (with every file it reads), or when the run's
+    folder is that file's default results folder (``<stem>-results`` beside
+    ``<stem>.toml``: then the folder holding both is the run's); one
+    elsewhere must be named (``experiment``, ``--experiment``), so an edited
+    results file cannot make servoid run an experiment of its choosing.  Every input
     must have the SHA-256 the run's manifest records; they are read once,
     from the paths resolved here, whatever the working directory.
 
@@ -206,7 +208,11 @@ def rerender(results: str | Path, out: str | Path | None = None, *,
     named = experiment is not None
     source = (as_path("experiment", experiment).resolve() if named
               else _recorded_experiment(recorded, inputs, path))
-    if not named and not source.is_relative_to(folder):
+    # the default layout, known from the folder's own path (not from what results.json says):
+    # <dir>/<stem>.toml wrote <dir>/<stem>-results, and <dir> holds the run's inputs
+    base = (folder.parent if not named and source.parent == folder.parent
+            and folder.name == f"{source.stem}-results" else folder)
+    if not named and not source.is_relative_to(base):
         raise OptionError(
             f"{path} names its experiment file {source}, outside the run's folder {folder}; "
             "servoid report reads only files in the run's folder or named on its command line: "
@@ -215,16 +221,16 @@ def rerender(results: str | Path, out: str | Path | None = None, *,
     spec = _spec_from_checked(source, inputs, data, path)
     for file in spec_inputs(spec):
         file = file.resolve()
-        if not named and not file.is_relative_to(folder):
+        if not named and not file.is_relative_to(base):
             raise OptionError(
-                f"the experiment file {source} reads {file}, outside the run's folder {folder}; "
+                f"the experiment file {source} reads {file}, outside the run's folder {base}; "
                 "servoid report reads only files in the run's folder or named on its command "
                 f"line: pass --experiment {source} if it is the file you mean")
         _check_input(file, inputs, source)
     for file, digest in code:  # the model code is an input the manifest does not list
-        if not named and not file.resolve().is_relative_to(folder):
+        if not named and not file.resolve().is_relative_to(base):
             raise OptionError(
-                f"{path} names the model code {file}, outside the run's folder {folder}; "
+                f"{path} names the model code {file}, outside the run's folder {base}; "
                 "servoid report runs only code in the run's folder or named by the experiment "
                 f"file on its command line: pass --experiment {source}")
         if not file.is_file() or sha256(file) != digest:
