@@ -16,7 +16,6 @@ the SHA-256 recorded at the fit.
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -26,6 +25,7 @@ from typing import Any
 from .._checks import as_bool, as_path, read_json
 from .._errors import FileFormatError, OptionError, OutputExistsError, ServoidError
 from ._common import sha256
+from ._results_check import check_results, read_manifest
 from ._summary import RecordSummary, summarise
 
 __all__ = ["Results", "greybox_record", "load_results", "rerender"]
@@ -176,16 +176,8 @@ def rerender(results: str | Path, out: str | Path | None = None, *,
             f"{path} is a run of method = \"greybox\", whose model is Python code ({listed}), "
             "and re-rendering runs the identification again: check the file, then run servoid "
             "report with --allow-code (allow_code=True in servoid.workflows.rerender)")
-    manifest_path = path.parent / MANIFEST
-    try:
-        manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
-        inputs = manifest["inputs"]
-    except (OSError, ValueError, KeyError, TypeError):
-        raise FileFormatError(f"{manifest_path} is missing or damaged, so the inputs of this run "
-                              f"cannot be checked; {_FIX}") from None
-    for entry in inputs:
-        read = Path(entry["path"])
-        if not read.is_file() or sha256(read) != entry["sha256"]:
+    for read, digest in read_manifest(path.parent / MANIFEST):
+        if not read.is_file() or sha256(read) != digest:
             raise OutputExistsError(
                 f"{read} is not the file this run read (missing or changed since): the report "
                 f"would describe other data; run servoid identify {source} instead")
@@ -200,9 +192,7 @@ def rerender(results: str | Path, out: str | Path | None = None, *,
 
 
 def _check_results(data: object, path: Path) -> None:
-    if not isinstance(data, Mapping) or "servoid_version" not in data:
-        raise FileFormatError(f"{path} is not a results.json of servoid identify (no "
-                              f"\"servoid_version\"); give the results.json of a run")
+    check_results(data, path)  # every field the readers below use, named when damaged
 
 
 def _code_files(data: Mapping[str, Any]) -> list[tuple[Path, str]]:
