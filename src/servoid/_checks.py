@@ -316,7 +316,7 @@ def read_json(path: str | Path, what: str) -> Any:
 
 
 def parse_json(text: str, path: Path, what: str) -> Any:
-    """Parse the JSON ``text`` of ``path``; :class:`~servoid.FileFormatError` as :func:`read_json`."""
+    """Parse the JSON ``text`` of ``path``, with the errors of :func:`read_json`."""
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:

@@ -46,8 +46,8 @@ from typing import Any
 
 from servoid import ServoidError
 
-__all__ = ["LOADERS", "N_MODES", "SEED", "Input", "make_input", "prepare", "run_input", "seed_input",
-           "seed_names"]
+__all__ = ["LOADERS", "N_MODES", "SEED", "Input", "make_input", "prepare", "run_input",
+           "seed_input", "seed_names"]
 
 SEED = 20261128
 LOADERS = ("model", "results", "spec", "fleet")
@@ -607,7 +607,7 @@ by = "date"
 )
 
 _FLEET_MANIFEST = "path,serial,date\nruns/a.toml,SN-1,2026-01-02\nruns/b.toml,SN-2,2026-01-03\n"
-_RUN_TOML = ('[data]\nfile = "../data.csv"\ntime = "time"\n[channels.u]\nrole = "u"\n'
+_RUN_TOML = ('[data]\nfile = "../{record}"\ntime = "time"\n[channels.u]\nrole = "u"\n'
              '[channels.y]\nrole = "y"\n[identify]\nmethod = "arx"\n')
 
 
@@ -732,8 +732,8 @@ def prepare(folder: Path) -> None:
         "u": u[:, None], "y": y[:, None]}}})
     runs = folder / "runs"
     runs.mkdir(exist_ok=True)
-    for name in ("a.toml", "b.toml"):
-        (runs / name).write_text(_RUN_TOML, encoding="utf-8")
+    for name, record in (("a.toml", "data.csv"), ("b.toml", "data2.csv")):  # two units
+        (runs / name).write_text(_RUN_TOML.format(record=record), encoding="utf-8")
     (folder / "units.csv").write_text(_FLEET_MANIFEST, encoding="utf-8")
 
 

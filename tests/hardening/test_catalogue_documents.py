@@ -392,6 +392,25 @@ CASES = [
          r"\";\""),
     case("spec-time-unit-hours", spec_call(spec_with("data", 'time_unit = "h"')),
          FileFormatError, r"\[data\] time_unit must be one of 's', 'ms', 'us', 'µs', got 'h'"),
+    # messages that say what to write ---------------------------------------------------------
+    case("spec-no-data", spec_call(SPEC.replace("[data]\n", "[report]\n")),
+         FileFormatError, r"the top level is missing the required key\(s\) data; add a \[data\] "
+         r"table with file = \"<rig file>\""),
+    case("spec-no-file", spec_call(SPEC.replace('file = "data.csv"\n', "")),
+         FileFormatError, r"\[data\] is missing the required key\(s\) file; add file = \"<rig "
+         r"file>\" \(relative to the experiment file\)"),
+    case("spec-anti-alias-empty", spec_call(spec_with("rig", "anti_alias = {}")),
+         FileFormatError, r"\[rig\] anti_alias is missing the required key\(s\) order, cutoff; "
+         r"add order = <1\.\.10>; cutoff = <Hz>"),
+    case("spec-skip-periods-alone", spec_call(spec_with("split", "skip_periods = 2")),
+         FileFormatError, r"skip_periods needs period; add period = <samples per excitation "
+         r"period>, or remove skip_periods"),
+    case("spec-free-table-too-deep", spec_call(spec_with("loop", "a = {b = {c = 1}}")),
+         FileFormatError, r"table 'b' is nested more than one level deep; .*flatten it"),
+    case("spec-group-csv", spec_call(spec_with("data", 'group = "g"')),
+         FileFormatError, r"group applies to TDMS files only, this is csv: remove group"),
+    case("spec-unknown-long-key", spec_call(spec_with("data", "k" * 500 + " = 1")),
+         OptionError, r"unknown key\(s\) in \[data\]: 'kkkk.*\(502 characters\); valid keys"),
     # a model record of the wrong kind --------------------------------------------------------
     case("model-type-object", model_call("tf-continuous", put("type", {"a": 1})),
          FileFormatError, r"\"type\" must be one of 'TransferFunction'.*got \{'a': 1\}"),
@@ -401,8 +420,8 @@ CASES = [
          FileFormatError, r"got 'TTTT.*… \(5002 characters\)"),
     case("model-block-linear-block",
          model_call("block-hw", lambda d: put("linear", json.loads(json.dumps(d)))(d)),
-         FileFormatError, r"the BlockModel's \"linear\" must be the record of a TransferFunction or "
-         r"PolynomialModel, got 'BlockModel'"),
+         FileFormatError, r"the BlockModel's \"linear\" must be the record of a TransferFunction "
+         r"or PolynomialModel, got 'BlockModel'"),
     case("model-block-linear-narx", model_call(
         "block-hw", lambda d: put("linear", seed("models", "narx-G", Path("/")))(d)),
          FileFormatError, r"\"linear\" must be the record of .*got 'NarxModel'"),

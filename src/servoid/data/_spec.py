@@ -276,7 +276,8 @@ class ExperimentSpec:
             raise OptionError(f"{where}: {exc}") from None
         group = _optional(where, "group", data.get("group"), _string)
         if group is not None and fmt != "tdms":
-            raise FileFormatError(f"{where}: group applies to TDMS files only, this is {fmt}")
+            raise FileFormatError(f"{where}: group applies to TDMS files only, this is {fmt}: "
+                                  "remove group")
         time = _optional(where, "time", data.get("time"), _string)
         dt = _optional(where, "dt", data.get("dt"), _positive)
         max_bytes = _optional(where, "max_bytes", data.get("max_bytes"),

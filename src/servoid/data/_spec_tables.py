@@ -39,6 +39,12 @@ _ANTI_ALIAS_KEYS = ("order", "cutoff")
 RigReference = Literal["command", "readback"]
 _RIG_REFERENCES: tuple[RigReference, ...] = ("command", "readback")
 _SPLIT_KEYS = ("fraction", "index", "period", "skip_periods")
+#: What to write for a required key that is missing, in the file's own syntax.
+_REQUIRED_HINTS = {"data": "a [data] table with file = \"<rig file>\"",
+                   "channels": "a [channels.<name>] table per channel, e.g. [channels.y] with "
+                   "role = \"y\"",
+                   "file": "file = \"<rig file>\" (relative to the experiment file)",
+                   "order": "order = <1..10>", "cutoff": "cutoff = <Hz>"}
 _FREE_KEYS = ("loop", "identify", "report")
 
 
@@ -187,13 +193,14 @@ def _check_keys(
     unknown = [k for k in table if k not in valid]
     if unknown:
         raise OptionError(
-            f"{origin}: unknown key(s) in {where}: {', '.join(repr(k) for k in unknown)}; "
+            f"{origin}: unknown key(s) in {where}: {', '.join(_shown(k) for k in unknown)}; "
             f"valid keys: {', '.join(valid)}"
         )
     missing = [k for k in required if k not in table]
     if missing:
         raise FileFormatError(
-            f"{origin}: {where} is missing the required key(s) {', '.join(missing)}"
+            f"{origin}: {where} is missing the required key(s) {', '.join(missing)}; add "
+            + "; ".join(_REQUIRED_HINTS.get(k, k) for k in missing)
         )
 
 
@@ -436,7 +443,8 @@ def _split(origin: str, table: Any) -> SplitSpec:
     period = _optional(where, "period", table.get("period"), lambda w, k, v: _integer(w, k, v, 2))
     skip = _integer(where, "skip_periods", table.get("skip_periods", 0), 0)
     if skip and period is None:
-        raise FileFormatError(f"{where}: skip_periods needs period")
+        raise FileFormatError(f"{where}: skip_periods needs period; add period = <samples "
+                              "per excitation period>, or remove skip_periods")
     return SplitSpec(fraction=fraction, index=index, period=period, skip_periods=skip)
 
 
@@ -448,7 +456,9 @@ def _free(origin: str, key: str, table: Any, depth: int = 0) -> Mapping[str, Any
     for k, v in table.items():
         if isinstance(v, Mapping):
             if depth >= 1:
-                raise FileFormatError(f"{where}: table {k!r} is nested more than one level deep")
+                raise FileFormatError(f"{where}: table {_shown(k)} is nested more than one level "
+                                      "deep; a free-form table holds values and tables of values "
+                                      "only: flatten it (key = value, or dotted names)")
             out[k] = _free(origin, f"{key}.{k}", v, depth + 1)
         elif isinstance(v, (list, tuple)):
             if not all(_is_scalar(x) for x in v):
