@@ -371,6 +371,9 @@ def read_text(path: Path, what: str, kind: str = "text") -> str:
         raise FileFormatError(f"{what} {path} cannot be read ({exc.strerror or exc}); check "
                               "the path") from None
     if not exists:
+        if path.is_symlink():
+            raise MissingFileError(f"{what} {path}: no such file (a symbolic link to a missing "
+                                   "file, or a loop of links); point the link at the file")
         raise MissingFileError(f"{what} {path}: no such file")
     if not is_file:
         raise FileFormatError(f"{what} {path} is not a regular file (a folder, pipe or device); "

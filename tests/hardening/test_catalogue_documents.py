@@ -436,6 +436,11 @@ CASES = [
          r"JSON file"),
     case("results-folder", lambda folder: load_results(folder), FileFormatError,
          r"results file .* is not a regular file"),
+    case("model-link-loop", lambda folder: (
+        (folder / "a.json").symlink_to(folder / "b.json"),
+        (folder / "b.json").symlink_to(folder / "a.json"), load_model(folder / "a.json")),
+         MissingFileError, r"a\.json: no such file \(a symbolic link to a missing file, or a loop "
+         r"of links\); point the link at the file; check the path"),
     case("model-utf16", model_call("tf-continuous", lambda d: json.dumps(d).encode("utf-16")),
          FileFormatError, r"model\.json is UTF-16 text \(its byte-order mark says so\); servoid "
          r"reads JSON files in UTF-8: save it as UTF-8"),

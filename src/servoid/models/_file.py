@@ -223,9 +223,9 @@ def load_model(path: str | Path, *, allow_code: bool = False) -> Any:
     allow_code = as_bool("allow_code", allow_code)
     try:
         text = read_text(path, "model file", "JSON")
-    except MissingFileError:
-        raise MissingFileError(f"model file {path}: no such file; check the path (relative "
-                               f"paths are taken from {Path.cwd()})") from None
+    except MissingFileError as exc:
+        raise MissingFileError(f"{exc}; check the path (relative paths are taken from "
+                               f"{Path.cwd()})") from None
     try:
         data = parse_json(text, path, "model file")
     except FileFormatError as exc:
