@@ -22,9 +22,12 @@ file.  The classes:
 Each case builds a document from a valid one (the loader fuzzers' seeds in
 ``loader_seeds/``, or an experiment file written here), breaks one thing and
 checks the error class and its built-in, a message naming the field, the
-value or the problem and the fix, and that the folder is as it was.  A class
-whose fix belongs to code outside the loaders (the fleet file's record
-globbing) is a strict ``xfail`` naming the file to change.
+value or the problem and the fix, and that the folder is as it was.  A few
+``api-`` cases put the same integer into number arguments.  A case whose fix
+belongs to code outside the loaders (the fleet file's record globbing,
+``prbs`` and ``Experiment`` taking 10**400 as ``dt``) is a strict ``xfail``
+naming the file to change: it fails once fixed, so the mark goes with the
+fix.
 """
 
 from __future__ import annotations
@@ -39,6 +42,8 @@ from typing import Any
 import pytest
 
 from servoid import (
+    DataError,
+    Experiment,
     FileFormatError,
     MissingFileError,
     ModelError,
@@ -50,10 +55,12 @@ from servoid import (
 )
 from servoid.data import load_experiment_spec
 from servoid.fleet import load_fleet_spec
+from servoid.models import TransferFunction
+from servoid.signals import prbs
 from servoid.workflows import rerender
 
 SEEDS = Path(__file__).resolve().parent / "loader_seeds"
-BUILTIN = {FileFormatError: ValueError, OptionError: ValueError, ModelError: ValueError,
+BUILTIN = {FileFormatError: ValueError, DataError: ValueError, OptionError: ValueError, ModelError: ValueError,
            MissingFileError: FileNotFoundError, OutputExistsError: FileExistsError}
 BIG = 10**400  # past the largest float, 1.8e308
 DIGITS = "9" * 5000  # past Python's int/str limit of 4300 digits
@@ -264,6 +271,18 @@ CASES = [
          r"18446744073709551616"),
     case("fleet-limit-1e400", fleet_call(FLEET.replace("nominal = -0.8", f"nominal = {BIG}")),
          OptionError, r"nominal must be finite \(within ±1\.8e308\); got a larger integer"),
+    # the same class through the API (a number argument, not a document)
+    case("api-tf-num-1e400", lambda folder: TransferFunction([BIG], [1.0, 1.0]),
+         ModelError, r"num must hold numbers within ±1\.8e308, got an integer too large"),
+    case("api-tf-dt-1e400", lambda folder: TransferFunction([1.0], [1.0, 1.0], dt=BIG),
+         ModelError, r"dt must be > 0 s \(None for continuous time\), got 10000"),
+    case("api-prbs-dt-1e400", lambda folder: prbs(5, dt=BIG), DataError, r"dt",
+         xfail="src/servoid/signals/_checks.py: as_float calls float() on 10**400 "
+               "(OverflowError)"),
+    case("api-experiment-dt-1e400",
+         lambda folder: Experiment.from_arrays(BIG, u=[1.0, 2.0, 3.0]), DataError, r"dt",
+         xfail="src/servoid/data/_experiment.py: __post_init__ calls np.isfinite on 10**400 "
+               "(TypeError)"),
     # an integer past Python's digit limit -----------------------------------------------------
     case("model-5000-digits", model_call("tf-continuous", raw("delay", DIGITS)),
          FileFormatError, r"model\.json is not valid JSON for servoid: Exceeds the limit \(4300 "
