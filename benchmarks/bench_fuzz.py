@@ -33,6 +33,23 @@ name, ``timeouts``; ``crashes`` lists saved inputs. ``median_ms`` is the
 mean wall time per input (fork, write, read). The issue's known answer:
 zero unhandled exceptions and zero signal deaths. Skipped under
 ``--quick`` (several minutes).
+
+Document loaders
+----------------
+Rows ``loader model``, ``loader results``, ``loader spec``, ``loader
+fleet`` and their total ``all loaders`` (30 000 inputs): model files
+(``load_model``, with and without ``allow_code``), results folders
+(``load_results``, ``greybox_record``, ``rerender`` reading the manifest),
+experiment files (``load_experiment_spec``, then ``records`` or a
+write/read round trip) and fleet files (``load_fleet_spec``).  Each input
+is a valid document mutated along its format's grammar
+(``tests/hardening/loader_inputs.py``: wrong types, missing and extra
+keys, edge numbers such as 10**400, NaN and a 5000-digit integer, deep
+nesting, odd strings and paths, reshaped arrays, wrong kinds, then byte
+damage for one in five), rebuilt from
+``random.Random(f"{seed}:{loader}:{index}")``; the same forked batches,
+limits and counts as above, a crash saved as a folder of its files and
+``ops.txt``.
 """
 
 from __future__ import annotations
@@ -243,5 +260,177 @@ def run(quick: bool = False) -> list[Result]:
     note = (f"{total['ok']} ok, {total['errors']} servoid errors, {total['unhandled']} "
             f"unhandled, {total['signals']} signal deaths, {total['timeouts']} timeouts")
     rows.append(Result(SUITE, "all formats", total["inputs"], "mutation fuzz, forked batches",
+                       per_ms, per_ms, 1, note=note, extra=total))
+    rows.extend(run_loaders(scale))  # the document loaders: grammar-aware inputs
+    return rows
+
+
+# -- the document loaders (issue 21) -----------------------------------------------------------
+#
+# Model files (load_model), results folders (load_results, greybox_record, rerender and the
+# manifest), experiment files (load_experiment_spec, records, a write/read round trip) and
+# fleet files (load_fleet_spec): inputs from the grammar-aware generators of
+# tests/hardening/loader_inputs.py, each rebuilt from its index by
+# random.Random(f"{seed}:{loader}:{index}"), run in forked batches as above.
+
+#: Inputs per loader: 30 000 in all, about 5 minutes on one core.
+LOADER_COUNTS = {"model": 10_000, "results": 6_000, "spec": 10_000, "fleet": 4_000}
+
+
+def _loader_inputs() -> Any:
+    folder = str(ROOT / "tests" / "hardening")
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
+    import loader_inputs
+
+    return loader_inputs
+
+
+def _loader_child(loader: str, start: int, stop: int, wfd: int,
+                  folder: Path) -> None:  # pragma: no cover
+    import resource
+    import warnings
+
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 2)
+    warnings.simplefilter("ignore")
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_LIMIT, MEMORY_LIMIT))
+
+    def on_alarm(signum: int, frame: object) -> None:
+        raise _Timeout
+
+    signal.signal(signal.SIGALRM, on_alarm)
+    li = _loader_inputs()
+    for index in range(start, stop):
+        os.write(wfd, f"S {index}\n".encode())
+        inp = li.make_input(loader, index, folder)
+        signal.alarm(TIMEOUT_S)
+        try:
+            outcome = li.run_input(inp, folder)
+        except _Timeout:
+            outcome = "timeout"
+        except BaseException as exc:  # noqa: BLE001 - every escape is the finding
+            outcome = f"unhandled:{type(exc).__name__}@{_where(exc)}"
+        finally:
+            signal.alarm(0)
+        os.write(wfd, f"R {index} {outcome}\n".encode())
+    os._exit(0)
+
+
+def _run_loader_batch(loader: str, start: int, stop: int, outcomes: dict[int, str],
+                      folder: Path) -> None:
+    """Run inputs ``start..stop-1`` of ``loader``, restarting after each child that dies."""
+    while start < stop:
+        rfd, wfd = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # pragma: no cover - the child
+            os.close(rfd)
+            try:
+                _loader_child(loader, start, stop, wfd, folder)
+            finally:
+                os._exit(3)
+        os.close(wfd)
+        running, buffer, killed = None, b"", False
+        with os.fdopen(rfd, "rb", buffering=0) as pipe:
+            while True:
+                ready, _, _ = select.select([pipe], [], [], HANG_S)
+                if not ready:
+                    os.kill(pid, signal.SIGKILL)
+                    killed = True
+                    break
+                chunk = pipe.read(65536)
+                if not chunk:
+                    break
+                buffer += chunk
+                *lines, buffer = buffer.split(b"\n")
+                for line in lines:
+                    tag, index, *rest = line.decode().split(" ", 2)
+                    if tag == "S":
+                        running = int(index)
+                    else:
+                        outcomes[int(index)] = rest[0]
+                        running = None
+        _, status = os.waitpid(pid, 0)
+        if running is None:
+            return
+        if killed:
+            outcomes[running] = "hang"
+        elif os.WIFSIGNALED(status):
+            outcomes[running] = f"signal:{signal.Signals(os.WTERMSIG(status)).name}"
+        else:
+            outcomes[running] = f"child-exit:{os.WEXITSTATUS(status)}"
+        start = running + 1
+
+
+def fuzz_loader(loader: str, count: int) -> tuple[dict[str, Any], float]:
+    """Fuzz one document loader; return the counts and the wall time [s]."""
+    li = _loader_inputs()
+    outcomes: dict[int, str] = {}
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="servoid-fuzz-") as scratch:
+        li.prepare(Path(scratch))
+        for start in range(0, count, BATCH):
+            _run_loader_batch(loader, start, min(start + BATCH, count), outcomes, Path(scratch))
+        elapsed = time.perf_counter() - t0
+        errors: collections.Counter[str] = collections.Counter()
+        unhandled: collections.Counter[str] = collections.Counter()
+        signals: collections.Counter[str] = collections.Counter()
+        ok = timeouts = 0
+        crashes = []
+        saved = Path(os.environ.get("SERVOID_FUZZ_CRASHES", "/tmp/servoid-fuzz-crashes"))
+        for index, outcome in sorted(outcomes.items()):
+            kind, _, detail = outcome.partition(":")
+            if kind == "ok":
+                ok += 1
+            elif kind == "error":
+                errors[detail] += 1
+            elif kind == "unhandled":
+                unhandled[detail] += 1
+            elif kind in ("timeout", "hang"):
+                timeouts += 1
+            else:
+                signals[detail or kind] += 1
+            if kind not in ("ok", "error"):
+                inp = li.make_input(loader, index, Path(scratch))
+                target = saved / f"{loader}-{index}"
+                target.mkdir(parents=True, exist_ok=True)
+                for name, data in inp.files.items():
+                    (target / name).write_bytes(data)
+                (target / "ops.txt").write_text("\n".join(inp.ops) + "\n", encoding="utf-8")
+                crashes.append(f"{target} ({outcome}, mode {inp.mode})")
+    counts = {
+        "inputs": len(outcomes), "ok": ok, "errors": dict(errors.most_common()),
+        "unhandled": dict(unhandled.most_common()), "signals": dict(signals),
+        "timeouts": timeouts, "crashes": crashes[:50],
+    }
+    return counts, elapsed
+
+
+def run_loaders(scale: float = 1.0) -> list[Result]:
+    """One row per document loader and their total."""
+    rows = []
+    total: dict[str, Any] = {"inputs": 0, "ok": 0, "errors": 0, "unhandled": 0, "signals": 0,
+                             "timeouts": 0}
+    wall = 0.0
+    for loader, count in LOADER_COUNTS.items():
+        counts, elapsed = fuzz_loader(loader, max(1, int(count * scale)))
+        wall += elapsed
+        for key in ("inputs", "ok", "timeouts"):
+            total[key] += counts[key]
+        for key in ("errors", "unhandled", "signals"):
+            total[key] += sum(counts[key].values())
+        per_ms = 1e3 * elapsed / max(counts["inputs"], 1)
+        note = (f"{counts['ok']} ok, {sum(counts['errors'].values())} servoid errors, "
+                f"{sum(counts['unhandled'].values())} unhandled, "
+                f"{sum(counts['signals'].values())} signal deaths, {counts['timeouts']} timeouts")
+        print(f"# fuzz loader {loader}: {counts['inputs']} inputs in {elapsed:.1f} s: {note}",
+              file=sys.stderr)
+        rows.append(Result(SUITE, f"loader {loader}", counts["inputs"],
+                           "grammar fuzz, forked batches", per_ms, per_ms, 1, note=note,
+                           extra=counts))
+    per_ms = 1e3 * wall / max(total["inputs"], 1)
+    note = (f"{total['ok']} ok, {total['errors']} servoid errors, {total['unhandled']} "
+            f"unhandled, {total['signals']} signal deaths, {total['timeouts']} timeouts")
+    rows.append(Result(SUITE, "all loaders", total["inputs"], "grammar fuzz, forked batches",
                        per_ms, per_ms, 1, note=note, extra=total))
     return rows

@@ -137,8 +137,8 @@ def test_read_json(tmp_path):
     assert str(info.value).startswith(f"truth file {bad} is not valid JSON: ")
     assert "line 1, column 2" in str(info.value)
     binary = tmp_path / "bin.json"
-    binary.write_bytes(b"\xff\xfe{")
-    with pytest.raises(FileFormatError, match="is not UTF-8 text"):
+    binary.write_bytes(b"{\xc3(")
+    with pytest.raises(FileFormatError, match=r"is not UTF-8 text: .* at byte 1 \(line 1\)"):
         read_json(binary, "truth file")
     with pytest.raises(MissingFileError, match="missing.json: no such file") as missing:
         read_json(tmp_path / "missing.json", "truth file")

@@ -40,11 +40,16 @@ __all__ = [
     "as_path",
     "as_str",
     "as_str_list",
+    "file_name_problem",
+    "parse_json",
     "read_json",
+    "read_text",
     "type_error",
 ]
 
 _T = TypeVar("_T")
+_NAME_MAX = 255  # [bytes] of one file name: ext4, XFS, APFS, NTFS (in UTF-16 units) alike
+_PATH_MAX = 4096  # [bytes] of a whole path, with its terminating NUL (Linux PATH_MAX)
 
 
 def _label(name: str, where: str) -> str:
@@ -104,8 +109,12 @@ def as_float(
     """
     if isinstance(value, bool) or not isinstance(value, Real):
         raise type_error(name, value, "a number", where=where)
-    out = float(value)
     label = _label(name, where)
+    try:
+        out = float(value)
+    except OverflowError:  # an integer past the largest float (10**400)
+        raise DataError(f"{label} must be a number within ±1.8e308, got an integer of "
+                        f"{_digits(value)} digits") from None
     suffix = f" {unit}" if unit else ""
     if finite and not math.isfinite(out):
         raise DataError(f"{label} must be finite, got {out}")
@@ -114,6 +123,14 @@ def as_float(
     if nonneg and not out >= 0:
         raise DataError(f"{label} must be >= 0{suffix}, got {out:g}")
     return out
+
+
+def _digits(value: object) -> str:
+    """How many digits an integer has (a bound past Python's str() digit limit)."""
+    try:
+        return str(len(str(abs(int(value)))))  # type: ignore[call-overload]
+    except ValueError:
+        return "more than 4300"
 
 
 def as_bool(name: str, value: object, *, where: str = "") -> bool:
@@ -215,6 +232,9 @@ def as_array(
     if raw.dtype.kind not in "biuf":
         try:
             raw = raw.astype(float)
+        except OverflowError:  # an integer past the largest float (10**400)
+            raise DataError(f"{label} must hold numbers within ±1.8e308, got an integer too "
+                            "large for a float") from None
         except (TypeError, ValueError):
             raise type_error(name, value, "an array of real numbers", where=where) from None
     arr = np.asarray(raw, dtype=float)
@@ -286,23 +306,94 @@ def read_json(path: str | Path, what: str) -> Any:
     """Parse a JSON file; ``what`` says what it is (``"truth file"``).
 
     A missing file raises :class:`~servoid.MissingFileError` (a
-    ``FileNotFoundError``); malformed JSON, or bytes that are not UTF-8,
-    raise :class:`~servoid.FileFormatError` naming the file and the
-    parser's complaint.
+    ``FileNotFoundError``); a folder or other non-regular file, bytes that
+    are not UTF-8 text (see :func:`read_text`), malformed JSON, nesting too
+    deep to parse or an integer past Python's digit limit raise
+    :class:`~servoid.FileFormatError` naming the file and the problem.
     """
     path = as_path(what, path)
-    if not path.exists():
-        raise MissingFileError(f"{what} {path}: no such file")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise FileFormatError(f"{what} {path} is not UTF-8 text: {exc.reason} at byte "
-                              f"{exc.start}") from exc
+    return parse_json(read_text(path, what, "JSON"), path, what)
+
+
+def parse_json(text: str, path: Path, what: str) -> Any:
+    """Parse the JSON ``text`` of ``path``, with the errors of :func:`read_json`."""
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise FileFormatError(f"{what} {path} is not valid JSON: {exc.msg} (line {exc.lineno}, "
                               f"column {exc.colno})") from exc
+    except RecursionError:
+        raise FileFormatError(f"{what} {path} is not valid JSON for servoid: its arrays or "
+                              "objects are nested too deeply to read (servoid writes at most a "
+                              "few levels)") from None
+    except ValueError as exc:  # int(): more digits than sys.get_int_max_str_digits()
+        raise FileFormatError(f"{what} {path} is not valid JSON for servoid: {exc}".split(
+            "; use sys.")[0] + " (no number servoid writes has that many)") from None
+
+
+def file_name_problem(text: str) -> str | None:
+    """Why ``text`` can name no file on this system (None: it can).
+
+    A NUL character, a character with no encoding (a lone UTF-16
+    surrogate), a name (one part between slashes) over 255 bytes or a path
+    of 4096 bytes or more: the operating system refuses these with an error
+    of its own, so a path read from a file is checked first and the problem
+    said in words.
+    """
+    if "\x00" in text:
+        return "holds a NUL character (\\u0000), which no file name can"
+    try:
+        encoded = os.fsencode(text)
+    except UnicodeError:
+        return ("holds a character this system cannot write in a file name (a lone UTF-16 "
+                "surrogate)")
+    longest = max(len(part) for part in encoded.replace(b"\\", b"/").split(b"/"))
+    if longest > _NAME_MAX:
+        return f"has a name of {longest} bytes; file systems allow {_NAME_MAX}"
+    if len(encoded) >= _PATH_MAX:
+        return f"is {len(encoded)} bytes long; paths stop at {_PATH_MAX - 1}"
+    return None
+
+
+def read_text(path: Path, what: str, kind: str = "text") -> str:
+    """The text of a UTF-8 file (a leading byte-order mark dropped), checked first.
+
+    ``what`` names the file in messages, ``kind`` its format (``"TOML"``).
+    A missing path raises :class:`~servoid.MissingFileError`; a folder,
+    FIFO or device, text in UTF-16/32 (named by its byte-order mark) or
+    bytes that are not UTF-8 (with the line of the first bad byte) raise
+    :class:`~servoid.FileFormatError`.
+    """
+    try:
+        is_file = path.is_file()
+        exists = is_file or path.exists()
+    except OSError as exc:  # a name too long, a loop of links, no permission
+        raise FileFormatError(f"{what} {path} cannot be read ({exc.strerror or exc}); check "
+                              "the path") from None
+    if not exists:
+        if path.is_symlink():
+            raise MissingFileError(f"{what} {path}: no such file (a symbolic link to a missing "
+                                   "file, or a loop of links); point the link at the file")
+        raise MissingFileError(f"{what} {path}: no such file")
+    if not is_file:
+        raise FileFormatError(f"{what} {path} is not a regular file (a folder, pipe or device); "
+                              f"give the path of a {kind} file")
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise FileFormatError(f"{what} {path} cannot be read ({exc.strerror or exc}); check "
+                              "the file's permissions") from None
+    for bom, encoding in ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"),
+                          (b"\xff\xfe", "UTF-16"), (b"\xfe\xff", "UTF-16")):
+        if raw.startswith(bom):
+            raise FileFormatError(f"{what} {path} is {encoding} text (its byte-order mark says "
+                                  f"so); servoid reads {kind} files in UTF-8: save it as UTF-8")
+    try:
+        return raw.decode("utf-8").removeprefix("\ufeff")  # the UTF-8 mark some editors write
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise FileFormatError(f"{what} {path} is not UTF-8 text: {exc.reason} at byte "
+                              f"{exc.start} (line {line}); save it as UTF-8") from None
 
 
 def as_generator(rng: object) -> np.random.Generator:

@@ -565,8 +565,9 @@ TOML_CASES = [
     case("toml-missing", "identify {in}/nope.toml --out {out}", "nope.toml: no such file"),
     case("toml-is-folder", "identify {in} --out {out}", "not a regular file"),
     case("toml-empty", ID, "missing the required key(s) data, channels", toml("")),
-    case("toml-binary", ID, "not a valid TOML file", toml(JUNK)),
-    case("toml-non-utf8", ID, "not a valid TOML file",
+    case("toml-binary", ID, "is not UTF-8 text", toml(JUNK)),
+    case("toml-non-utf8", ID, "is not UTF-8 text: invalid continuation byte at byte 18 (line 2); "
+         "save it as UTF-8",
          toml('[data]\nfile = "caf\xe9.csv"\n'.encode("latin-1"))),
     case("toml-unclosed-table", ID, "not a valid TOML file", sub(r"^\[data\]$", "[data")),
     case("toml-duplicate-key", ID, "not a valid TOML file",

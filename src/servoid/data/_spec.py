@@ -77,7 +77,6 @@ loaded.
 from __future__ import annotations
 
 import os
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -96,7 +95,6 @@ from ._io import FORMATS, Format, format_of, read_experiment
 from ._preprocess import decimate, lowpass, split
 from ._preprocess import detrend as _detrend
 from ._spec_tables import (
-    _CSV_KEYS,
     _DATA_KEYS,
     _FREE_KEYS,
     _PREPROCESS_KEYS,
@@ -110,7 +108,7 @@ from ._spec_tables import (
     _channels,
     _check_keys,
     _check_like,
-    _csv_option,
+    _csv_options,
     _file_list,
     _free,
     _integer,
@@ -124,7 +122,7 @@ from ._spec_tables import (
     _thaw,
     _validation,
 )
-from ._toml import _emit_document
+from ._toml import _emit_document, read_toml
 
 __all__ = [
     "ChannelSpec",
@@ -278,16 +276,14 @@ class ExperimentSpec:
             raise OptionError(f"{where}: {exc}") from None
         group = _optional(where, "group", data.get("group"), _string)
         if group is not None and fmt != "tdms":
-            raise FileFormatError(f"{where}: group applies to TDMS files only, this is {fmt}")
+            raise FileFormatError(f"{where}: group applies to TDMS files only, this is {fmt}: "
+                                  "remove group")
         time = _optional(where, "time", data.get("time"), _string)
         dt = _optional(where, "dt", data.get("dt"), _positive)
         max_bytes = _optional(where, "max_bytes", data.get("max_bytes"),
                               lambda w, k, v: _integer(w, k, v, 1))
         jitter = _optional(where, "jitter", data.get("jitter"), _positive)
-        csv_options = {k: _csv_option(where, k, data[k]) for k in _CSV_KEYS if k in data}
-        if "columns" in csv_options and "skip_columns" in csv_options:
-            raise FileFormatError(f"{where}: give columns (the columns to read) or skip_columns "
-                                  "(the columns not to read), not both: remove one")
+        csv_options = _csv_options(where, data)
         if csv_options and fmt != "csv":
             raise FileFormatError(f"{where}: {', '.join(csv_options)} apply to CSV files only, "
                                   f"this is {fmt}")
@@ -752,10 +748,7 @@ def load_experiment_spec(path: str | os.PathLike[str]) -> ExperimentSpec:
         An unknown key or option value.
     """
     path = existing_file(path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise FileFormatError(f"{path}: not a valid TOML file ({exc})") from None
+    doc = read_toml(path, "experiment file", label=str(path))
     return ExperimentSpec.from_dict(doc, base_dir=path.parent, source=path)
 
 

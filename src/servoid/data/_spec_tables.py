@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, Literal
 
+from .._checks import file_name_problem
 from .._errors import FileFormatError, OptionError, ServoidError, check_option
 from ._experiment import ROLES, Experiment, Role
 from ._io import format_of
@@ -26,6 +27,9 @@ _DATA_KEYS = ("file", "format", "group", "time", "dt", "max_bytes", "jitter", "d
               "decimal", "time_unit", "columns", "skip_columns", "skip_rows")
 _CSV_KEYS = ("delimiter", "decimal", "time_unit", "columns", "skip_columns", "skip_rows")
 _CSV_TEXT_KEYS = ("delimiter", "decimal", "time_unit")
+#: The values the CSV reader takes (``read_csv``), checked when the file is loaded.
+_CSV_TEXT_VALUES = {"decimal": (".", ","), "time_unit": ("s", "ms", "us", "µs")}
+_NOT_DELIMITERS = ('"', "\n", "\r", ".", "-", "+", "e", "E") + tuple("0123456789")
 _CHANNEL_KEYS = ("source", "role", "gain", "offset", "unit", "limits")
 _VALIDATION_KEYS = ("file", "initial", "transient")
 _INITIALS = ("auto", "estimate", "zero", "measured")
@@ -35,6 +39,12 @@ _ANTI_ALIAS_KEYS = ("order", "cutoff")
 RigReference = Literal["command", "readback"]
 _RIG_REFERENCES: tuple[RigReference, ...] = ("command", "readback")
 _SPLIT_KEYS = ("fraction", "index", "period", "skip_periods")
+#: What to write for a required key that is missing, in the file's own syntax.
+_REQUIRED_HINTS = {"data": "a [data] table with file = \"<rig file>\"",
+                   "channels": "a [channels.<name>] table per channel, e.g. [channels.y] with "
+                   "role = \"y\"",
+                   "file": "file = \"<rig file>\" (relative to the experiment file)",
+                   "order": "order = <1..10>", "cutoff": "cutoff = <Hz>"}
 _FREE_KEYS = ("loop", "identify", "report")
 
 
@@ -183,18 +193,28 @@ def _check_keys(
     unknown = [k for k in table if k not in valid]
     if unknown:
         raise OptionError(
-            f"{origin}: unknown key(s) in {where}: {', '.join(repr(k) for k in unknown)}; "
+            f"{origin}: unknown key(s) in {where}: {', '.join(_shown(k) for k in unknown)}; "
             f"valid keys: {', '.join(valid)}"
         )
     missing = [k for k in required if k not in table]
     if missing:
         raise FileFormatError(
-            f"{origin}: {where} is missing the required key(s) {', '.join(missing)}"
+            f"{origin}: {where} is missing the required key(s) {', '.join(missing)}; add "
+            + "; ".join(_REQUIRED_HINTS.get(k, k) for k in missing)
         )
 
 
 def _kind(value: object) -> str:
-    return f"{type(value).__name__} {value!r}"
+    return f"{type(value).__name__} {_shown(value)}"
+
+
+def _shown(value: object) -> str:
+    """``repr(value)`` cut to a readable length for a message."""
+    try:
+        text = repr(value)
+    except ValueError:  # an integer past str()'s digit limit
+        return "(an integer of more than 4300 digits)"
+    return text if len(text) <= 80 else f"{text[:60]}… ({len(text)} characters)"
 
 
 def _like(exc: ServoidError, message: str) -> ServoidError:
@@ -215,10 +235,33 @@ def _string(where: str, key: str, value: Any) -> str:
     return value
 
 
+def _csv_options(where: str, data: Mapping[str, Any]) -> dict[str, Any]:
+    """The CSV reading options of ``[data]``, each checked, and how they combine."""
+    options = {k: _csv_option(where, k, data[k]) for k in _CSV_KEYS if k in data}
+    if "columns" in options and "skip_columns" in options:
+        raise FileFormatError(f"{where}: give columns (the columns to read) or skip_columns "
+                              "(the columns not to read), not both: remove one")
+    if options.get("decimal", ".") == options.get("delimiter", ","):
+        raise FileFormatError(f"{where}: decimal = {options.get('decimal')!r} is also the field "
+                              "separator; set delimiter = \";\" (or \"\\t\" for a tab) for a "
+                              "file with decimal commas")
+    return options
+
+
 def _csv_option(where: str, key: str, value: Any) -> Any:
     """A CSV reading option of ``[data]``, checked (lists become tuples)."""
     if key in _CSV_TEXT_KEYS:
-        return _string(where, key, value)
+        text = _string(where, key, value)
+        valid = _CSV_TEXT_VALUES.get(key)
+        if valid is not None and text not in valid:
+            raise FileFormatError(f"{where} {key} must be one of "
+                                  f"{', '.join(repr(v) for v in valid)}, got {_shown(text)}")
+        if key == "delimiter" and (len(text) != 1 or text in _NOT_DELIMITERS):
+            raise FileFormatError(
+                f"{where} delimiter must be the one character between fields (\",\", \";\" "
+                f"or \"\\t\" for a tab), got {_shown(text)}; set it to the separator the "
+                "file uses, or remove it for a comma")
+        return text
     if key == "skip_rows":
         return _integer(where, key, value, 0)
     example = '["time", "u", "y"] or [0, 1, 3]'
@@ -237,9 +280,16 @@ def _csv_option(where: str, key: str, value: Any) -> Any:
 
 
 def _number(where: str, key: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise FileFormatError(f"{where} {key} must be a finite number, got {_kind(value)}")
-    return float(value)
+    try:
+        number = float(value)
+    except OverflowError:  # an integer past the largest float (10**400)
+        number = math.inf
+    if not math.isfinite(number):
+        raise FileFormatError(f"{where} {key} must be a finite number (within ±1.8e308), got "
+                              f"{_kind(value)}")
+    return number
 
 
 def _positive(where: str, key: str, value: Any) -> float:
@@ -252,6 +302,8 @@ def _positive(where: str, key: str, value: Any) -> float:
 def _integer(where: str, key: str, value: Any, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise FileFormatError(f"{where} {key} must be an integer >= {minimum}, got {_kind(value)}")
+    if value >= 2**63:  # past what numpy indexes and counts with
+        raise FileFormatError(f"{where} {key} must be an integer below 2**63, got {_kind(value)}")
     return value
 
 
@@ -291,8 +343,18 @@ def _file_list(where: str, key: str, value: Any) -> tuple[str, ...]:
     if isinstance(value, (list, tuple)):
         if not value:
             raise FileFormatError(f"{where} {key} must name at least one file, got []")
-        return tuple(_string(where, key, v) for v in value)
-    return (_string(where, key, value),)
+        return tuple(_file_name(where, key, v) for v in value)
+    return (_file_name(where, key, value),)
+
+
+def _file_name(where: str, key: str, value: Any) -> str:
+    """A file's path as the experiment file writes it: text the file system can take."""
+    text = _string(where, key, value)
+    problem = file_name_problem(text)
+    if problem is not None:
+        raise FileFormatError(f"{where} {key} = {_shown(text)} {problem}: write the rig file's "
+                              "name")
+    return text
 
 
 def _validation(origin: str, table: Any, fmt: str) -> ValidationSpec:
@@ -381,7 +443,8 @@ def _split(origin: str, table: Any) -> SplitSpec:
     period = _optional(where, "period", table.get("period"), lambda w, k, v: _integer(w, k, v, 2))
     skip = _integer(where, "skip_periods", table.get("skip_periods", 0), 0)
     if skip and period is None:
-        raise FileFormatError(f"{where}: skip_periods needs period")
+        raise FileFormatError(f"{where}: skip_periods needs period; add period = <samples "
+                              "per excitation period>, or remove skip_periods")
     return SplitSpec(fraction=fraction, index=index, period=period, skip_periods=skip)
 
 
@@ -393,7 +456,9 @@ def _free(origin: str, key: str, table: Any, depth: int = 0) -> Mapping[str, Any
     for k, v in table.items():
         if isinstance(v, Mapping):
             if depth >= 1:
-                raise FileFormatError(f"{where}: table {k!r} is nested more than one level deep")
+                raise FileFormatError(f"{where}: table {_shown(k)} is nested more than one level "
+                                      "deep; a free-form table holds values and tables of values "
+                                      "only: flatten it (key = value, or dotted names)")
             out[k] = _free(origin, f"{key}.{k}", v, depth + 1)
         elif isinstance(v, (list, tuple)):
             if not all(_is_scalar(x) for x in v):

@@ -1,19 +1,48 @@
-"""A TOML writer for the experiment file: exactly the types the file holds.
+"""TOML in and out: the reader of experiment and fleet files, and the experiment file's writer.
 
-Strings, booleans, integers, floats (``repr``: the shortest text that
-reads back as the same double), arrays and nested tables; nothing else.
+:func:`read_toml` reads a TOML file into plain data, turning every way the
+text can fail to parse (not UTF-8, a syntax error, nesting too deep for the
+parser, an integer past Python's digit limit) into one
+:class:`~servoid.FileFormatError` that names the file.  The writer emits
+exactly the types the experiment file holds: strings, booleans, integers,
+floats (``repr``: the shortest text that reads back as the same double),
+arrays and nested tables; nothing else.
 """
 
 from __future__ import annotations
 
 import re
+import tomllib
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
+from .._checks import read_text
 from .._errors import FileFormatError
 from ._spec_tables import _FREE_KEYS, _kind
 
 _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def read_toml(path: Path, what: str, label: str | None = None) -> dict[str, Any]:
+    """Parse a TOML file; ``what`` names it (``"fleet file"``), ``label`` prefixes parse errors.
+
+    Raises :class:`~servoid.MissingFileError` for a missing file and
+    :class:`~servoid.FileFormatError` for anything else that stops the
+    parse (see :func:`servoid._checks.read_text` for the file checks).
+    """
+    text = read_text(path, what, "TOML")
+    label = f"{what} {path}" if label is None else label
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        detail = str(exc)
+    except RecursionError:
+        detail = ("its arrays or inline tables are nested too deeply to read; an experiment "
+                  "file needs at most two levels")
+    except ValueError as exc:  # int(): more digits than sys.get_int_max_str_digits()
+        detail = str(exc).split("; use sys.")[0] + "; no setting takes a number that long"
+    raise FileFormatError(f"{label}: not a valid TOML file ({detail})") from None
 
 
 # -- TOML emitter ----------------------------------------------------------------------------

@@ -98,6 +98,11 @@ def _limit(name: str, spec: Any, where: str) -> Limit:
 def _number(value: Any, where: str, key: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise OptionTypeError(f"{where} {key} must be a number; got {value!r}")
-    if not math.isfinite(value):
-        raise OptionError(f"{where} {key} must be finite; got {value!r}")
-    return float(value)
+    try:
+        number = float(value)
+    except OverflowError:  # an integer past the largest float (10**400)
+        number = math.inf
+    if not math.isfinite(number):
+        raise OptionError(f"{where} {key} must be finite (within ±1.8e308); got "
+                          f"{value if isinstance(value, float) else 'a larger integer'}")
+    return number

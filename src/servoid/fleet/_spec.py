@@ -30,7 +30,6 @@ from __future__ import annotations
 import csv
 import glob as globbing
 import os
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +37,7 @@ from types import MappingProxyType
 from typing import Any
 
 from .._errors import DataError, FileFormatError, OptionError, OptionTypeError
+from ..data._toml import read_toml
 from ._limits import Limit, parse_limits
 
 __all__ = ["FleetRecord", "FleetSpec", "load_fleet_spec"]
@@ -107,10 +107,7 @@ def load_fleet_spec(path: str | os.PathLike[str]) -> FleetSpec:
     source = Path(path)
     if not source.is_file():
         raise DataError(f"fleet file {source} not found; check the path")
-    try:
-        doc = tomllib.loads(source.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise FileFormatError(f"{source} is not a valid TOML fleet file: {exc}") from None
+    doc = read_toml(source, "fleet file")
     unknown = sorted(set(doc) - set(_TABLES))
     if unknown:
         raise OptionError(f"unknown table(s) in {source.name}: {', '.join(unknown)}; a fleet "

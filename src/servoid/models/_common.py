@@ -50,7 +50,7 @@ def check_dt(dt: object, *, owner: str, allow_none: bool = True) -> float | None
     if isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating)):
         raise OptionTypeError(f"{owner}: dt must be a float [s] or None for continuous time, "
                               f"got {dt!r}")
-    value = float(dt)
+    value = _real(dt)
     if not math.isfinite(value) or value <= 0.0:
         raise ModelError(f"{owner}: dt must be > 0 s (None for continuous time), got {dt!r}")
     return value
@@ -64,7 +64,7 @@ def check_delay(delay: object, dt: float | None, *, owner: str) -> float:
     """
     if isinstance(delay, bool) or not isinstance(delay, (int, float, np.integer, np.floating)):
         raise OptionTypeError(f"{owner}: delay must be a float [s], got {delay!r}")
-    value = float(delay)
+    value = _real(delay)
     if not math.isfinite(value) or value < 0.0:
         raise ModelError(f"{owner}: delay must be finite and >= 0 s, got {delay!r}")
     if value and dt is not None:
@@ -96,7 +96,7 @@ def check_method(
         raise OptionError(f"{owner}: prewarp applies only to method='tustin', got {method!r}")
     if isinstance(prewarp, bool) or not isinstance(prewarp, (int, float, np.integer, np.floating)):
         raise OptionTypeError(f"{owner}: prewarp must be a float [rad/s] or None, got {prewarp!r}")
-    wp = float(prewarp)
+    wp = _real(prewarp)
     if not (math.isfinite(wp) and 0.0 < wp < math.pi / dt):
         raise ModelError(
             f"{owner}: prewarp must lie in (0, pi/dt) = (0, {math.pi / dt:.6g}) rad/s, "
@@ -109,6 +109,9 @@ def as_coefficients(name: str, values: ArrayLike, *, owner: str) -> NDArray[np.f
     """Return ``values`` as a finite, non-empty 1-D float array."""
     try:
         arr = np.array(values, dtype=np.float64)
+    except OverflowError:  # an integer past the largest float (10**400)
+        raise ModelError(f"{owner}: {name} must hold numbers within ±1.8e308, got an integer "
+                         "too large for a float") from None
     except (TypeError, ValueError) as exc:
         raise OptionTypeError(
             f"{owner}: {name} must be a 1-D array of real numbers, got {values!r}"
@@ -168,3 +171,11 @@ def at_sample_time(model, dt: float | None, owner: str):  # type: ignore[no-unty
     if dt is not None and not math.isclose(dt, model.dt, rel_tol=1e-9):
         raise ModelError(f"dt = {dt} s differs from the model's dt = {model.dt} s")
     return model
+
+
+def _real(value: object) -> float:
+    """``float(value)``, with an integer past the largest float (10**400) as ±inf."""
+    try:
+        return float(value)  # type: ignore[arg-type]
+    except OverflowError:
+        return math.inf if value > 0 else -math.inf  # type: ignore[operator]

@@ -47,7 +47,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._atomic import atomic_path
-from .._checks import as_array, as_bool, as_path, read_json
+from .._checks import as_array, as_bool, as_path, file_name_problem, parse_json, read_text
 from .._errors import (
     DataError,
     FileFormatError,
@@ -69,6 +69,7 @@ __all__ = [
     "load_model",
     "model_from_record",
     "model_record",
+    "past_float",
     "record_text",
     "save_model",
     "write_mat",
@@ -90,6 +91,7 @@ RECORD_TYPES: dict[str, str] = {
     "OdeModel": "servoid.estimate._ode_model:OdeModel",
 }
 _MATLAB_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,62}")
+_FLOAT_MAX = int(sys.float_info.max)  # integers above it have no float
 Model = TransferFunction | StateSpace | PolynomialModel
 
 
@@ -219,11 +221,13 @@ def load_model(path: str | Path, *, allow_code: bool = False) -> Any:
     """
     path = as_path("path", path)
     allow_code = as_bool("allow_code", allow_code)
-    if not path.is_file():
-        raise MissingFileError(f"model file {path}: no such file; check the path (relative "
-                               f"paths are taken from {Path.cwd()})")
     try:
-        data = read_json(path, "model file")
+        text = read_text(path, "model file", "JSON")
+    except MissingFileError as exc:
+        raise MissingFileError(f"{exc}; check the path (relative paths are taken from "
+                               f"{Path.cwd()})") from None
+    try:
+        data = parse_json(text, path, "model file")
     except FileFormatError as exc:
         raise FileFormatError(f"{exc}; the file is damaged: write it again with "
                               "servoid.models.save_model") from None
@@ -321,22 +325,37 @@ def model_from_record(data: object, *, where: str, allow_code: bool = False) -> 
     if not isinstance(data, Mapping) or "servoid_model" not in data:
         raise FileFormatError(f"{where} is not a servoid model file (no \"servoid_model\" "
                               f"format version at the top); {fix}")
+    huge = past_float(data)
+    if huge is not None:
+        raise FileFormatError(f"{where}: {huge} is an integer past the largest float (1.8e308), "
+                              f"which no model holds; the file is damaged: {fix}")
     version = data["servoid_model"]
     if version != FORMAT_VERSION or isinstance(version, bool):
         raise FileFormatError(
-            f"{where} has format version {version!r}; this servoid reads version "
+            f"{where} has format version {_shown(version)}; this servoid reads version "
             f"{FORMAT_VERSION}: read it with the servoid that wrote it (pip install -U servoid "
             f"for a newer one) and {fix}"
         )
     kind = data.get("type")
-    if kind not in _TYPES and kind not in RECORD_TYPES:
+    if not isinstance(kind, str) or (kind not in _TYPES and kind not in RECORD_TYPES):
         listed = ", ".join(repr(t) for t in (*_TYPES, *RECORD_TYPES))
-        raise FileFormatError(f"{where}: \"type\" must be one of {listed}, got {kind!r} (a "
+        raise FileFormatError(f"{where}: \"type\" must be one of {listed}, got {_shown(kind)} (a "
                               f"model type this servoid does not know: read the file with the "
                               f"servoid that wrote it, pip install -U servoid for a newer one); "
                               f"{fix}")
+    for key in ("model_file", "output_file") if kind == "OdeModel" else ():
+        problem = file_name_problem(data[key]) if isinstance(data.get(key), str) else None
+        if problem is not None:  # before any file system call on it
+            raise FileFormatError(f"{where}: {key} = {_shown(data[key])} {problem}; the file is "
+                                  f"damaged: {fix}")
     if kind in RECORD_TYPES and getattr(_record_class(kind), "runs_code", False):
         return _record_class(kind).from_record(data, allow_code=allow_code, where=where)
+    linear = data.get("linear") if kind == "BlockModel" else None
+    if isinstance(linear, Mapping) and "servoid_model" in linear and linear.get("type") not in (
+            "TransferFunction", "PolynomialModel"):  # not a block in a block in a block ...
+        raise FileFormatError(f"{where}: the BlockModel's \"linear\" must be the record of a "
+                              f"TransferFunction or PolynomialModel, got "
+                              f"{_shown(linear.get('type'))}; the file is damaged: {fix}")
     try:
         if kind in RECORD_TYPES:
             return _record_class(kind).from_record(data)
@@ -362,6 +381,26 @@ def model_from_record(data: object, *, where: str, allow_code: bool = False) -> 
                               f"damaged: {fix}") from None
     except (ServoidError, TypeError, ValueError) as exc:
         raise FileFormatError(f"{where}: the {kind} is damaged ({exc}); {fix}") from None
+
+
+def past_float(data: object) -> str | None:
+    """Where in parsed JSON an integer lies past the float range (``"num[2]"``), or None.
+
+    Such an integer (``1e400`` written without its exponent) parses, then
+    fails as an ``OverflowError`` wherever a model turns it into a float;
+    the walk is iterative, so any depth the JSON parser accepted is fine.
+    """
+    stack: list[tuple[str, object]] = [("", data)]
+    while stack:
+        where, node = stack.pop()
+        if isinstance(node, int) and not isinstance(node, bool):
+            if abs(node) > _FLOAT_MAX:
+                return where or "the value"
+        elif isinstance(node, Mapping):
+            stack.extend((f"{where}.{k}" if where else str(k), v) for k, v in node.items())
+        elif isinstance(node, list):
+            stack.extend((f"{where}[{i}]", v) for i, v in enumerate(node))
+    return None
 
 
 def write_mat(models: Mapping[str, Model], path: Path, *, overwrite: bool = False) -> None:
@@ -444,6 +483,15 @@ def _list(data: Mapping[str, Any], key: str) -> list[Any]:
     if not isinstance(value, list):
         raise DataError(f"{key} must be a list, got {value!r}")
     return value
+
+
+def _shown(value: object) -> str:
+    """``repr(value)`` cut to a readable length for a message."""
+    try:
+        text = repr(value)
+    except ValueError:  # an integer past str()'s digit limit
+        return "an integer of more than 4300 digits"
+    return text if len(text) <= 80 else f"{text[:60]}… ({len(text)} characters)"
 
 
 def _covariance(value: ArrayLike) -> list[list[float]]:

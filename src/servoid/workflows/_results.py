@@ -18,7 +18,6 @@ the SHA-256 recorded at the fit.
 from __future__ import annotations
 
 import hashlib
-import json
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -34,6 +33,7 @@ from .._errors import (
     ServoidError,
 )
 from ._common import sha256, spec_inputs
+from ._results_check import check_results, read_manifest
 from ._summary import RecordSummary, summarise
 
 __all__ = ["Results", "greybox_record", "load_results", "rerender"]
@@ -251,14 +251,11 @@ def _manifest_inputs(folder: Path) -> dict[Path, str]:
     from ._run import MANIFEST
 
     manifest_path = folder / MANIFEST
-    try:
-        manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
-        inputs = {Path(e["path"]): e["sha256"] for e in manifest["inputs"]}
-        if not all(p.is_absolute() and isinstance(d, str) for p, d in inputs.items()):
-            raise ValueError
-    except (OSError, ValueError, KeyError, TypeError, RecursionError):
-        raise FileFormatError(f"{manifest_path} is missing or damaged, so the inputs of this run "
-                              f"cannot be checked; {_FIX}") from None
+    inputs = dict(read_manifest(manifest_path))  # every field checked, named when damaged
+    relative = next((p for p in inputs if not p.is_absolute()), None)
+    if relative is not None:
+        raise FileFormatError(f"{manifest_path} lists the input {relative} by a relative path; "
+                              f"a run records its inputs resolved; {_FIX}")
     return inputs
 
 
@@ -304,8 +301,10 @@ def _spec_from_checked(source: Path, inputs: Mapping[Path, str], data: Mapping[s
             f"identify {source} instead")
     try:
         doc = tomllib.loads(text.decode("utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise FileFormatError(f"{source}: not a valid TOML file ({exc})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError, ValueError) as exc:
+        # RecursionError: nested too deep; ValueError: an integer past Python's digit limit
+        detail = str(exc).split("; use sys.")[0] or type(exc).__name__
+        raise FileFormatError(f"{source}: not a valid TOML file ({detail})") from None
     return ExperimentSpec.from_dict(doc, base_dir=source.parent, source=source)
 
 
@@ -318,9 +317,7 @@ def _check_input(file: Path, inputs: Mapping[Path, str], source: Path) -> None:
 
 
 def _check_results(data: object, path: Path) -> None:
-    if not isinstance(data, Mapping) or "servoid_version" not in data:
-        raise FileFormatError(f"{path} is not a results.json of servoid identify (no "
-                              f"\"servoid_version\"); give the results.json of a run")
+    check_results(data, path)  # every field the readers below use, named when damaged
 
 
 def _code_files(data: Mapping[str, Any]) -> list[tuple[Path, str]]:
