@@ -64,7 +64,7 @@ def test_every_seed_loads(loader: str, tmp_path: Path) -> None:
 def _seed_outcome(loader: str, name: str, mode: int) -> str:
     """What an unmutated seed gives: "ok", but for the refusals the call mode asks for."""
     if loader == "results" and mode == 3:  # rerender: the fuzzers never write the rig files,
-        return "error:OutputExistsError"  # so the manifest's inputs are missing, as asked
+        return "error:MissingFileError"  # so the experiment file the manifest names is missing
     if name.startswith("greybox") and mode == 0:  # a grey-box model without allow_code
         return "error:OptionError"
     return "ok"
