@@ -4,10 +4,14 @@ The same steps as ``servoid identify examples/emps/emps.toml`` (which also
 writes the HTML report): inverse-model least squares, the identified axis
 simulated in its known loop, a closed-loop output-error refinement.
 Data and reference: Janot, Gautier, Brunot, *Data Set and Reference Models
-of EMPS*, 2019. Writes ``emps-api/`` (a figure and results.json) in the
-current folder.
+of EMPS*, 2019.
+
+Run: python examples/emps/emps_identify.py [FOLDER]   (writes a figure and results.json
+into FOLDER; without FOLDER, into a new temporary folder)
 """
 
+import sys
+import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -39,10 +43,13 @@ print(f"closed loop: position {relative_error(exp['qm'], sim.position):.4f} % "
 
 oe = fit_closed_loop_oe(exp, controller, ls, output="both")
 print(oe)
-print("closed-loop OE relative errors [%]:", oe.options["relative_error"])
+errors = oe.options["relative_error"]
+print(f"closed-loop OE: position {errors['position']:.4f} %, force {errors['force']:.2f} %; "
+      f"Fv {100 * (oe['Fv'] / ls['Fv'] - 1):+.1f} %, Fc {100 * (oe['Fc'] / ls['Fc'] - 1):+.1f} % "
+      "from IDIM-LS")
 
-out = Path("emps-api")
-out.mkdir(exist_ok=True)
+out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp(prefix="servoid-emps-"))
+out.mkdir(parents=True, exist_ok=True)
 fig, ax = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
 ax[0].plot(exp.time, exp["force"], color="0.2", lw=0.8, label="measured")
 ax[0].plot(exp.time, sim.force, color="C1", lw=0.6, label="IDIM-LS axis in its loop")
@@ -55,4 +62,4 @@ fig.tight_layout()
 fig.savefig(out / "closed_loop.png", dpi=100)
 write_json({"idim_ls": ls.to_dict(), "closed_loop_oe": oe.to_dict()}, out / "results.json",
            overwrite=True)
-print(f"wrote {out.resolve()}")
+print(f"wrote {out / 'closed_loop.png'} and {out / 'results.json'}")
