@@ -85,7 +85,7 @@ def test_an_interrupted_run_is_replaced_and_its_temporary_files_swept(rig):
     assert not (out / ".report.html.0123456789ab.tmp").exists()
     assert (out / "manifest.json").exists()
     # a complete run is protected as before
-    with pytest.raises(OutputExistsError, match="earlier run; pass --overwrite"):
+    with pytest.raises(OutputExistsError, match="earlier run; pass overwrite=True or"):
         identify(path, out)
 
 
