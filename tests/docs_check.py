@@ -19,7 +19,7 @@ must match exactly; a number may differ by one unit in its last printed digit, b
 another BLAS build can round a last digit the other way.
 
 A **numbers** marker ties the figures of the paragraph, list or table that follows it (up
-to the next blank line) to a source::
+to the next blank line or marker) to a source::
 
     <!-- numbers: python examples/emps/emps_identify.py -->
     On DATA_EMPS, starting at rest, the position relative error is 0.0015 % …
@@ -27,7 +27,8 @@ to the next blank line) to a source::
 Every decimal number there (``0.0015``, ``5.76``, ``1.2e-05``) and every whole number
 followed by ``%`` must appear in the source's output, rounded as the text rounds it (again
 to one unit in the last digit); numbers inside `code` spans and identifiers such as ``b0``
-or ``§3.1`` are not figures.
+or ``§3.1`` are not figures. Numbers markers on consecutive lines share the text below
+them, whose figures may come from any of their sources.
 
 Sources and options
 -------------------
@@ -73,7 +74,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
 
-_MARKER = re.compile(r"^<!-- (output|numbers): (.+?) -->\s*$")
+_MARKER = re.compile(r"^\s*<!-- (output|numbers): (.+?) -->\s*$")
 _END = "<!-- end output -->"
 _ELLIPSIS = "…"
 # a number that is a figure: not part of an identifier (b0, S6, p_I), a section (§3.1) or a
@@ -97,24 +98,28 @@ class Marker:
     body: list[str]  # the governed lines (an output block without its fences)
     span: tuple[int, int]  # 0-based [start, stop) of `body` in the file's lines
     snippet: str | None = None  # the python block above, for source "snippet"
+    also: list[Marker] = field(default_factory=list)  # stacked numbers markers, same text
 
     @property
     def slow(self) -> bool:
-        return "slow" in self.options
+        return "slow" in self.options or any(m.slow for m in self.also)
 
     @property
     def label(self) -> str:
-        return f"{self.path.relative_to(ROOT)}:{self.line} {self.source}"
+        sources = " + ".join([self.source, *(m.source for m in self.also)])
+        return f"{self.path.relative_to(ROOT)}:{self.line} {sources}"
 
 
 def markers(path: Path) -> list[Marker]:
     """Every marker of a Markdown file, with the lines it governs."""
     lines = path.read_text(encoding="utf-8").splitlines()
-    found = []
+    found: list[Marker] = []
     for i, line in enumerate(lines):
         match = _MARKER.match(line)
         if not match:
             continue
+        stacked = (found and found[-1].kind == "numbers" and match.group(1) == "numbers"
+                   and found[-1].line + len(found[-1].also) == i)
         kind, text = match.groups()
         source, *opts = [part.strip() for part in text.split(" ; ")]
         options = {}
@@ -128,16 +133,22 @@ def markers(path: Path) -> list[Marker]:
             start, stop = _output_span(lines, i, path)
         else:
             start = i + 1
-            stop = start
-            while stop < len(lines) and lines[stop].strip():
+            while start < len(lines) and _MARKER.match(lines[start]):
+                start += 1  # stacked markers: the text below all of them
+            stop = start  # up to a blank line or the next marker
+            while stop < len(lines) and lines[stop].strip() and not _MARKER.match(lines[stop]):
                 stop += 1
             if stop == start:
                 raise ValueError(f"{path}:{i + 1}: a numbers marker must be followed by text")
         snippet = _snippet_above(lines, i) if source == "snippet" else None
         if source == "snippet" and snippet is None:
             raise ValueError(f"{path}:{i + 1}: source 'snippet' needs a ```python block above")
-        found.append(Marker(path, i + 1, kind, source, options, lines[start:stop],
-                            (start, stop), snippet))
+        marker = Marker(path, i + 1, kind, source, options, lines[start:stop], (start, stop),
+                        snippet)
+        if stacked:
+            found[-1].also.append(marker)
+        else:
+            found.append(marker)
     return found
 
 
@@ -391,6 +402,11 @@ def check(marker: Marker) -> str | None:
         return None if problem is None else (
             f"{problem}\n(python tests/docs_check.py --update "
             f"{marker.path.relative_to(ROOT)} rewrites the block)")
+    for other in marker.also:
+        more, failure = source_text(other)
+        if failure:
+            return failure
+        text += "\n" + more
     missing = missing_figures(marker, text)
     if missing:
         return (f"not in the output of {marker.source}: {', '.join(missing)} — print them "

@@ -2,7 +2,9 @@
 
 The same steps as ``servoid identify examples/emps/emps.toml`` (which also
 writes the HTML report): inverse-model least squares, the identified axis
-simulated in its known loop, a closed-loop output-error refinement.
+simulated in its known loop, a closed-loop output-error refinement; and the
+two pipelines (``"published"``, the reference's script; ``"servoid"``, its own
+filters) side by side with the published values (``published.json``).
 Data and reference: Janot, Gautier, Brunot, *Data Set and Reference Models
 of EMPS*, 2019.
 
@@ -10,6 +12,7 @@ Run: python examples/emps/emps_identify.py [FOLDER]   (writes a figure and resul
 into FOLDER; without FOLDER, into a new temporary folder)
 """
 
+import json
 import sys
 import tempfile
 from pathlib import Path
@@ -25,21 +28,38 @@ from servoid.estimate import fit_closed_loop_oe, fit_inverse_dynamics
 from servoid.report import write_json
 from servoid.validate import relative_error
 
-PUBLISHED = {"M": 95.1089, "Fv": 203.5034, "Fc": 20.3935, "offset": -3.1648}
+PUBLISHED = json.loads((Path(__file__).parent / "published.json").read_text(encoding="utf-8"))
 
 exp = load_emps()
 controller = CascadeController(exp.notes["kp"], exp.notes["kv"], exp.notes["gtau"], 10.0)
 
 ls = fit_inverse_dynamics(exp, model="symmetric", cutoff=100.0, decimation=10)
 print(ls)
-print(f"relative error {ls.options['relative_error']:.4f} % (published 4.0834 %)")
-for name, value in PUBLISHED.items():
-    print(f"  {name:<7} servoid {ls[name]:9.4f}   published {value:9.4f}")
+
+print("\nIDIM-LS on DATA_EMPS, value ± std; relative error of τ [%]; condition number of Φ")
+for model in ("symmetric", "asymmetric"):
+    published = PUBLISHED[model]
+    for pipeline in ("published", "servoid"):
+        est = fit_inverse_dynamics(exp, model=model, pipeline=pipeline)
+        print(f"  {model:<10} {pipeline:<10} " + ", ".join(
+            f"{n} {v:.4f} ± {s:.4f}" for n, v, s in zip(est.names, est.parameters, est.std,
+                                                          strict=True))
+              + f"; {est.options['relative_error']:.4f} %; {est.options['condition_unscaled']:.2f}")
+    print(f"  {model:<10} {'Janot 2019':<10} " + ", ".join(
+        f"{n} {p['value']:.4f}" + (f" ± {p['std']:.4f}" if p["std"] is not None else "")
+        for n, p in published["parameters"].items())
+          + f"; {published['relative_error']:.4f} %"
+          + (f"; {published['condition']:.2f}" if "condition" in published else ""))
+no_trim = {f: fit_inverse_dynamics(exp, pipeline="servoid", trim=0, decimation_filter=f)
+           for f in ("fir", "iir")}
+print("  servoid pipeline without the trim: relative error "
+      + ", ".join(f"{e.options['relative_error']:.4f} % ({f.upper()})" for f, e in no_trim.items()))
 
 sim = simulate_rigid_loop(ls.model, controller, exp["qg"], exp.dt)
-print(f"closed loop: position {relative_error(exp['qm'], sim.position):.4f} % "
-      f"(published 0.0138 %), force {relative_error(exp['force'], sim.force):.2f} % "
-      "(published 5.85 %)")
+print(f"\nclosed loop from rest: position {relative_error(exp['qm'], sim.position):.4f} % "
+      f"(published {PUBLISHED['closed_loop']['position']} %), force "
+      f"{relative_error(exp['force'], sim.force):.2f} % "
+      f"(published {PUBLISHED['closed_loop']['force']} %)")
 
 oe = fit_closed_loop_oe(exp, controller, ls, output="both")
 print(oe)
