@@ -34,7 +34,8 @@ Sources and options
 -------------------
 ``COMMAND`` is ``python FILE [ARGS]`` (this interpreter, with this checkout's ``src`` first
 on the path), ``servoid ARGS`` (``python -m servoid``) or ``snippet`` (the last ```python
-block above the marker, run as a script). A numbers marker may instead name
+block above the marker, run as a script); ``A && B`` runs B after A succeeded, in the same
+folder, and their outputs follow each other. A numbers marker may instead name
 ``file PATH``: the figures are written in that file — a benchmark's results JSON, or a test
 that asserts them. Options follow the command after `` ; ``:
 
@@ -217,15 +218,24 @@ def _run(source: str, options: dict[str, str], snippet: str | None) -> Run:
         else:
             cwd = scratch_path / "cwd"
             cwd.mkdir()
-        argv = _argv(source, snippet, cwd, absolute="in" not in options)
         env = {**os.environ, "TMPDIR": str(tmp), "MPLBACKEND": "Agg",
                "PYTHONPATH": os.pathsep.join(
                    [str(ROOT / "src"), *filter(None, [os.environ.get("PYTHONPATH")])])}
-        done = subprocess.run(argv, cwd=cwd, capture_output=True, text=True, env=env,
-                              timeout=timeout, check=False)
+        stdout, stderr, code = "", "", 0
+        for part in _commands(source):  # `a && b`: b runs when a succeeded
+            argv = _argv(part, snippet, cwd, absolute="in" not in options)
+            done = subprocess.run(argv, cwd=cwd, capture_output=True, text=True, env=env,
+                                  timeout=timeout, check=False)
+            stdout, stderr, code = stdout + done.stdout, stderr + done.stderr, done.returncode
+            if code:
+                break
         left = [] if "in" in options else sorted(
             p.name for p in cwd.iterdir() if p.name != "_snippet.py")
-        return Run(source, done.returncode, done.stdout, done.stderr, left, any(tmp.iterdir()))
+        return Run(source, code, stdout, stderr, left, any(tmp.iterdir()))
+
+
+def _commands(source: str) -> list[str]:
+    return [part.strip() for part in source.split(" && ")]
 
 
 def _mirror(folder: str, mirror: Path) -> Path:
