@@ -108,7 +108,11 @@ class Marker:
     @property
     def label(self) -> str:
         sources = " + ".join([self.source, *(m.source for m in self.also)])
-        return f"{self.path.relative_to(ROOT)}:{self.line} {sources}"
+        return f"{_shown(self.path)}:{self.line} {sources}"
+
+
+def _shown(path: Path) -> str:
+    return str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
 
 
 def markers(path: Path) -> list[Marker]:
@@ -391,7 +395,7 @@ def source_text(marker: Marker) -> tuple[str, str | None]:
     if marker.source.startswith("file "):
         path = ROOT / marker.source[5:].strip()
         if not path.is_file():
-            return "", f"{path.relative_to(ROOT)} does not exist"
+            return "", f"{_shown(path)} does not exist"
         return path.read_text(encoding="utf-8"), None
     done = run(marker.source, marker.options, marker.snippet)
     if done.returncode != 0:
@@ -410,8 +414,8 @@ def check(marker: Marker) -> str | None:
             return "an output block needs a command, not a file"
         problem = compare(marker.body, text)
         return None if problem is None else (
-            f"{problem}\n(python tests/docs_check.py --update "
-            f"{marker.path.relative_to(ROOT)} rewrites the block)")
+            f"{problem}\n(python tests/docs_check.py --update {_shown(marker.path)} rewrites "
+            "the block)")
     for other in marker.also:
         more, failure = source_text(other)
         if failure:

@@ -100,3 +100,16 @@ def test_numbers_markers_find_figures_outside_code_and_identifiers(tmp_path):
     assert docs_check.figures(marker.body) == ["95.6", "−3.1648", "91", "1.2e-05"]
     assert docs_check.missing_figures(marker, '{"a": 95.63, "b": -3.16481, "c": 0.9}') == \
         ["91", "1.2e-05"]
+
+
+def test_update_rewrites_a_stale_output_block_and_keeps_the_prompt(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text('text\n<!-- output: python -c "print(\'fit 88.4 %\')" -->\n```\n'
+                    '$ python example.py\nfit 80.8 %\n```\nafter\n', encoding="utf-8")
+    (marker,) = docs_check.markers(page)
+    assert "80.8" in docs_check.check(marker)
+    assert len(docs_check.update(page, slow=False)) == 1
+    assert page.read_text(encoding="utf-8") == (
+        'text\n<!-- output: python -c "print(\'fit 88.4 %\')" -->\n```\n'
+        '$ python example.py\nfit 88.4 %\n```\nafter\n')
+    assert docs_check.check(docs_check.markers(page)[0]) is None
