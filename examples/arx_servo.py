@@ -1,7 +1,12 @@
 """ARX of a position servo: design a PRBS, rehearse, choose orders, validate.
 
-Run: python examples/arx_servo.py   (writes arx_servo_validation.png)
+Run: python examples/arx_servo.py [FOLDER]   (writes FOLDER/arx_servo_validation.png;
+without FOLDER, into a new temporary folder)
 """
+
+import sys
+import tempfile
+from pathlib import Path
 
 import numpy as np
 from scipy.signal import lfilter
@@ -34,4 +39,7 @@ print(f"PRBS clock {clock} samples; MDL picks na={best.na}, nb={best.nb}, nk={be
 print(selection.estimate)
 report = validate(selection.estimate.model, validation)
 print(report)
-plot_validation(report, "arx_servo_validation.png", unit="m", overwrite=True)
+out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp(prefix="servoid-arx-"))
+out.mkdir(parents=True, exist_ok=True)
+plot_validation(report, out / "arx_servo_validation.png", unit="m", overwrite=True)
+print(f"figure: {out / 'arx_servo_validation.png'}")

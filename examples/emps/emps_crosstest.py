@@ -57,3 +57,13 @@ for model in ("symmetric", "asymmetric"):
     print("   " + " | ".join(
         f"{k} {np.mean([a[k] - b[k] for a, b in zip(*table.values(), strict=True)]):+.2g}"
         for k in keys))
+
+pulses = RECORDS["DATA_EMPS_PULSES"]
+est = fit_inverse_dynamics(RECORDS["DATA_EMPS"], model="symmetric", pipeline="published")
+print("\npublished symmetric estimate on DATA_EMPS_PULSES, simulated from rest [%]:")
+for label, disturbance in (("with the pulses as disturbance", pulses["pulse_force"]),
+                           ("without them", None)):
+    sim = simulate_rigid_loop(est.model, controller, pulses["qg"], pulses.dt,
+                              disturbance=disturbance)
+    print(f"  {label:<31} position {relative_error(pulses['qm'], sim.position):.4f}, "
+          f"force {relative_error(pulses['force'], sim.force):.2f}")

@@ -6,7 +6,10 @@ step, the pump saturation as a clip of the voltage; the level sensor adds
 white noise (σ = 1 mm).  Two records (estimation and validation) with
 different random steps of the pump voltage.
 
-    python make_data.py            # writes tanks.csv, tanks_validation.csv
+    python make_data.py [FOLDER]   # writes tanks.csv, tanks_validation.csv
+
+Without FOLDER the files go beside this script, where ``tanks.toml`` reads them (the
+records shipped there are this script's output).
 """
 
 import csv
@@ -81,8 +84,9 @@ def write(path, t, u, y):
             w.writerow([f"{row[0]:.1f}", f"{row[1]:.4f}", f"{row[2]:.6f}"])
 
 
-def main(folder="."):
+def main(folder=Path(__file__).resolve().parent):
     folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
     for name, seed, h0 in (("tanks.csv", 1, (0.10, 0.05)),
                            ("tanks_validation.csv", 2, (0.05, 0.12))):
         t, u, y, _ = record(1500, seed, h0)

@@ -1,15 +1,20 @@
-"""Write the two records of the NARX example (run from this folder).
+"""Write the two records of the NARX example and their truth: python make_data.py [FOLDER].
 
 A valve-driven axis with a flow law that depends on the load: a plain
 difference equation with a bilinear and a quadratic term, white equation
 error, two independent random-level tests at 100 Hz. The truth is in
 ``truth.json``; ``servoid identify narx.toml`` should find these six
 terms among the 15 candidates.
+
+Without FOLDER the files go beside this script, where ``narx.toml`` reads them (the
+records shipped there are this script's output).
 """
 
 from __future__ import annotations
 
 import json
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -32,9 +37,14 @@ def record(n: int, seed: int) -> Experiment:
     return Experiment.from_arrays(DT, u=u, y=y)
 
 
+def main(folder: Path) -> None:
+    """Write the two records and the truth into ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    write_csv(record(3000, 1), folder / "narx_run1.csv", overwrite=True)
+    write_csv(record(3000, 2), folder / "narx_run2.csv", overwrite=True)
+    (folder / "truth.json").write_text(json.dumps(TRUTH, indent=1), encoding="utf-8")
+    print(f"wrote narx_run1.csv, narx_run2.csv, truth.json in {folder}")
+
+
 if __name__ == "__main__":
-    write_csv(record(3000, 1), "narx_run1.csv", overwrite=True)
-    write_csv(record(3000, 2), "narx_run2.csv", overwrite=True)
-    with open("truth.json", "w", encoding="utf-8") as fh:
-        json.dump(TRUTH, fh, indent=1)
-    print("wrote narx_run1.csv, narx_run2.csv, truth.json")
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parent)

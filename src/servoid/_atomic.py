@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ._errors import MissingFileError, OutputExistsError
 from ._lock import temporary_token
+from ._words import option
 
 __all__ = ["atomic_path", "check_writable"]
 
@@ -32,8 +33,8 @@ def check_writable(path: str | os.PathLike[str], overwrite: bool = False) -> Pat
                                 "or elsewhere)")
     if path.exists() and not overwrite:
         raise OutputExistsError(
-            f"{path} already exists; choose another name or pass overwrite=True "
-            "(--overwrite on the command line)"
+            f"{path} already exists; choose another name or pass "
+            f"{option('overwrite=True', '--overwrite')}"
         )
     return path
 

@@ -8,6 +8,7 @@ import json
 import pytest
 
 from servoid import DataError, OptionError, OutputExistsError
+from servoid._words import command_line_words
 from servoid.cli._bench import add_bench
 from servoid.data import load_experiment_spec
 
@@ -22,7 +23,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def _call(*argv: str) -> tuple[dict, str]:
     args = _parser().parse_args(["bench", "ehsa", *argv])
-    return args.run(args)
+    with command_line_words():  # as servoid.cli.main runs a command
+        return args.run(args)
 
 
 def test_writes_files_and_reports(tmp_path):

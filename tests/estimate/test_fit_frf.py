@@ -18,7 +18,7 @@ from scipy import signal as sps
 
 from servoid import DataError, IdentifiabilityError, ModelError, OptionError, ServoidWarning
 from servoid.bench import simulate_lti
-from servoid.estimate import estimate_frf, fit_frf
+from servoid.estimate import estimate_frf, fit_frf, fit_tf
 from servoid.models import FrequencyResponseData, TransferFunction
 from servoid.signals import multisine
 
@@ -54,12 +54,33 @@ def test_exact_response_is_recovered(g, n_zeros):
     est = fit_frf(frd, g.order, n_zeros)
     assert est.method == "frf" and est.options["weighting"] == "none"
     assert est.names == tuple([f"b{i}" for i in range(n_zeros, -1, -1)]
-                              + [f"a{i}" for i in range(g.order - 1, -1, -1)])
+                              + [f"a{k}" for k in range(1, g.order + 1)])
     # noise-free data from a model inside the structure: rounding only (ε·cond of the scaled
     # problem ~1e4)
     np.testing.assert_allclose(est.parameters, _theta(g), rtol=1e-9)
     np.testing.assert_allclose(np.sort_complex(est.model.poles()), np.sort_complex(g.poles()),
                                rtol=1e-9)
+
+
+def test_coefficients_are_named_as_fit_tf_names_them():
+    # the same G(s) fitted from its response and from a noise-free record (fit_tf's ZOH
+    # route is exact): the same names, units and values for the same coefficients
+    frd = FrequencyResponseData(F_LINES, PLANT3.freqresp(2 * np.pi * F_LINES))
+    by_frf = fit_frf(frd, 3, 1)
+    dt = 1e-5
+    u = np.repeat(np.sign(np.random.default_rng(3).standard_normal(600)), 10)
+    by_tf = fit_tf(simulate_lti(PLANT3, u, dt), 3, 1, intersample="zoh")
+    assert by_frf.names == by_tf.names == ("b1", "b0", "a1", "a2", "a3")
+    # both noise-free, inside the structure: the ε·cond of each scaled problem (~1e4 · 1e-16)
+    np.testing.assert_allclose(by_frf.parameters, by_tf.parameters, rtol=1e-6)
+    assert by_frf["a3"] == pytest.approx(PLANT3.den[-1] / PLANT3.den[0], rel=1e-9)
+
+
+def test_the_former_name_of_the_constant_term_reads_for_one_release():
+    frd = FrequencyResponseData(F_LINES, SERVO.freqresp(2 * np.pi * F_LINES))
+    est = fit_frf(frd, 2, 0)
+    with pytest.warns(DeprecationWarning, match="'a0' is now 'a2'"):
+        assert est["a0"] == est["a2"]
 
 
 def test_default_zeros_follow_tfest():

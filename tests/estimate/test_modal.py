@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from servoid import ModelError
+from servoid import Experiment, ModelError
 from servoid.bench import simulate_lti
-from servoid.estimate import Estimate, fit_tf, modal_parameters
+from servoid.estimate import Estimate, fit_oe, fit_tf, modal_parameters
 from servoid.models import StateSpace, TransferFunction, c2d
 
 DT = 1e-3
@@ -130,3 +130,29 @@ def test_bad_input():
         modal_parameters(dataclasses.replace(est, model="G"))
     with pytest.raises(ValueError, match="level"):
         modal_parameters(est, level=1.5)
+
+
+def test_printed_as_a_table_with_the_gain_unit_of_the_data():
+    # the units come from the record: fit_tf carries them to b0 (mm/V/s^3 here)
+    exp = simulate_lti(THIRD, binary(0), DT)
+    exp = Experiment.from_arrays(DT, u=exp["u"], y=exp["y"], units={"u": "V", "y": "mm"})
+    modal = modal_parameters(fit_tf(exp, 3, 1))
+    assert modal["dc_gain"].unit == "mm/V" and modal["T1"].unit == "s"
+    text = str(modal)
+    assert "ParameterRow" not in text and "ParameterRow" not in repr(modal)
+    assert text.splitlines()[1].split()[0] == "dc_gain" and text.splitlines()[1].endswith("mm/V")
+    assert modal.names == ("dc_gain", "T1", "wn1", "zeta1") and len(modal) == 4
+    assert modal[-1] is modal["zeta1"] and list(modal)[0] is modal["dc_gain"]
+    assert modal._repr_html_().startswith("<div")
+    with pytest.raises(KeyError, match="no quantity 'wn2'; there are dc_gain, T1, wn1, zeta1"):
+        modal["wn2"]
+
+
+def test_given_units_override_and_a_discrete_fit_has_none_of_its_own():
+    exp = simulate_lti(SERVO, binary(1), DT, noise_std=0.05, rng=1)
+    exp = Experiment.from_arrays(DT, u=exp["u"], y=exp["y"], units={"u": "V", "y": "mm"})
+    est = fit_tf(exp, 2, 0)
+    assert modal_parameters(est, output_unit="m", input_unit="A")["dc_gain"].unit == "m/A"
+    oe = fit_oe(exp, 2, 2, 1)  # discrete coefficients carry no units to read the gain's from
+    assert modal_parameters(oe)["dc_gain"].unit == ""
+    assert modal_parameters(oe, output_unit="mm", input_unit="V")["dc_gain"].unit == "mm/V"

@@ -516,7 +516,7 @@ BENCH_CASES = [
     case("bench-out-is-file", "bench ehsa --out {in}/data.csv -n 7 --clock 4",
          "give --out a folder"),
     case("bench-out-exists", "bench ehsa --out {in} -n 7 --clock 4 --format csv",
-         "--overwrite on the command line", base="ehsa"),
+         "choose another name or pass --overwrite", base="ehsa"),
     case("bench-out-exists-tdms", "bench ehsa --out {in} -n 7 --clock 4 --format tdms",
          "--overwrite", base="ehsa"),
     case("pneumatic-test-unknown", "bench pneumatic --out {out} --tests valve leak",

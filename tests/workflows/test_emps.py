@@ -116,12 +116,13 @@ def test_loop_table_falls_back_on_file_scalars():
 
 
 def test_example_script_runs(tmp_path):
-    done = subprocess.run([sys.executable, str(EXAMPLE / "emps_identify.py")], check=False,
-                          cwd=tmp_path,
+    done = subprocess.run([sys.executable, str(EXAMPLE / "emps_identify.py"),
+                           str(tmp_path / "out")], check=False, cwd=tmp_path,
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
-    assert "published 4.0834" in done.stdout
-    assert (tmp_path / "emps-api" / "results.json").is_file()
+    assert "symmetric  published  M 95.1089 ± 0.1085" in done.stdout
+    assert "; 4.0834 %; 25.99" in done.stdout
+    assert (tmp_path / "out" / "results.json").is_file()
 
 
 @pytest.mark.slow

@@ -96,7 +96,7 @@ def test_an_interrupted_run_is_replaced_and_only_its_temporary_files_swept(rig):
     assert (out / ".notes.0123456789ab.tmp").read_text() == "the user's"
     assert (out / "manifest.json").exists() and not (out / ".servoid.lock").exists()
     # a complete run is protected as before
-    with pytest.raises(OutputExistsError, match="earlier run; pass --overwrite"):
+    with pytest.raises(OutputExistsError, match="earlier run; pass overwrite=True or"):
         identify(path, out)
 
 

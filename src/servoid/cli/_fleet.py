@@ -19,7 +19,7 @@ def add_fleet(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
         "fleet", help="identify every record of a production batch or a life test",
         description="Identify every record a fleet file names (a manifest CSV/Parquet or a "
         "glob of experiment files) with one registered method, check acceptance limits (a "
-        "unit passes only when its 95 %% interval lies inside), find trends, drift and "
+        "unit passes only when its 95 % interval lies inside), find trends, drift and "
         "outliers, and write fleet.csv, fleet.parquet, fleet.json and report.html. Records "
         "run as Dask tasks on a local cluster (one worker per core) unless --workers 1; "
         "finished records are stored and skipped when the command is run again with the "
@@ -69,7 +69,7 @@ def add_bench_fleet(rigs: Any, json_flag: Callable[[argparse.ArgumentParser], No
     fleet = rigs.add_parser(
         "fleet", help="a virtual fleet of EHSA units (the fleet demo)",
         description="Write bench records of many EHSA units around Set B with stated "
-        "manufacturing scatter (valve 1.5 %%, bulk modulus 2 %%, volume 1 %%, leakage 8 %%, "
+        "manufacturing scatter (valve 1.5 %, bulk modulus 2 %, volume 1 %, leakage 8 %, "
         "1 sigma truncated at 2.5 sigma), every --bad-every-th unit outside tolerance, an "
         "optional ageing drift of the leakage and --corrupt damaged files; plus units.csv, "
         "truth.csv and fleet.toml with acceptance limits. Then: servoid fleet OUT/fleet.toml.",

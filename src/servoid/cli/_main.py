@@ -18,6 +18,7 @@ from typing import Any, NoReturn
 
 from .. import __version__
 from .._errors import ServoidError, ServoidWarning
+from .._words import command_line_words
 from ._flags import out_path
 
 __all__ = ["main"]
@@ -47,7 +48,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if shown and args.run.__name__ not in _LIGHT:  # these compute: say when numba compiles
         watch_compiles()
     try:
-        with warnings.catch_warnings(record=True) as caught:
+        with warnings.catch_warnings(record=True) as caught, command_line_words():
             warnings.simplefilter("always", ServoidWarning)
             payload, text = args.run(args)
     except KeyboardInterrupt:

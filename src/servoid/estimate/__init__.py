@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     )
     from ._iv import fit_iv
     from ._ls import LeastSquaresResult, lstsq, solve_gram
-    from ._modal import modal_parameters
+    from ._modal import ModalParameters, modal_parameters
     from ._order import OrderCandidate, OrderSelection, select_arx_order
     from ._pem import fit_armax, fit_bj, fit_oe, fit_pem
     from ._rls import RecursiveLeastSquaresResult, fit_rls
@@ -62,6 +62,7 @@ _WHERE = {
     "InnovationModel": "_innovation",
     "InverseDynamicsRegression": "_inverse",
     "LeastSquaresResult": "_ls",
+    "ModalParameters": "_modal",
     "MultistartSummary": "_diagnostics",
     "OrderCandidate": "_order",
     "OrderSelection": "_order",
@@ -113,6 +114,7 @@ __all__ = [
     "InnovationModel",
     "InverseDynamicsRegression",
     "LeastSquaresResult",
+    "ModalParameters",
     "MultistartSummary",
     "OrderCandidate",
     "OrderSelection",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -234,6 +235,11 @@ class Estimate:
         try:
             return float(self.parameters[self.names.index(name)])
         except ValueError:
+            renamed = self.options.get("former_names", {}).get(name)
+            if renamed in self.names:  # a name an older servoid gave, read for one release
+                warnings.warn(f"{self.method} parameter {name!r} is now {renamed!r}; read it "
+                              f"as {renamed!r}", DeprecationWarning, stacklevel=2)
+                return float(self.parameters[self.names.index(renamed)])
             raise ChannelError(f"no parameter {name!r}; parameters are "
                                f"{', '.join(self.names)}") from None
 

@@ -1,8 +1,9 @@
 """Continuous transfer function fitted to a measured frequency response.
 
 The model is ``G(s, θ) = B(s)/A(s)·e^{−sτ}`` with ``B(s) = b_m·s^m + … +
-b_0`` and a monic ``A(s) = s^n + a_{n−1}·s^{n−1} + … + a_0``; the delay τ
-is known, not estimated.  The fit minimises the maximum-likelihood
+b_0`` and a monic ``A(s) = s^n + a_1·s^{n−1} + … + a_n`` (the names
+:func:`~servoid.estimate.fit_tf` gives: ``b_i`` multiplies s^i, ``a_k``
+multiplies s^{n−k}); the delay τ is known, not estimated.  The fit minimises the maximum-likelihood
 criterion of a frequency response with independent, circular complex
 errors of variance σ²_k on its lines
 
@@ -19,7 +20,8 @@ Approach*, 2nd ed., ch. 9), in three steps:
    is reflected: a response measured in closed loop may belong to an
    unstable plant, and a reflected start lands in a wrong minimum.
 3. Levenberg–Marquardt on V with the analytic Jacobian
-   ``∂G/∂b_i = (jω)^i/A``, ``∂G/∂a_i = −G·(jω)^i/A``.
+   ``∂G/∂b_i = (jω)^i/A``, and ``−G·(jω)^i/A`` for the coefficient of s^i
+   in A.
 
 Frequencies are divided by ω_s, the geometric mean of the lowest and
 highest non-zero line, and the response by its median magnitude, so the
@@ -120,8 +122,11 @@ def fit_frf(
     -------
     Estimate
         ``model``: the continuous :class:`~servoid.models.TransferFunction`.
-        ``parameters``: ``b_m … b_0, a_{n−1} … a_0`` (descending powers of
-        s, as ``num`` and ``den``), with their covariance.
+        ``parameters``: ``b_m … b_0, a_1 … a_n`` (descending powers of
+        s, as ``num`` and ``den``; the names of :func:`fit_tf`), with
+        their covariance.  Before version 0.2 the denominator was named
+        by power, ``a_{n−1} … a_0``: ``est["a0"]`` still reads ``a_n``,
+        with a ``DeprecationWarning`` (``options["former_names"]``).
         ``noise_variance``: the normalised cost ``V/(F − n_θ/2)`` over F
         lines (about 1 when the model explains the response within its
         variance; see the module notes).  ``n_samples``: 2F real
@@ -223,7 +228,8 @@ def fit_frf(
     resid = problem.residuals(theta_s)
     cost = 0.5 * float(resid @ resid)  # V = Σ|G − Ĝ|²/σ²: residuals carry a factor √2
     dof = n_lines - n_theta / 2.0
-    names = tuple([f"b{i}" for i in range(m, -1, -1)] + [f"a{i}" for i in range(n - 1, -1, -1)])
+    # fit_tf's names: a_k multiplies s^(n−k) (until 0.2 they were by power, a_(n−1) … a_0)
+    names = tuple([f"b{i}" for i in range(m, -1, -1)] + [f"a{k}" for k in range(1, n + 1)])
     cov_s = _inverse_normal(jac, names)
     n_avg = frd.n_averages
     estimated = chosen == "variance" and frd.method in _ESTIMATED_VARIANCE
@@ -289,6 +295,7 @@ def fit_frf(
             "covariance_factor": factor,
             "message": str(res.message),
             "solver_status": int(res.status),
+            "former_names": {"a0": f"a{n}"},  # readable until 0.2; est["a0"] warns
         },
         units=units,
         residual_function=residual_function,

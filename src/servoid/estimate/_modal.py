@@ -22,13 +22,19 @@ its sum and product, which stay smooth when a lightly damped pair turns
 real or the other way round.  The intervals are Student-t intervals with
 the estimate's degrees of freedom, as in
 :meth:`~servoid.estimate.Estimate.confidence_intervals`.
+
+The result is a :class:`ModalParameters`: a sequence of
+:class:`~servoid.estimate.ParameterRow` that prints as a table and looks rows
+up by name (``modal["wn1"]``).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
+import re
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,18 +45,90 @@ from .._lazy import optimize, stats
 from ..models import PolynomialModel, StateSpace, TransferFunction
 from ._estimate import Estimate, ParameterRow
 
-__all__ = ["modal_parameters"]
+__all__ = ["ModalParameters", "modal_parameters"]
 
 _IMAG_TOL = 1e-9  # |Im s| <= this·|s|: a real pole
+# the unit of a continuous numerator coefficient over a monic denominator: gain/s^k
+_PER_S = re.compile(r"/s(\^\d+)?$")
+
+
+@dataclass(frozen=True)
+class ModalParameters(Sequence[ParameterRow]):
+    """Gain, time constants, ω_n and ζ of a model, with uncertainty.
+
+    A sequence of :class:`~servoid.estimate.ParameterRow` (``dc_gain``,
+    ``T1 …`` [s], ``wn1``, ``zeta1 …``); indexing by a row's name returns
+    that row.  ``print`` shows them as a table.
+
+    Attributes
+    ----------
+    rows : tuple of ParameterRow
+        The quantities, in the order :func:`modal_parameters` documents.
+    level : float
+        Confidence level of the intervals ``ci_low``, ``ci_high``.
+    """
+
+    rows: tuple[ParameterRow, ...]
+    level: float = 0.95
+
+    @overload
+    def __getitem__(self, key: int | str) -> ParameterRow: ...
+
+    @overload
+    def __getitem__(self, key: slice) -> Sequence[ParameterRow]: ...
+
+    def __getitem__(self, key: int | slice | str) -> ParameterRow | Sequence[ParameterRow]:
+        if isinstance(key, str):
+            for row in self.rows:
+                if row.name == key:
+                    return row
+            raise KeyError(f"no quantity {key!r}; there are {', '.join(self.names)}")
+        return self.rows[key]
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __iter__(self) -> Iterator[ParameterRow]:
+        return iter(self.rows)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The quantities' names, in order."""
+        return tuple(row.name for row in self.rows)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for JSON: the level and one mapping per row."""
+        return {"confidence_level": self.level, "rows": [dict(row.__dict__) for row in self.rows]}
+
+    def __str__(self) -> str:
+        lines = [f"modal parameters (± std, {100 * self.level:g} % intervals)"]
+        width = max((len(r.name) for r in self.rows), default=0)
+        for row in self.rows:
+            lines.append(f"  {row.name:<{width}}  {row.value: .6g} ± {row.std:.2g}"
+                         f"  [{row.ci_low:.6g}, {row.ci_high:.6g}] {row.unit}".rstrip())
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        shown = ", ".join(f"{r.name} = {r.value:.4g}" for r in self.rows)
+        return f"<ModalParameters: {shown}>"
+
+    def _repr_html_(self) -> str:
+        from .._display import html_block, number
+
+        rows = [(r.name, number(r.value), number(r.std, 3),
+                 f"[{number(r.ci_low)}, {number(r.ci_high)}]", r.unit) for r in self.rows]
+        return html_block("modal parameters", [],
+                          ("quantity", "value", "std", f"{100 * self.level:g} % CI", "unit"),
+                          rows)
 
 
 def modal_parameters(
     estimate: Estimate,
     level: float = 0.95,
     *,
-    output_unit: str = "",
-    input_unit: str = "",
-) -> list[ParameterRow]:
+    output_unit: str | None = None,
+    input_unit: str | None = None,
+) -> ModalParameters:
     """Static gain, time constants, ω_n and ζ of an estimate's model.
 
     Parameters
@@ -63,13 +141,16 @@ def modal_parameters(
         ``model_function``.
     level : float
         Confidence level of the intervals, in (0, 1).
-    output_unit, input_unit : str
+    output_unit, input_unit : str, optional
         Units of the output and input; the gain's unit is their ratio.
+        Without them the gain takes the unit the estimate's coefficients
+        carry (a continuous fit's ``b0`` is in gain/s^n), and none when
+        they carry none (a discrete fit).
 
     Returns
     -------
-    list of ParameterRow
-        ``"dc_gain"``; ``"T1", "T2", …`` [s] for the real poles, slowest
+    ModalParameters
+        A sequence of rows: ``"dc_gain"``; ``"T1", "T2", …`` [s] for the real poles, slowest
         first (negative for an unstable pole, inf for an integrator); and
         ``"wn1", "zeta1", …`` [rad/s] for the complex pairs, by increasing
         ω_n.  A quantity that is not finite (the gain of an integrator)
@@ -93,15 +174,20 @@ def modal_parameters(
     >>> est = Estimate(model([100.0, 4.0, 100.0]), np.array([100.0, 4.0, 100.0]),
     ...                ("b0", "a1", "a2"), np.diag([1.0, 0.01, 1.0]), 1.0, 1000, "demo",
     ...                model_function=model)
-    >>> [(r.name, round(r.value, 3)) for r in modal_parameters(est)]
+    >>> modal = modal_parameters(est)
+    >>> [(r.name, round(r.value, 3)) for r in modal]
     [('dc_gain', 1.0), ('wn1', 10.0), ('zeta1', 0.2)]
+    >>> round(modal["zeta1"].std, 4)
+    0.0051
     """
     as_instance("estimate", estimate, Estimate, "an Estimate (from a fit_* function)")
     level = as_float("level", level)
     if not 0.0 < level < 1.0:
         raise DataError(f"level must lie in (0, 1), e.g. 0.95, got {level}")
-    as_str("output_unit", output_unit, empty=True)
-    as_str("input_unit", input_unit, empty=True)
+    if output_unit is not None:
+        as_str("output_unit", output_unit, empty=True)
+    if input_unit is not None:
+        as_str("input_unit", input_unit, empty=True)
     theta = np.asarray(estimate.parameters, dtype=float)
     nominal = _poles_and_gain(estimate.model)
     groups = _groups(nominal[0])
@@ -116,7 +202,12 @@ def modal_parameters(
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     std[~np.isfinite(values)] = np.nan
     half = stats.t.ppf(0.5 + level / 2, estimate.dof) * std
-    gain_unit = f"{output_unit or '1'}/{input_unit or '1'}" if (output_unit or input_unit) else ""
+    if output_unit is None and input_unit is None:
+        gain_unit = _gain_unit(estimate)
+    else:
+        output_unit, input_unit = output_unit or "", input_unit or ""
+        gain_unit = (f"{output_unit or '1'}/{input_unit or '1'}" if (output_unit or input_unit)
+                     else "")
     names, units = ["dc_gain"], [gain_unit]
     n_real = sum(1 for g in groups if g[0] == "real")
     names += [f"T{i}" for i in range(1, n_real + 1)]
@@ -124,10 +215,23 @@ def modal_parameters(
     for i in range(1, len(groups) - n_real + 1):
         names += [f"wn{i}", f"zeta{i}"]
         units += ["rad/s", ""]
-    return [
+    return ModalParameters(tuple(
         ParameterRow(name, float(v), float(s), float(v - h), float(v + h), unit)
         for name, v, s, h, unit in zip(names, values, std, half, units, strict=True)
-    ]
+    ), level)
+
+
+def _gain_unit(estimate: Estimate) -> str:
+    """The static gain's unit from the estimate's own: ``b0`` over a monic denominator.
+
+    A continuous fit (``fit_tf``, ``fit_frf``) gives b0 in gain/s^n (a_n is in 1/s^n, and
+    the gain is b0/a_n); a discrete one carries no units, and neither does its gain.
+    """
+    if "b0" not in estimate.names:
+        return ""
+    unit = estimate.units[estimate.names.index("b0")]
+    gain = _PER_S.sub("", unit)
+    return "" if gain in ("1", "") else gain
 
 
 def _transfer(model: object) -> TransferFunction:

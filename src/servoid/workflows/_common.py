@@ -21,6 +21,7 @@ from .._errors import (
     ServoidWarning,
     SimulationDivergedError,
 )
+from .._words import option
 from ..estimate import Estimate
 from ..report import Figure, Section, Table
 from ..validate import ValidationReport
@@ -197,7 +198,8 @@ def check_outputs(targets: Sequence[Path], inputs: Sequence[Path], overwrite: bo
             raise OutputExistsError(f"refusing to write {path}: it is an input of this run")
         if path.exists() and not overwrite:
             raise OutputExistsError(
-                f"{path} exists from an earlier run; pass --overwrite (overwrite=True) or "
+                f"{path} exists from an earlier run; pass "
+                f"{option('overwrite=True', '--overwrite')} or "
                 "choose another folder"
             )
 

@@ -22,6 +22,7 @@ from typing import Any
 from .._checks import as_int
 from .._errors import OutputExistsError
 from .._lock import hold_folder
+from .._words import option
 from ..bench import BenchRun, EhsaBench, run, write_bench_files
 from ..signals import prbs
 from ._closedloop import ClosedLoopIdentification
@@ -98,7 +99,8 @@ def run_demo(
     if out.is_dir() and any(out.iterdir()) and not (out / _MARKER).exists() and not overwrite:
         raise OutputExistsError(
             f"{out} is not empty and holds no earlier demo: the demo would replace files "
-            "there. Choose another --out or pass --overwrite"
+            f"there. Choose another {option('out', '--out')} or pass "
+            f"{option('overwrite=True', '--overwrite')}"
         )
     seed = as_int("seed", seed, minimum=0)
     bench = EhsaBench(snr_db=snr_db)  # what can be refused is refused before the folder exists

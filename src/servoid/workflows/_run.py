@@ -27,6 +27,7 @@ from .. import __version__
 from .._checks import as_bool, as_mapping, as_path, read_json, type_error
 from .._errors import (
     FileFormatError,
+    MissingFileError,
     OptionError,
     OutputExistsError,
     ServoidWarning,
@@ -153,6 +154,12 @@ def _identify(spec: ExperimentSpec | str | os.PathLike[str], out: Path | None, *
             options["code_sha256"] = dict(code_sha256)
     _check_tables(spec, method)
     report = report_options(spec.report)
+    for key, names, paths in (("[data] file", spec.files, spec.data_paths),
+                              ("[validation] file", spec.validation.files, spec.validation_paths)):
+        for name, path in zip(names, paths, strict=True):  # the records before the truth file
+            if not path.exists():
+                raise MissingFileError(f"{key} {name!r} is {path}: no such file (paths in an "
+                                       "experiment file are relative to its folder)")
     if truth is None and "truth" in report and spec.source is not None:
         # read at the end of a run; a missing or malformed file should not cost the run first
         path = spec.source.parent / report["truth"]
