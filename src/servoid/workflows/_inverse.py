@@ -57,10 +57,12 @@ from ..estimate import (
 )
 from ..estimate._inverse import INVERSE_PIPELINES
 from ..report import (
+    Conditions,
     Figure,
     Page,
     Section,
     Table,
+    Verdict,
     plot_force_fit,
     plot_friction,
     plot_linear,
@@ -71,6 +73,7 @@ from ._common import parameter_table, report_options, sha256
 from ._options import boolean, choice, choices, integer, number, optional, text
 from ._registry import FigureWriter, Method, Option
 from ._summary import Displayed
+from ._verdict import loop_verdict, record_conditions
 
 __all__ = ["METHOD", "InverseDynamicsIdentification", "controller_from_table"]
 
@@ -119,6 +122,8 @@ class InverseDynamicsIdentification(Displayed):
         The ``[identify]`` options used.
     records : tuple of Experiment
         The validation records (for the figures).
+    conditions : tuple of Conditions
+        Rate, length, excitation and band of each record.
     """
 
     spec: ExperimentSpec
@@ -136,6 +141,11 @@ class InverseDynamicsIdentification(Displayed):
     data: Experiment | None = None
     options: Mapping[str, Any] = field(default_factory=dict)
     records: tuple[Experiment, ...] = ()
+    conditions: tuple[Conditions, ...] = ()
+
+    def verdict(self) -> Verdict:
+        """Closed-loop simulation of data the fit did not use, estimate by estimate."""
+        return loop_verdict(self)
 
     @property
     def estimate(self) -> Estimate:
@@ -162,6 +172,7 @@ class InverseDynamicsIdentification(Displayed):
             if self.validation else None,
             "published": dict(self.published) if self.published else None,
             "notes": list(self.notes),
+            "verdict": self.verdict().to_dict(),
         }
         for key, est in self.estimates.items():
             entry = est.to_dict()
@@ -240,6 +251,7 @@ class InverseDynamicsIdentification(Displayed):
                 lines.append(f"    {key:<26} inverse {errs['inverse']:.4f} %; position "
                              f"{errs['position']:.4g} %, force {errs['force']:.4f} %")
         lines += [f"  note: {n}" for n in self.notes]
+        lines += ["  " + line for line in self.verdict().lines()[:1]]
         if self.folder:
             lines.append(f"  report: {self.folder / 'report.html'}")
         return "\n".join(lines)
@@ -338,7 +350,22 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     return InverseDynamicsIdentification(spec, controller, estimates, loop_errors, linear,
                                          holdout, validation, loop, published,
                                          notes=tuple(notes), data=data, options=options,
-                                         records=records)
+                                         records=records,
+                                         conditions=_conditions(spec, data, records, holdout))
+
+
+def _conditions(spec: ExperimentSpec, data: Experiment, records: tuple[Experiment, ...],
+                holdout: Any) -> tuple[Conditions, ...]:
+    """The records' conditions: the record fitted and what was held back."""
+    name = spec.data_path.name
+    if holdout:  # the reported estimates use the whole record; the check refits the first part
+        held = spec.split_data(data)[1]
+        return (record_conditions(data, f"estimation: {name}"),
+                record_conditions(held, f"validation: {name}, held-back part (checked on a "
+                                  "fit of the first part)"))
+    return (record_conditions(data, f"estimation: {name}"),
+            *(record_conditions(r, f"validation: {p.name}")
+              for p, r in zip(spec.validation_paths, records, strict=False)))
 
 
 # -- steps ------------------------------------------------------------------------------------
