@@ -273,7 +273,11 @@ def fit_titles(fig: Figure) -> bool:
 
 
 def save_figure(fig: Figure, path: str | os.PathLike[str], overwrite: bool = False) -> None:
-    """Save a figure atomically in the format of its extension (titles fitted first)."""
+    """Save a figure atomically in the format of its extension.
+
+    Titles that would be cut at the figure's edge are wrapped first
+    (:func:`fit_titles`).
+    """
     fit_titles(fig)
     suffix = os.path.splitext(os.fspath(path))[1].lstrip(".") or "png"
     with atomic_path(path, overwrite) as tmp:

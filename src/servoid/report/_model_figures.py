@@ -194,8 +194,8 @@ def draw_roots(ax: Any, roots: Any, frame: float, marker: str, color: str, label
         text = ", ".join(f"{m:.3g}" for m in sorted(set(np.round(sizes, 12))))
         stacked = taken.get((x, y), 0)  # another model's roots on the same spot: one line down
         taken[(x, y)] = stacked + 1
-        ax.annotate(text, xy=(x, y), xytext=(-14 * np.cos(angle), -14 * np.sin(angle) - 9 * stacked),
-                    textcoords="offset points", color=color, fontsize=7,
+        inward = (-14 * np.cos(angle), -14 * np.sin(angle) - 9 * stacked)  # [points]
+        ax.annotate(text, xy=(x, y), xytext=inward, textcoords="offset points", color=color, fontsize=7,
                     ha="right" if np.cos(angle) > 0.5 else "left" if np.cos(angle) < -0.5
                     else "center", va="center")
     return int(far.sum())

@@ -23,7 +23,7 @@ from ._lti import IdentificationResult, lti_result
 from ._options import choice, integer, number, optional, text
 from ._registry import FigureWriter, Method, Option
 from ._summary import Displayed
-from ._verdict import count_check, spec_conditions
+from ._verdict import NO_PEAK, count_check, spec_conditions, spec_text
 
 __all__ = ["FRF", "FrfIdentification", "spec_numbers"]
 
@@ -64,8 +64,8 @@ class FrfIdentification(Displayed):
         d = f.distortion
         if d is None or d.detected is None:
             checks.append(Check("nonlinear distortion", "not tested", "info",
-                                "needs whole periods of a periodic excitation (estimator = "
-                                "\"periodic\")"))
+                                "it needs a periodic excitation that leaves some lines "
+                                "unexcited (estimator = \"periodic\")"))
         elif d.detected:
             checks.append(Check("nonlinear distortion", f"p = {d.p_value:.2g}", "caution",
                                 "detected at the non-excited lines: the response is the best "
@@ -73,23 +73,29 @@ class FrfIdentification(Displayed):
         else:
             checks.append(Check("nonlinear distortion", f"p = {d.p_value:.2g}", "pass",
                                 "none detected at the non-excited lines"))
-        quality = _line_quality(f, self.conditions)
+        quality = _line_quality(f, self.numbers)
         if quality is not None:
             checks.append(quality)
         for name, value in self.numbers.items():
-            if math.isnan(value):
+            if spec_text(name, value, self.numbers) == NO_PEAK:
+                checks.append(Check(name, "none", "info",
+                                    "the gain has no peak above its low-frequency level"))
+            elif math.isnan(value):
                 checks.append(Check(name, "undefined", "caution",
                                     "not defined inside the measured band"))
             else:
                 checks.append(Check(name, _num(value), "pass",
+                                    "no peak above the low-frequency level" if
+                                    name == "resonance peak [dB]" and value == 0.0 else
                                     "read from the measured response"))
         checks.append(count_check("notes", self.notes, "listed under the response"))
         tested = (f"the {f.method} frequency response of {f.output_name} from {f.input_name}"
                   + (f" referred to {f.reference_name}" if f.reference_name else "")
                   + f" ({f.n_lines} lines, {f.n_averages} averages) and the spec numbers read "
                   "from it.")
-        table = Table(("spec number", "value"), tuple((k, _num(v)) for k, v in
-                                                      self.numbers.items()), "Spec numbers")
+        table = Table(("spec number", "value"),
+                      tuple((k, spec_text(k, v, self.numbers)) for k, v in self.numbers.items()),
+                      "Spec numbers")
         return Verdict(tested, tuple(checks), self.conditions, (table,))
 
     def __str__(self) -> str:
@@ -97,7 +103,8 @@ class FrfIdentification(Displayed):
         lines = [f"measured frequency response ({f.method}, {f.n_lines} lines, "
                  f"{f.n_averages} averages) of {f.output_name} from {f.input_name}"
                  + (f", referred to {f.reference_name}" if f.reference_name else "")]
-        lines += [f"  {name:<28} {_num(value)}" for name, value in self.numbers.items()]
+        lines += [f"  {name:<28} {spec_text(name, value, self.numbers)}"
+                  for name, value in self.numbers.items()]
         lines += [f"  note: {n}" for n in self.notes]
         lines += ["  " + line for line in self.verdict().lines()[:1]]
         if self.folder:
@@ -157,7 +164,8 @@ def spec_numbers(model: Any, *, level_db: float, phase_frequency: float | None,
     try:
         peak = resonance_peak(model, reference_frequency=reference_frequency)
         out["resonance peak [dB]"] = float(peak.peak_db)
-        out["resonance frequency [Hz]"] = float(peak.frequency)
+        # no peak above the low-frequency level (0 dB): no resonance, so no frequency of one
+        out["resonance frequency [Hz]"] = float(peak.frequency) if peak.peak_db > 0 else math.nan
     except ServoidError:  # an undefined number is reported as NaN, not a crash
         out["resonance peak [dB]"] = out["resonance frequency [Hz]"] = math.nan
     return out
@@ -232,16 +240,20 @@ def _channel(exp: Experiment, options: Mapping[str, Any]) -> str | None:
     return None
 
 
-def _line_quality(frd: FrequencyResponseData, conditions: Any) -> Check | None:
-    """Median coherence (Welch) or relative standard deviation of the lines in the band."""
+def _line_quality(frd: FrequencyResponseData, numbers: Mapping[str, float]) -> Check | None:
+    """Median coherence (Welch) or relative std of the lines up to the bandwidth.
+
+    Up to the bandwidth (or the resonance, if higher) lies what the spec
+    numbers describe; beyond it the gain falls towards the noise.
+    """
     f = np.asarray(frd.frequency, dtype=float)
-    keep = f > 0
-    band = conditions[0].band if conditions and conditions[0].band else None
-    if band is not None:
-        keep &= (f >= band[0]) & (f <= band[1])
+    edges = [v for k, v in numbers.items() if k.startswith(("bandwidth", "resonance frequency"))
+             and math.isfinite(v)]
+    keep = (f > 0) & (f <= max(edges)) if edges else f > 0
     if not keep.any():
         return None
-    where = "in the excited band" if band is not None else "over the lines"
+    where = f"over the {int(keep.sum())} lines up to {max(edges):.3g} Hz" if edges else \
+        "over the lines"
     if frd.coherence is not None:
         value = float(np.median(np.asarray(frd.coherence)[keep]))
         return Check("coherence", f"median {value:.2f}", "info",
@@ -262,6 +274,7 @@ def _safe(fn: Any) -> float:
 
 def _num(x: float) -> str:
     return "undefined in the measured band" if math.isnan(x) else f"{x:.5g}"
+
 
 
 def _plot(frd: FrequencyResponseData, path: Path, overwrite: bool) -> None:

@@ -55,6 +55,7 @@ from ._verdict import (
     diverged_check,
     interval_check,
     spec_conditions,
+    spec_text,
     validation_checks,
 )
 
@@ -172,9 +173,11 @@ class IdentificationResult(Displayed):
         lines += self._extra_lines()
         for v in self.validations:
             lines.append(f"  {v}")
-        for name, (measured, fitted) in self.spec_numbers.items():
-            lines.append(f"  {name}: measured {_spec_text(measured)}, fitted model "
-                         f"{_spec_text(fitted)}")
+        measured = {k: m for k, (m, _) in self.spec_numbers.items()}
+        fitted = {k: f for k, (_, f) in self.spec_numbers.items()}
+        for name in self.spec_numbers:
+            lines.append(f"  {name}: measured {spec_text(name, measured[name], measured)}, "
+                         f"fitted model {spec_text(name, fitted[name], fitted)}")
         for note in self.notes:
             lines.append(f"  note: {note}")
         lines += ["  " + line for line in self.verdict().lines()[:1]]
@@ -356,8 +359,10 @@ class IdentificationResult(Displayed):
         checks.append(count_check("notes", self.notes, "listed under Notes"))
         tables = ()
         if self.spec_numbers:
+            measured = {k: m for k, (m, _) in self.spec_numbers.items()}
+            fitted = {k: f for k, (_, f) in self.spec_numbers.items()}
             tables = (Table(("spec number", "measured FRF", "fitted model"),
-                            tuple((k, _spec_text(m), _spec_text(f))
+                            tuple((k, spec_text(k, m, measured), spec_text(k, f, fitted))
                                   for k, (m, f) in self.spec_numbers.items()),
                             "Spec numbers"),)
         return Verdict(self._tested(), tuple(checks), self.conditions, tables)
@@ -642,10 +647,6 @@ def model_dict(model: Any) -> dict[str, Any]:
 
 def _finite(x: float) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
-
-
-def _spec_text(x: float) -> str:
-    return "undefined in the measured band" if not math.isfinite(x) else f"{x:.5g}"
 
 
 def _complex_list(values: Any) -> list[dict[str, float]]:

@@ -16,6 +16,7 @@ channel: the frequencies where its Welch power spectrum lies within
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -25,11 +26,13 @@ from ..data import Experiment, ExperimentSet
 from ..report._verdict import Check, Conditions, Verdict, pvalue_text
 from ..validate import ValidationReport
 
-__all__ = ["BAND_DB", "count_check", "covariance_is_robust", "diverged_check", "excited_band",
-           "interval_check", "loop_verdict", "record_conditions", "spec_conditions", "validation_checks"]
+__all__ = ["BAND_DB", "NO_PEAK", "count_check", "covariance_is_robust", "diverged_check",
+           "excited_band", "interval_check", "loop_verdict", "record_conditions",
+           "spec_conditions", "spec_text", "validation_checks"]
 
-#: Level below the input spectrum's peak that bounds the excited band [dB].
-BAND_DB = 10.0
+#: Level below the input spectrum's peak that bounds the excited band [dB]: the -3 dB band
+#: servoid's excitation designers declare (servoid.signals), read from the spectrum.
+BAND_DB = 3.0
 #: Shortest Welch segment of the band estimate [samples] (the whole of a shorter record).
 _SEGMENT = 256
 
@@ -274,6 +277,23 @@ def loop_verdict(ident: Any) -> Verdict:
                  "each validation record" if ident.validation else "the record it was fitted on")
               + ".")
     return Verdict(tested, tuple(checks), ident.conditions)
+
+
+#: A resonance frequency where the gain has no peak above its low-frequency level.
+NO_PEAK = "none (no peak)"
+
+
+def spec_text(name: str, value: float, numbers: Mapping[str, float]) -> str:
+    """A spec number as shown: an undefined one says why.
+
+    The resonance frequency of a response without a peak (peak 0 dB) is
+    :data:`NO_PEAK`; any other undefined number lies outside the band.
+    """
+    if value == value and math.isfinite(value):
+        return f"{value:.5g}"
+    if name == "resonance frequency [Hz]" and numbers.get("resonance peak [dB]") == 0.0:
+        return NO_PEAK
+    return "undefined in the measured band"
 
 
 def _excitation(notes: Mapping[str, Any]) -> tuple[str, tuple[float, float] | None]:
