@@ -195,9 +195,9 @@ def draw_roots(ax: Any, roots: Any, frame: float, marker: str, color: str, label
         stacked = taken.get((x, y), 0)  # another model's roots on the same spot: one line down
         taken[(x, y)] = stacked + 1
         inward = (-14 * np.cos(angle), -14 * np.sin(angle) - 9 * stacked)  # [points]
-        ax.annotate(text, xy=(x, y), xytext=inward, textcoords="offset points", color=color, fontsize=7,
-                    ha="right" if np.cos(angle) > 0.5 else "left" if np.cos(angle) < -0.5
-                    else "center", va="center")
+        ha = "right" if np.cos(angle) > 0.5 else "left" if np.cos(angle) < -0.5 else "center"
+        ax.annotate(text, xy=(x, y), xytext=inward, textcoords="offset points", color=color,
+                    fontsize=7, ha=ha, va="center")
     return int(far.sum())
 
 

@@ -629,6 +629,12 @@ def _plot_linear(ident: InverseDynamicsIdentification, path: Path, overwrite: bo
                 overwrite)
 
 
+def _signed(x: float, unit: str) -> str:
+    """A difference to 3 decimals; one that rounds to zero is 0.000, not -0.000."""
+    text = f"{x:+.3f}"
+    return f"{'0.000' if float(text) == 0.0 else text} {unit}"
+
+
 def _fmt(x: float | None, digits: int = 6) -> str:
     return "—" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}g}"
 
@@ -642,13 +648,14 @@ def _page(ident: InverseDynamicsIdentification, files: Mapping[str, Path]) -> Pa
         if comparison and comparison["parameters"]:
             rows = tuple(
                 (name, _fmt(c["value"]), _fmt(c["std"], 3), _fmt(c["published"]),
-                 _fmt(c["published_std"], 3), f"{c['difference_percent']:+.3f} %")
+                 _fmt(c["published_std"], 3), _signed(c["difference_percent"], "%"))
                 for name, c in comparison["parameters"].items())
             if comparison.get("published_relative_error") is not None \
                     and est.method == "idim-ls":
                 rows += (("relative error [%]", _fmt(comparison["relative_error"], 5), "",
                           _fmt(comparison["published_relative_error"], 5), "",
-                          f"{comparison['relative_error'] - comparison['published_relative_error']:+.3f} pp"),)
+                          _signed(comparison["relative_error"]
+                                  - comparison["published_relative_error"], "pp")),)
             tables.append(Table(("parameter", "servoid", "std", "published", "published std",
                                  "difference"), rows, f"{key} against the reference"))
     loop_rows = []
