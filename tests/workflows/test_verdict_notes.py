@@ -157,3 +157,20 @@ def test_a_validation_of_the_true_plant_in_closed_loop_is_not_rejected(rig):
     assert not case.residuals.is_independent  # the test's own verdict on the true plant
     checks = {c.name: c for c in validation_checks(case)}
     assert checks["input–residual independence"].outcome == "caution"
+
+
+def test_a_results_file_without_a_verdict_is_judged_from_its_numbers(rig):
+    from servoid.report import to_jsonable
+    from servoid.workflows._summary import verdict_of
+
+    result = identify(_toml(rig, "old", {"method": "oe", "nb": 2, "nf": 2, "nk": 1}),
+                      write=False)
+    data = json.loads(json.dumps(to_jsonable(result.to_dict())))  # as results.json holds it
+    assert verdict_of(data) == result.verdict()  # a file with its verdict keeps it whole
+    for damaged in (None, {"checks": [{"name": "fit"}]}):  # older, or a damaged entry
+        data["verdict"] = damaged
+        rebuilt = verdict_of(data)
+        checks = {c.name: c for c in rebuilt.checks}
+        assert checks["simulation fit"].value == f"{result.validation.fit_percent:.1f} %"
+        assert checks["input–residual independence"].outcome == "pass"
+        assert rebuilt.decision == "accept"

@@ -190,7 +190,7 @@ class PneumaticIdentification(Displayed):
     def __str__(self) -> str:
         lines = [str(self.result)]
         if self.truth:
-            errs = ", ".join(f"{r['name']} {r['error_percent']:+.2f} %" for r in self.table()
+            errs = ", ".join(f"{r['name']} {_signed(r['error_percent'], 2)}" for r in self.table()
                              if r["error_percent"] is not None)
             lines.append(f"  error vs truth: {errs}")
         lines += ["  " + line for line in self.verdict().lines()[:1]]
@@ -373,7 +373,7 @@ def _page(ident: PneumaticIdentification, files: Mapping[str, Path]) -> Page:
         cells += [f"{r['value']:.6g}", f"{r['std']:.3g}",
                   f"[{r['ci95'][0]:.6g}, {r['ci95'][1]:.6g}]", r["unit"], r["step"]]
         if truth:
-            cells.append("—" if r["error_percent"] is None else f"{r['error_percent']:+.3f} %")
+            cells.append("—" if r["error_percent"] is None else _signed(r["error_percent"]))
         rows.append(tuple(cells))
     summary = Section(
         "Identified parameters",
@@ -436,6 +436,12 @@ def _page(ident: PneumaticIdentification, files: Mapping[str, Path]) -> Page:
               *((f"{k} record", f"{p.name} (sha256 {sha256(_data_file(p))[:12]}…)")
                 for k, p in ident.sources.items())),
     )
+
+
+def _signed(x: float, digits: int = 3) -> str:
+    """A relative error [%] to ``digits`` decimals; one that rounds to zero has no sign."""
+    text = f"{x:+.{digits}f}"
+    return f"{f'{0.0:.{digits}f}' if float(text) == 0.0 else text} %"
 
 
 def _data_file(path: Path) -> Path:
