@@ -357,7 +357,7 @@ class IdentificationResult(Displayed):
         if covariance:
             checks.append(interval_check(covariance))
         checks.append(count_check("notes", self.notes, "listed under Notes"))
-        tables = ()
+        tables: tuple[Table, ...] = ()
         if self.spec_numbers:
             measured = {k: m for k, (m, _) in self.spec_numbers.items()}
             fitted = {k: f for k, (_, f) in self.spec_numbers.items()}
