@@ -140,7 +140,7 @@ def test_frf_spec_numbers_sit_in_the_verdict_not_in_a_note(periodic, tmp_path):
     assert dict(table.rows)["bandwidth (-3 dB) [Hz]"] == f"{bandwidth:.5g}"
     html = (tmp_path / "o" / "report.html").read_text(encoding="utf-8")
     box = html[html.index('<div class="box'):html.index("<h2>Measured frequency response")]
-    assert "<caption>Spec numbers</caption>" in box and "phase lag at 1 Hz [deg]" in box
+    assert '<div class="caption">Spec numbers</div>' in box and "phase lag at 1 Hz [deg]" in box
     # with a fitted model: measured and fitted side by side, and no note repeats them
     text = periodic.read_text(encoding="utf-8").replace('phase_frequency = 1.0',
                                                         'phase_frequency = 1.0\nn_poles = 3')
