@@ -126,6 +126,7 @@ def test_the_written_report_and_results_carry_one_verdict(rig, tmp_path):
     data = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert data["verdict"] == json.loads(json.dumps(verdict.to_dict()))
     assert load_results(out / "results.json").summary.decision == "accept"
+    assert "<b>ACCEPT</b> — passes every check" in result._repr_html_()  # a notebook shows it
     conditions = data["verdict"]["conditions"]
     assert [c["record"] for c in conditions] == ["estimation: run0.csv", "validation: run1.csv"]
     assert conditions[0]["sample_rate_hz"] == pytest.approx(1 / DT)  # 50 Hz, the record's
