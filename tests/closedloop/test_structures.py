@@ -26,7 +26,9 @@ from servoid.closedloop import (
     STRUCTURES,
     ClosedLoopResult,
     FeedbackLoop,
+    NestedTest,
     PlantStructure,
+    StructureFit,
     StructureTest,
     compare_structures,
     fit_one_step,
@@ -439,3 +441,22 @@ def test_coloured_noise_keeps_the_level():
         white += t.p_value_white < LEVEL
     assert robust <= _false_alarm_bound(runs, LEVEL)  # 8 of 200
     assert white > 3 * _false_alarm_bound(runs, LEVEL)  # why the scale is needed
+
+
+# -- the verdict's numbers -----------------------------------------------------------------------
+
+
+def _one_test(tau: float, std: float) -> StructureTest:
+    fits = (StructureFit("reduced", 3, 2.73e-10, -225318.0, -225296.0, 4.3e-13, 0.96),
+            StructureFit("reduced+lag", 4, 2.73e-10, -225316.0, -225287.0, 4.3e-13, 0.96))
+    test = NestedTest("reduced", "reduced+lag", 1, 0.0, 1.0, 0.0, True, 1.0, 1.0, LEVEL / 2,
+                      {"tau_v": tau}, "", {"tau_v": std})
+    return StructureTest("reduced", fits, (test,), LEVEL, 10232, False, (), "reduced")
+
+
+def test_a_lag_inside_its_standard_deviation_is_none_with_the_resolution_stated():
+    # the demo's numbers: the lag ends at 9.47e-29 s with a standard deviation of 4.94 µs
+    verdict = _one_test(9.47e-29, 4.94e-6).verdict
+    assert "tau_v: none resolved" in verdict and "standard deviation 4.94 µs" in verdict
+    assert "e-2" not in verdict  # no 9.47e-23 µs
+    assert "tau_v = 1.5 ms ± 20 µs" in _one_test(1.5e-3, 2e-5).verdict  # a resolved lag

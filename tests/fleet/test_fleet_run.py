@@ -215,3 +215,27 @@ def _same(a, b) -> bool:
     skip = ("seconds", "peak_rss_mb")
     strip = [{k: v for k, v in r.items() if k not in skip} for r in a]
     return strip == [{k: v for k, v in r.items() if k not in skip} for r in b]
+
+
+def test_the_report_opens_with_the_batch_verdict(batch, batch_result):
+    from servoid.fleet._report import fleet_verdict
+
+    verdict = fleet_verdict(batch_result)
+    assert verdict.decision == "reject"  # three bad units leave their limits
+    limits = [c for c in verdict.checks if c.name.startswith("limit ")]
+    failing = sorted(s for c in limits if c.outcome == "fail"
+                     for s in c.meaning.split(":")[0].split(", "))
+    assert failing == list(batch.bad)  # the same units the table fails
+    identified = next(c for c in verdict.checks if c.name == "identified")
+    assert identified.value == "12 of 13" and "SN-0013" in identified.meaning
+    units = {row[0]: row for row in verdict.tables[0].rows}
+    assert units["reject: outside a limit"][2] == ", ".join(batch.bad)
+    assert units["not judged: not identified"][2] == "SN-0013"
+    # the units' own conditions: one row per kind of record, their rate and length
+    assert [c.record for c in verdict.conditions] == ["estimation: 12 units",
+                                                      "validation: 12 units"]
+    html = (batch_result.folder / "report.html").read_text(encoding="utf-8")
+    assert html.index('<div class="box reject">') < html.index("<h2>Summary</h2>")
+    assert verdict.line() in html
+    inside = sum(bool(r["pass"]) for r in batch_result.rows)
+    assert f"<b>inside every limit:</b> {inside}" in html

@@ -1,21 +1,27 @@
-"""The reports in a real browser: the demo, an ARX report and the servopneumatic report.
+"""The reports in a real browser: the demo, ARX, FRF, servopneumatic and fleet reports.
 
 Each page is loaded by headless Chromium (Debian's ``chromium``; ``.ci/run``
 installs it when missing) inside a wrapper page at a desktop (1100 px) and a
-phone (375 px) width. The test fails on a console error, on any request
+phone (390 px) width. The test fails on a console error, on any request
 that leaves the file (the page must be self-contained), on an image that
-does not decode, on a missing viewport, and on content wider than the
-phone screen outside a horizontally scrolling box. Every figure is checked
-in Python as it is saved: each axes has a y label, and an x label where
-its x tick labels show. A deliberately broken page (an external image and
-a script error) must fail the same checks.
+does not decode, on a missing viewport, on a page body wider than the
+screen, on content wider than the phone screen outside a horizontally
+scrolling box, and on a page without its verdict box (a decision line
+reading ACCEPT, REJECT or INCONCLUSIVE first on the page). Each page is
+also photographed at both widths (``SERVOID_SCREENSHOTS=<folder>`` keeps
+the PNGs for a reviewer to look at). Every figure is checked in Python as
+it is saved: each axes has a y label, an x label where its x tick labels
+show, and a title that lies inside the figure. A deliberately broken page
+(an external image and a script error) must fail the same checks.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
+import struct
 import subprocess
 from pathlib import Path
 
@@ -39,6 +45,9 @@ f.onload = function () {{
     resources: w.performance.getEntriesByType("resource").map(function (e) {{ return e.name; }}),
     viewport: !!d.querySelector("meta[name=viewport]"),
     images: Array.from(d.images).map(function (i) {{ return i.naturalWidth; }}),
+    bodyWidth: d.body.scrollWidth, bodyClient: d.body.clientWidth,
+    first: (d.querySelector("h2") || {{}}).textContent || null,
+    decision: (d.querySelector(".box .decision") || {{}}).textContent || null,
     wide: Array.from(d.querySelectorAll("table, figure, img, pre, p, h1, h2")).filter(
       function (e) {{ return e.getBoundingClientRect().right > vw + 1 && !e.closest(".scroll"); }}
     ).map(function (e) {{ return e.tagName + ": " + e.textContent.slice(0, 40); }})
@@ -47,19 +56,23 @@ f.onload = function () {{
 </script></body></html>"""
 
 
+def _chromium(tmp: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+         "--no-first-run", "--disable-background-networking", "--disable-component-update",
+         "--disable-sync", f"--user-data-dir={tmp / 'chromium'}",
+         "--allow-file-access-from-files", "--enable-logging=stderr", "--v=0",
+         "--host-resolver-rules=MAP * ~NOTFOUND", *args],
+        capture_output=True, text=True, timeout=120, check=False)
+
+
 def browse(page: Path, width: int, tmp: Path) -> tuple[dict, list[str]]:
     """Load `page` at `width` px; return the page's measurements and the console errors."""
     wrapper = page.parent / f".wrap-{width}-{page.name}"
     wrapper.write_text(_WRAPPER.format(page=page.name, width=width), encoding="utf-8")
     try:
-        done = subprocess.run(
-            [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
-             "--no-first-run", "--disable-background-networking", "--disable-component-update",
-             "--disable-sync", f"--user-data-dir={tmp / 'chromium'}",
-             "--allow-file-access-from-files", "--enable-logging=stderr", "--v=0",
-             "--host-resolver-rules=MAP * ~NOTFOUND", "--virtual-time-budget=5000",
-             "--dump-dom", wrapper.resolve().as_uri()],
-            capture_output=True, text=True, timeout=120, check=False)
+        done = _chromium(tmp, "--virtual-time-budget=5000", "--dump-dom",
+                         wrapper.resolve().as_uri())
     finally:
         wrapper.unlink()
     found = re.search(r'<pre id="out">([^<]*)</pre>', done.stdout)
@@ -69,10 +82,13 @@ def browse(page: Path, width: int, tmp: Path) -> tuple[dict, list[str]]:
     return json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&")), errors
 
 
+WIDTHS = (1100, 390)  # a desktop window and a phone (an iPhone 12 to 15 is 390 px wide)
+
+
 def problems(page: Path, tmp: Path) -> list[str]:
     """Everything wrong with a page at desktop and phone widths."""
     out = []
-    for width in (1100, 375):
+    for width in WIDTHS:
         m, errors = browse(page, width, tmp)
         out += [f"{width}px console: {e}" for e in errors]
         out += [f"{width}px request leaves the file: {r}" for r in m["resources"]]
@@ -81,8 +97,24 @@ def problems(page: Path, tmp: Path) -> list[str]:
             out.append("no viewport meta")
         if m["scrollWidth"] > m["clientWidth"] + 1:
             out.append(f"{width}px page wider than the screen: {m['scrollWidth']} px")
+        if m["bodyWidth"] > m["bodyClient"] + 1:
+            out.append(f"{width}px page body overflows sideways: {m['bodyWidth']} px in "
+                       f"{m['bodyClient']} px")
         out += [f"{width}px overflows: {w}" for w in m["wide"]]
+        if m["first"] != "Verdict":
+            out.append(f"{width}px the first section is {m['first']!r}, not the verdict")
+        if not re.match(r"(ACCEPT|REJECT|INCONCLUSIVE) — \S", m["decision"] or ""):
+            out.append(f"{width}px no decision line in a verdict box: {m['decision']!r}")
     return out
+
+
+def screenshot(page: Path, name: str, width: int, out: Path, tmp: Path) -> Path:
+    """A PNG of the top of `page` at `width` px (3000 px tall), as ``<name>-<width>.png``."""
+    png = out / f"{name}-{width}.png"
+    done = _chromium(tmp, "--hide-scrollbars", f"--window-size={width},3000",
+                     f"--screenshot={png}", page.resolve().as_uri())
+    assert png.is_file(), f"Chromium took no screenshot of {page}: {done.stderr[-2000:]}"
+    return png
 
 
 @pytest.fixture(scope="module")
@@ -102,6 +134,10 @@ def labels(tmp_path_factory: pytest.TempPathFactory):
             twins = ax.get_shared_x_axes().get_siblings(ax)  # a twinx axes shares the x label
             if shows_x and not any(a.get_xlabel().strip() for a in twins):
                 missing.append(f"{Path(str(fname)).name}: x axis of {title!r}")
+            if ax.get_title():
+                box = ax.title.get_window_extent(fig._get_renderer())
+                if box.x0 < -1 or box.x1 > fig.bbox.width + 1:
+                    missing.append(f"{Path(str(fname)).name}: title cut: {ax.get_title()!r}")
         return original(fig, fname, *args, **kwargs)
 
     matplotlib.figure.Figure.savefig = checked
@@ -113,6 +149,9 @@ def labels(tmp_path_factory: pytest.TempPathFactory):
 
 @pytest.fixture(scope="module")
 def reports(tmp_path_factory: pytest.TempPathFactory, labels) -> dict[str, Path]:
+    from servoid.bench._fleet import write_virtual_fleet
+    from servoid.fleet import run_fleet
+
     root = tmp_path_factory.mktemp("reports")
     assert main(["demo", "--out", str(root / "demo")]) == 0
     bench = root / "arx"
@@ -123,17 +162,38 @@ def reports(tmp_path_factory: pytest.TempPathFactory, labels) -> dict[str, Path]
                   "nb = 3\nnk = 1\n", text)
     toml.write_text(text, encoding="utf-8")
     assert main(["identify", str(toml), "--out", str(root / "arx-results")]) == 0
+    frf = bench / "frf.toml"  # the same record's measured response and a fitted model
+    frf.write_text(re.sub(r"(?s)\[identify\].*?(?=\n\[|\Z)", '[identify]\nmethod = "frf"\n'
+                          'input = "r"\nphase_frequency = 10.0\nn_poles = 3\n', text),
+                   encoding="utf-8")
+    assert main(["identify", str(frf), "--out", str(root / "frf-results")]) == 0
     assert main(["bench", "pneumatic", "--out", str(root / "pn"), "--duration", "4"]) == 0
     assert main(["identify", str(root / "pn" / "pneumatic.toml"), "--out",
                  str(root / "pn-results")]) == 0
+    fleet = write_virtual_fleet(root / "fleet", units=6, bad_every=3, corrupt=1, seed=1)
+    result = run_fleet(fleet.fleet_file, workers=1, progress=False)
     return {"demo": root / "demo" / "report" / "report.html",
             "arx": root / "arx-results" / "report.html",
-            "pneumatic": root / "pn-results" / "report.html"}
+            "frf": root / "frf-results" / "report.html",
+            "pneumatic": root / "pn-results" / "report.html",
+            "fleet": result.folder / "report.html"}
 
 
-@pytest.mark.parametrize("name", ["demo", "arx", "pneumatic"])
+@pytest.mark.parametrize("name", ["demo", "arx", "frf", "pneumatic", "fleet"])
 def test_report_renders_clean(reports, name, tmp_path):
     assert problems(reports[name], tmp_path) == []
+
+
+@pytest.mark.parametrize("name", ["demo", "arx", "frf", "pneumatic", "fleet"])
+def test_screenshots_at_desktop_and_phone_width(reports, name, tmp_path):
+    keep = os.environ.get("SERVOID_SCREENSHOTS")
+    out = Path(keep) if keep else tmp_path
+    out.mkdir(parents=True, exist_ok=True)
+    for width in WIDTHS:
+        png = screenshot(reports[name], name, width, out, tmp_path)
+        head = png.read_bytes()[:24]
+        assert head[:8] == b"\x89PNG\r\n\x1a\n"
+        assert struct.unpack(">I", head[16:20])[0] == width  # the page laid out at this width
 
 
 def test_every_axis_is_labelled(reports, labels):
@@ -148,3 +208,16 @@ def test_a_broken_page_is_caught(reports, tmp_path):
     found = problems(page, tmp_path)
     assert any("request leaves the file: https://example.com/x.png" in p for p in found)
     assert any("notDefined" in p for p in found)
+
+
+def test_a_page_without_its_verdict_or_too_wide_is_caught(reports, tmp_path):
+    page = tmp_path / "plain.html"
+    html = reports["arx"].read_text(encoding="utf-8")
+    html = html.replace("<h2>Verdict</h2>", "<h2>Summary</h2>")
+    html = html.replace('class="decision', 'class="x')
+    page.write_text(html.replace("</body>", '<div style="width:1500px">a wide line</div></body>'),
+                    encoding="utf-8")
+    found = problems(page, tmp_path)
+    assert any("the first section is 'Summary', not the verdict" in p for p in found)
+    assert any("no decision line in a verdict box" in p for p in found)
+    assert any("390px page body overflows sideways" in p for p in found)

@@ -130,3 +130,26 @@ def test_frf_fit_recovers_a_servo_from_a_staircase_record(tmp_path):
     assert abs(rows["wn1"].value - wn) < 4 * rows["wn1"].std
     assert abs(rows["zeta1"].value - zeta) < 4 * rows["zeta1"].std
     assert result.validation.residuals.is_independent
+
+
+def test_frf_spec_numbers_sit_in_the_verdict_not_in_a_note(periodic, tmp_path):
+    result = identify(periodic, tmp_path / "o")
+    table = result.verdict().tables[0]
+    assert table.caption == "Spec numbers"
+    bandwidth = result.numbers["bandwidth (-3 dB) [Hz]"]
+    assert dict(table.rows)["bandwidth (-3 dB) [Hz]"] == f"{bandwidth:.5g}"
+    html = (tmp_path / "o" / "report.html").read_text(encoding="utf-8")
+    box = html[html.index('<div class="box'):html.index("<h2>Measured frequency response")]
+    assert '<div class="caption">Spec numbers</div>' in box and "phase lag at 1 Hz [deg]" in box
+    # with a fitted model: measured and fitted side by side, and no note repeats them
+    text = periodic.read_text(encoding="utf-8").replace('phase_frequency = 1.0',
+                                                        'phase_frequency = 1.0\nn_poles = 3')
+    fitted_toml = periodic.parent / "frf_fit.toml"
+    fitted_toml.write_text(text, encoding="utf-8")
+    fit = identify(fitted_toml, write=False)
+    rows = {r[0]: r for r in fit.verdict().tables[0].rows}
+    measured, model = fit.spec_numbers["bandwidth (-3 dB) [Hz]"]
+    assert rows["bandwidth (-3 dB) [Hz]"][1:] == (f"{measured:.5g}", f"{model:.5g}")
+    assert measured == result.numbers["bandwidth (-3 dB) [Hz]"]  # the same measured FRF
+    assert not any(n.startswith(("measured: ", "fitted model: ")) for n in fit.notes)
+    assert fit.to_dict()["spec_numbers"]["bandwidth (-3 dB) [Hz]"]["fitted"] == model

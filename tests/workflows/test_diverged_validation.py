@@ -20,7 +20,7 @@ from servoid import ServoidWarning
 from servoid.cli import main
 from servoid.data import Experiment, write_csv, write_experiment_spec
 from servoid.workflows import identify
-from servoid.workflows._summary import summarise, verdict_section
+from servoid.workflows._summary import summarise
 
 
 def _tanh_record(amplitude: float, n: int, seed: int) -> Experiment:
@@ -93,12 +93,17 @@ def test_a_good_record_keeps_its_metrics_beside_a_diverging_one(folder):
     summary = summarise(result.to_dict())
     assert summary.fit_percent == pytest.approx(good.fit_percent)
     assert summary.diverged and summary.diverged[0].startswith("large (sample ")
-    verdict = verdict_section(result.to_dict()).paragraphs
-    assert verdict[0].startswith("Validation: FAILED")
-    assert any(line.startswith("Validation fit: ") for line in verdict)
+    verdict = result.verdict()
+    assert verdict.decision == "reject" and summary.decision == "reject"
+    failed = [c for c in verdict.checks if c.outcome == "fail"]
+    assert [c.name for c in failed] == ["free run (large)"]
+    assert failed[0].value == f"diverges at t = {bad.time:.6g} s"
+    # the good record keeps its own checks, named after it
+    assert any(c.name == "simulation fit (small2)" and c.outcome == "pass"
+               for c in verdict.checks)
 
 
 def test_a_run_that_does_not_diverge_has_no_failed_verdict(folder):
     result = identify(_toml(folder, "fine", "small2.csv"), write=False)
     assert result.diverged == ()
-    assert not any("FAILED" in p for p in verdict_section(result.to_dict()).paragraphs)
+    assert not any(c.name.startswith("free run") for c in result.verdict().checks)

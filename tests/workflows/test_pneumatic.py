@@ -105,6 +105,15 @@ def test_campaign_writes_results_and_report(campaign, tmp_path):
                   "S6: validation"):
         assert title in html
     assert "error vs truth" in str(out)
+    # the verdict judges the S6 fits the page shows, multi-step and refined, record by record
+    verdict = out.verdict()
+    fits = {c.name: c.value for c in verdict.checks if c.name.startswith("S6 fit")}
+    assert fits["S6 fit p_I"] == f"{data['validation']['fit_percent']['p_I']:.1f} %"
+    assert "S6 fit x_k (refined)" in fits and verdict.decision == "accept"
+    assert "not computed by this method" not in html and "ACCEPT — passes every check" in html
+    assert [c.record.split(":")[0] for c in verdict.conditions] == [
+        "valve", "thermo", "flow", "friction", "validation"]
+    assert data["verdict"]["decision"] == "accept"
     assert "Grey-box refinement" in html and out.result.refinement is not None
     # starts at the truth; moves only to absorb the other estimates' ~1e-7 errors
     assert abs(out.result.refinement.parameters.c_k / 120.0 - 1) < 1e-4

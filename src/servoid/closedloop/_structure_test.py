@@ -79,6 +79,8 @@ from ._structures import STRUCTURES, PlantStructure
 
 __all__ = ["NestedTest", "StructureFit", "StructureTest", "compare_structures"]
 
+#: A lag below this is zero to the solver's precision when no standard deviation is known [s].
+_TINY_LAG = 1e-12
 #: Relative excess of the larger structure's cost over the smaller's that is still rounding
 #: (the solvers stop at a relative cost change of 1e-10).
 _COST_RTOL = 1e-8
@@ -166,6 +168,8 @@ class NestedTest:
         The extra parameters' estimates in the larger structure.
     note : str
         Why the statistic was clipped, empty otherwise.
+    extra_std : dict of str to float
+        Their standard deviations (the smallest value the data resolve).
     """
 
     smaller: str
@@ -180,6 +184,7 @@ class NestedTest:
     level: float
     extra: dict[str, float] = field(default_factory=dict)
     note: str = ""
+    extra_std: dict[str, float] = field(default_factory=dict)
 
     @property
     def rejected(self) -> bool:
@@ -202,6 +207,7 @@ class NestedTest:
             "rejected": self.rejected,
             "extra": dict(self.extra),
             "note": self.note,
+            "extra_std": dict(self.extra_std),
         }
 
 
@@ -590,6 +596,8 @@ def _nested_test(
     est_l = fits[large][1]
     extra_names = catalogue[large].names[catalogue[small].n_parameters:]
     extra = {k: float(est_l[k]) for k in extra_names}
+    std = dict(zip(est_l.names, np.asarray(est_l.std, dtype=float), strict=True))
+    extra_std = {k: float(std.get(k, math.nan)) for k in extra_names}
     note = ""
     if v_l > v_s * (1.0 + _COST_RTOL):
         note = (f"the {large} fit ended at a cost {v_l / v_s - 1:.2g} above the {small} fit's, "
@@ -602,7 +610,7 @@ def _nested_test(
     lr_robust = lr / scale
     return NestedTest(small, large, df, lr, scale, lr_robust, one_sided,
                       _pvalue(lr_robust, df, one_sided), _pvalue(lr, df, one_sided), level,
-                      extra, note)
+                      extra, note, extra_std)
 
 
 def _scale(direction: NDArray[np.float64], residual: NDArray[np.float64],
@@ -628,7 +636,18 @@ def _pvalue(stat: float, df: int, one_sided: bool) -> float:
 
 
 def _extra_text(t: NestedTest) -> str:
-    return ", ".join(f"{k} = {_seconds(k, v)}" for k, v in t.extra.items())
+    return ", ".join(_extra(k, v, t.extra_std.get(k, math.nan)) for k, v in t.extra.items())
+
+
+def _extra(name: str, value: float, std: float) -> str:
+    """``tau_v = 1.2 ms ± 0.1 ms``; a value inside its own std is not resolved: "none"."""
+    if math.isfinite(std) and std > 0 and abs(value) < std:
+        return (f"{name}: none resolved (the estimate lies within its standard deviation "
+                f"{_seconds(name, std)}, the resolution of these data)")
+    if not math.isfinite(std) and name.startswith("tau") and abs(value) < _TINY_LAG:
+        return f"{name}: none (below {_seconds(name, _TINY_LAG)})"
+    spread = f" ± {_seconds(name, std)}" if math.isfinite(std) and std > 0 else ""
+    return f"{name} = {_seconds(name, value)}{spread}"
 
 
 def _seconds(name: str, value: float) -> str:
@@ -636,7 +655,9 @@ def _seconds(name: str, value: float) -> str:
         return f"{value:.4g}"
     if abs(value) >= 1e-3:
         return f"{value * 1e3:.3g} ms"
-    return f"{value * 1e6:.3g} µs"
+    if abs(value) >= 1e-9 or value == 0.0:
+        return f"{value * 1e6:.3g} µs"
+    return f"{value:.2g} s"
 
 
 def _p(value: float) -> str:

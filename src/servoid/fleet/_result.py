@@ -218,7 +218,10 @@ def _row(row: dict[str, Any], outcome: Mapping[str, Any] | None, names: Mapping[
     row.update(fit_percent=summary.get("fit_percent"), white=summary.get("white"),
                independent=summary.get("independent"),
                structure_rejected=summary.get("structure_rejected"),
-               flags="; ".join(summary.get("flags", ())))
+               flags="; ".join(summary.get("flags", ())),
+               # the record's own verdict and test conditions, for the report (not columns)
+               decision=summary.get("decision"), reason=summary.get("reason", ""),
+               conditions=tuple(summary.get("conditions") or ()))
     values = {p["name"]: p for p in summary["parameters"]}
     for name in names:
         p = values.get(name)

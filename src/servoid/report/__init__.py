@@ -1,4 +1,4 @@
-"""Reports: figures, a single-file HTML page, JSON results."""
+"""Reports: figures, a single-file HTML page with its verdict, JSON results."""
 
 from ._figures import new_figure, plot_residuals, plot_validation, save_figure
 from ._html import Figure, Page, Section, Table, render_html, write_html
@@ -6,12 +6,16 @@ from ._json import to_jsonable, write_json
 from ._lti_figures import plot_bode, plot_poles
 from ._model_figures import plot_bode_bands, plot_pole_zero, plot_singular_values
 from ._rigid_figures import plot_force_fit, plot_friction, plot_linear, plot_loop
+from ._verdict import Check, Conditions, Verdict
 
 __all__ = [
+    "Check",
+    "Conditions",
     "Figure",
     "Page",
     "Section",
     "Table",
+    "Verdict",
     "new_figure",
     "plot_bode",
     "plot_bode_bands",

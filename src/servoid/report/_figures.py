@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import textwrap
 from collections.abc import Callable
 
 import numpy as np
@@ -14,7 +15,7 @@ from .._atomic import atomic_path
 from ..validate import ValidationReport
 from ._text import plain
 
-__all__ = ["new_figure", "plot_residuals", "plot_validation", "save_figure"]
+__all__ = ["fit_titles", "new_figure", "plot_residuals", "plot_validation", "save_figure"]
 
 
 def new_figure(figsize: tuple[float, float]) -> Figure:
@@ -162,7 +163,7 @@ def plot_residuals(
     verdict = "white" if res.is_white else "not white"
     _stem(axes[0], res.lags, res.autocorrelation, np.full(res.lags.size, res.bound))
     axes[0].set_title(
-        f"residual autocorrelation ({verdict}, Ljung–Box p = {res.whiteness_pvalue:.3g}); "
+        f"residual autocorrelation: {verdict} (Ljung–Box p = {res.whiteness_pvalue:.3g}); "
         f"band ±{res.bound:.3g} at {100 * res.confidence:.0f} %"
     )
     bands, how = _cross_bands(report, u, n_cross)
@@ -172,8 +173,8 @@ def plot_residuals(
             band = np.where(res.cross_lags >= 0, band, np.nan)
         _stem(axes[k + 1], res.cross_lags, res.cross_correlation[k], band)
         axes[k + 1].set_title(
-            f"input {k} – residual cross-correlation (independence p = "
-            f"{res.independence_pvalue:.3g}); band {how}"
+            f"input {k} – residual cross-correlation: independence p = "
+            f"{res.independence_pvalue:.3g}; band {how}"
             + ("; negative lags not tested (closed loop)" if res.causal else ""))
     axes[0].set_ylabel("autocorrelation [-]")
     for ax in axes[1:]:
@@ -239,8 +240,49 @@ def _stem(ax: Axes, lags: np.ndarray, r: np.ndarray, band: np.ndarray) -> None:
     ax.grid(alpha=0.3)
 
 
+def fit_titles(fig: Figure) -> bool:
+    """Wrap every title that would be cut at the figure's edge; True if one was.
+
+    A title is centred over its axes; it fits when it lies inside the
+    figure.  One that does not is wrapped at the characters that fit (its
+    width measured by the renderer), and the layout is redone so the
+    second line does not cover the axes above.
+    """
+    try:
+        renderer = fig._get_renderer()  # type: ignore[attr-defined]
+    except AttributeError:  # pragma: no cover - a matplotlib without it: titles as set
+        return False
+    width = fig.bbox.width
+    changed = False
+    titles = [t for ax in fig.axes for t in (ax.title, ax._left_title, ax._right_title)]
+    if getattr(fig, "_suptitle", None) is not None:
+        titles.append(fig._suptitle)
+    for title in titles:
+        text = title.get_text()
+        if not text:
+            continue
+        box = title.get_window_extent(renderer)
+        if box.x0 >= 0 and box.x1 <= width:
+            continue
+        centre = 0.5 * (box.x0 + box.x1)
+        room = 2.0 * min(centre, width - centre) * 0.96  # centred: the nearer edge decides
+        longest = max(len(line) for line in text.splitlines())
+        chars = max(int(longest * room / max(box.width, 1.0)), 16)
+        title.set_text("\n".join(textwrap.fill(line, chars) for line in text.splitlines()))
+        changed = True
+    engine = fig.get_layout_engine()
+    if changed and "Constrained" not in type(engine).__name__:  # constrained re-lays at draw
+        fig.tight_layout()
+    return changed
+
+
 def save_figure(fig: Figure, path: str | os.PathLike[str], overwrite: bool = False) -> None:
-    """Save a figure atomically in the format of its extension."""
+    """Save a figure atomically in the format of its extension.
+
+    Titles that would be cut at the figure's edge are wrapped first
+    (:func:`fit_titles`).
+    """
+    fit_titles(fig)
     suffix = os.path.splitext(os.fspath(path))[1].lstrip(".") or "png"
     with atomic_path(path, overwrite) as tmp:
         fig.savefig(tmp, format=suffix, dpi=110)

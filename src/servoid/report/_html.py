@@ -52,6 +52,9 @@ class Section:
     tables: tuple[Table, ...] = ()
     figures: tuple[Figure, ...] = ()
     box: bool = False  # drawn framed: the page's verdict
+    # (decision, line): the verdict's decision ("accept", "reject", "inconclusive") and its
+    # line, drawn first and coloured by the decision
+    decision: tuple[str, str] | None = None
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..models import TransferFunction
 from ._figures import new_figure, save_figure
+from ._model_figures import Z_FRAME, draw_roots
 from ._text import plain
 
 __all__ = ["plot_bode", "plot_poles"]
@@ -67,7 +68,8 @@ def plot_poles(
     overwrite: bool = False,
 ) -> None:
     """Save pole maps in the s-plane and the z-plane."""
-    fig = new_figure((10, 4.5))
+    fig = new_figure((10, 5.4))
+    fig.set_layout_engine("constrained")  # it makes room for the legend below the z map
     ax_s, ax_z = fig.subplots(1, 2)
     markers = "xo+^sd"
     for k, (label, model) in enumerate(continuous.items()):
@@ -83,18 +85,21 @@ def plot_poles(
     ax_s.legend(fontsize=8)
     theta = np.linspace(0, 2 * np.pi, 400)
     ax_z.plot(np.cos(theta), np.sin(theta), color="0.4", lw=0.8)
+    far = 0
     for k, (label, model) in enumerate(discrete.items()):
-        p = model.poles()
+        far += draw_roots(ax_z, model.poles(), Z_FRAME, markers[k % 6], f"C{k}",
+                          f"{plain(label)} poles", ms=8, mfc="none")
         z = model.zeros()
-        ax_z.plot(p.real, p.imag, markers[k % 6], ms=8, mfc="none",
-                  label=f"{plain(label)} poles")
         if z.size:
-            ax_z.plot(z.real, z.imag, ".", ms=6, label=f"{plain(label)} zeros")
+            far += draw_roots(ax_z, z, Z_FRAME, ".", f"C{k}", f"{plain(label)} zeros", ms=6)
+    if far:
+        ax_z.plot([], [], ">", color="0.4", ms=6, label="off the map: at its edge, |root| given")
+    ax_z.set_xlim(-Z_FRAME, Z_FRAME)
+    ax_z.set_ylim(-Z_FRAME, Z_FRAME)
     ax_z.set_aspect("equal")
     ax_z.set_xlabel("Re z")
     ax_z.set_ylabel("Im z")
     ax_z.set_title("closed-loop poles and zeros, z-plane")
     ax_z.grid(alpha=0.3)
-    ax_z.legend(fontsize=8)
-    fig.tight_layout()
+    ax_z.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
     save_figure(fig, path, overwrite)

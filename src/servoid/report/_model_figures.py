@@ -12,7 +12,12 @@ from numpy.typing import NDArray
 from ._figures import new_figure, save_figure
 from ._text import plain
 
-__all__ = ["plot_bode_bands", "plot_pole_zero", "plot_singular_values"]
+__all__ = ["Z_FRAME", "draw_roots", "plot_bode_bands", "plot_pole_zero", "plot_singular_values"]
+
+#: Half-width of a z-plane map: the unit circle with a margin.
+Z_FRAME = 1.4
+#: Half-width of an s-plane map over the largest pole magnitude.
+_S_MARGIN = 1.3
 
 
 def plot_bode_bands(
@@ -122,30 +127,78 @@ def plot_pole_zero(
     discrete = {k: m for k, m in models.items() if m.dt is not None}
     continuous = {k: m for k, m in models.items() if m.dt is None}
     panels = [(name, group) for name, group in (("z", discrete), ("s", continuous)) if group]
-    fig = new_figure((5.2 * len(panels), 4.8))
+    fig = new_figure((5.2 * len(panels), 5.6))
+    fig.set_layout_engine("constrained")  # it makes room for the legends below the maps
     axes = np.atleast_1d(fig.subplots(1, len(panels)))
     for ax, (plane, group) in zip(axes, panels, strict=True):
+        roots = {label: _roots(model) for label, model in group.items()}
         if plane == "z":
+            frame = Z_FRAME
             theta = np.linspace(0, 2 * np.pi, 400)
             ax.plot(np.cos(theta), np.sin(theta), color="0.4", lw=0.8)
-            ax.set_aspect("equal")
+        else:  # the poles set the scale: a far zero must not shrink them to a dot
+            poles = np.concatenate([p for p, _ in roots.values()] or [np.empty(0)])
+            frame = _S_MARGIN * float(np.max(np.abs(poles), initial=0.0)) or 1.0
         ax.axhline(0, color="0.6", lw=0.6)
         ax.axvline(0, color="0.6", lw=0.6)
-        for k, (label, model) in enumerate(group.items()):
-            p, z = _roots(model)
-            ax.plot(p.real, p.imag, "x", color=f"C{k}", ms=9, mew=1.6,
-                    label=f"{plain(label)} poles")
+        far = 0
+        for k, (label, (p, z)) in enumerate(roots.items()):
+            far += draw_roots(ax, p, frame, "x", f"C{k}", f"{plain(label)} poles", ms=9, mew=1.6)
             if z.size:
-                ax.plot(z.real, z.imag, "o", color=f"C{k}", ms=7, mfc="none",
-                        label=f"{plain(label)} zeros")
+                far += draw_roots(ax, z, frame, "o", f"C{k}", f"{plain(label)} zeros", ms=7,
+                                  mfc="none")
+        ax.set_xlim(-frame, frame)
+        ax.set_ylim(-frame, frame)
+        ax.set_aspect("equal")
         unit = "" if plane == "z" else " [rad/s]"
         ax.set_xlabel(f"Re {plane}{unit}")
         ax.set_ylabel(f"Im {plane}{unit}")
         ax.set_title(f"{plane}-plane" + (f": {plain(title)}" if title else ""))
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-    fig.tight_layout()
+        if far:
+            ax.plot([], [], ">", color="0.4", ms=6, label="off the map: at its edge, |root| given")
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
     save_figure(fig, path, overwrite)
+
+
+def draw_roots(ax: Any, roots: Any, frame: float, marker: str, color: str, label: str,
+               **style: Any) -> int:
+    """Plot roots inside a square map of half-width ``frame``; mark the others at its edge.
+
+    A root outside the map is drawn where the ray from the origin towards
+    it leaves the map, with an arrow pointing out and its magnitude (roots
+    that land on the same spot share one mark and list their magnitudes),
+    so a far zero neither hides the unit circle nor disappears.
+
+    Returns
+    -------
+    int
+        How many roots lie off the map.
+    """
+    r = np.asarray(roots, dtype=complex).ravel()
+    size = np.maximum(np.abs(r.real), np.abs(r.imag))
+    far = size > frame
+    inside = r[~far]
+    ax.plot(inside.real, inside.imag, marker, color=color, label=label, ls="none", **style)
+    spots: dict[tuple[float, float], list[float]] = {}
+    for z in r[far]:
+        edge = z * (0.92 * frame / max(abs(z.real), abs(z.imag)))
+        spots.setdefault((round(edge.real, 2), round(edge.imag, 2)), []).append(abs(z))
+    taken = ax.__dict__.setdefault("_servoid_edge_labels", {})  # spots labelled by earlier calls
+    for (x, y), sizes in spots.items():
+        ax.plot(x, y, marker, color=color, ls="none", **style)
+        angle = np.angle(complex(x, y))
+        tip = (x + 0.075 * frame * np.cos(angle), y + 0.075 * frame * np.sin(angle))
+        ax.annotate("", xy=tip, xytext=(x, y),
+                    arrowprops={"arrowstyle": "->", "color": color, "lw": 1.2})
+        text = ", ".join(f"{m:.3g}" for m in sorted(set(np.round(sizes, 12))))
+        stacked = taken.get((x, y), 0)  # another model's roots on the same spot: one line down
+        taken[(x, y)] = stacked + 1
+        inward = (-14 * np.cos(angle), -14 * np.sin(angle) - 9 * stacked)  # [points]
+        ha = "right" if np.cos(angle) > 0.5 else "left" if np.cos(angle) < -0.5 else "center"
+        ax.annotate(text, xy=(x, y), xytext=inward, textcoords="offset points", color=color,
+                    fontsize=7, ha=ha, va="center")
+    return int(far.sum())
 
 
 def plot_singular_values(

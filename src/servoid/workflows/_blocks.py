@@ -134,7 +134,7 @@ def run(structure: str, spec: ExperimentSpec, options: Mapping[str, Any],
     title = f"{_TITLES[structure]} ({shapes}; {orders})"
     result = lti_result(spec, structure, estimate, title, validations, options,
                         notes=list(dict.fromkeys(notes)), truth=truth, modal=False,
-                        result_type=BlockResult,
+                        result_type=BlockResult, records=estimation,
                         extra={"curves": _curves(estimate, first.signal(role)[:, 0])})
     assert isinstance(result, BlockResult)
     if result.truth:  # known values of the parameters this structure has, only

@@ -35,15 +35,19 @@ from ..closedloop import (
 from ..data import Experiment, ExperimentSpec
 from ..models import TransferFunction
 from ..report import (
+    Check,
+    Conditions,
     Figure,
     Page,
     Section,
     Table,
+    Verdict,
     plot_bode,
     plot_poles,
     plot_residuals,
     plot_validation,
 )
+from ..report._verdict import pvalue_text
 from ..validate import ValidationReport, validate
 from ._arx import HORIZON
 from ._common import (
@@ -58,6 +62,7 @@ from ._common import (
 from ._options import boolean, choice, choices, integer, number, optional
 from ._registry import FigureWriter, Method, Option
 from ._summary import Displayed
+from ._verdict import count_check, interval_check, spec_conditions, validation_checks
 
 __all__ = ["METHOD", "ClosedLoopIdentification", "loop_from_table"]
 
@@ -82,6 +87,7 @@ class ClosedLoopIdentification(Displayed):
     validation_data: Experiment | None = None
     structure_test: Any = None
     refinement: Any = None
+    conditions: tuple[Conditions, ...] = ()
 
     @property
     def estimate(self) -> Any:
@@ -92,6 +98,43 @@ class ClosedLoopIdentification(Displayed):
     def validation(self) -> ValidationReport:
         """Validation of the primary approach."""
         return self.validations[self.primary]
+
+    def verdict(self) -> Verdict:
+        """The primary approach's checks: validation, structure test, its flags."""
+        primary = self.results[self.primary]
+        label = _LABEL[self.primary]
+        covariance = primary.source.options.get("covariance")
+        checks = validation_checks(self.validation, covariance=covariance)
+        test = self.structure_test
+        if test is not None:
+            p = min((t.p_value for t in test.tests), default=math.nan)
+            if test.rejected:
+                checks.append(Check("structure test", pvalue_text(p), "fail",
+                                    f"the data reject the {test.base} model: "
+                                    + "; ".join(test.reasons)))
+            else:
+                checks.append(Check("structure test", pvalue_text(p), "pass",
+                                    f"no richer structure explains the data significantly better "
+                                    f"than the {test.base} model (level {100 * test.level:.3g} %)"))
+        if covariance:
+            checks.append(interval_check(covariance))
+        flags = [str(n) for n in primary.notes()]
+        checks.append(count_check(f"pole flags ({label})", flags,
+                                  "see Checks: a pole the model should not have", "caution"))
+        if self.refinement is not None:
+            checks.append(Check("nonlinear refinement",
+                                f"{self.refinement.validation.fit_percent:.1f} %", "info",
+                                f"validation fit of the refined nonlinear model (linear "
+                                f"{self.validation.fit_percent:.1f} %)"))
+        checks.append(count_check("notes", self.notes, "listed under Checks"))
+        others = [_LABEL[a] for a in self.results if a != self.primary]
+        tested = ("the reduced EHSA plant G0(s) = K / (s (s²/ω_hp² + 2 δ_hp s/ω_hp + 1)) "
+                  f"identified by the {label} approach inside its known loop (c = "
+                  f"{self.loop.c:g}, F = {_f_text(self.loop)}), simulated in closed loop from "
+                  "the reference on the held-back half"
+                  + (f"; the {', '.join(others)} approach is shown for comparison."
+                     if others else "."))
+        return Verdict(tested, tuple(checks), self.conditions)
 
     def table(self) -> list[dict[str, Any]]:
         """Per parameter: truth and each approach's value, std and 95 % CI."""
@@ -125,6 +168,7 @@ class ClosedLoopIdentification(Displayed):
             "structure_test": self.structure_test.to_dict() if self.structure_test else None,
             "nonlinear_refinement": self.refinement.to_dict() if self.refinement else None,
             "notes": list(self.notes),
+            "verdict": self.verdict().to_dict(),
         }
 
     def inputs(self) -> tuple[Path, ...]:
@@ -172,6 +216,7 @@ class ClosedLoopIdentification(Displayed):
             lines += [f"    {line}" for line in str(est).splitlines()[1:]]
         for note in self.notes:
             lines.append(f"  note: {note}")
+        lines += ["  " + line for line in self.verdict().lines()[:1]]
         if self.folder:
             lines.append(f"  report: {self.folder / 'report.html'}")
         return "\n".join(lines)
@@ -277,7 +322,9 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         notes += [f"nonlinear refinement: {n}" for n in refinement.notes()]
     return ClosedLoopIdentification(spec, loop, results, validations, primary, truth,
                                     notes=tuple(notes), validation_data=validation_data,
-                                    structure_test=structure_test, refinement=refinement)
+                                    structure_test=structure_test, refinement=refinement,
+                                    conditions=spec_conditions(spec, estimation,
+                                                               (validation_data,)))
 
 
 def _disagreement(results: Mapping[str, ClosedLoopResult]) -> list[str]:
@@ -433,7 +480,7 @@ def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
         rows.append((row["name"], truth, *cells, f"[{lo:.6g}, {hi:.6g}]",
                      row[ident.primary]["unit"]))
     fits = tuple(
-        (_LABEL[a], f"{v.fit_percent:.2f} %", f"{v.residuals.whiteness_pvalue:.3g}")
+        (_LABEL[a], f"{v.fit_percent:.2f} %", pvalue_text(v.residuals.whiteness_pvalue))
         for a, v in ident.validations.items()
     )
     summary = Section(
@@ -449,7 +496,7 @@ def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
         ),
         tables=(
             Table(columns, tuple(rows), "Estimates on the estimation half"),
-            Table(("approach", "validation fit", "whiteness p"), fits,
+            Table(("approach", "validation fit", "whiteness"), fits,
                   "Closed-loop simulation on the held-back half"),
         ),
     )

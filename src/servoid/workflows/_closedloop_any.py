@@ -39,7 +39,7 @@ def _run_two_stage(spec: ExperimentSpec, options: Mapping[str, Any],
     note = (f"stage 1: a FIR of order {est.options['stage1_order']} from the reference explains "
             f"{100 * est.options['reference_explains']:.0f} % of the input's variance")
     return lti_result(spec, "two-stage", est, title, validations, options, truth=truth,
-                      notes=[note], closed_loop=True)
+                      notes=[note], closed_loop=True, records=estimation)
 
 
 def _run_cliv(spec: ExperimentSpec, options: Mapping[str, Any],
@@ -51,7 +51,7 @@ def _run_cliv(spec: ExperimentSpec, options: Mapping[str, Any],
     est = _plant_input(est, estimation)
     title = f"plant by closed-loop IV ({orders_text(est.options, ('na', 'nb', 'nk'))})"
     return lti_result(spec, "cliv", est, title, validations, options, truth=truth,
-                      closed_loop=True)
+                      closed_loop=True, records=estimation)
 
 
 def _run_indirect(spec: ExperimentSpec, options: Mapping[str, Any],
@@ -67,7 +67,7 @@ def _run_indirect(spec: ExperimentSpec, options: Mapping[str, Any],
     est = _plant_input(est, estimation)
     title = f"plant by the indirect approach ({orders_text(est.options, ('nb', 'nf', 'nk'))})"
     return lti_result(spec, "indirect", est, title, validations, options, truth=truth,
-                      closed_loop=True)
+                      closed_loop=True, records=estimation)
 
 
 def _plant_input(est: Estimate, data: Experiment | ExperimentSet) -> Estimate:

@@ -24,6 +24,7 @@ from .._errors import (
 from .._words import option
 from ..estimate import Estimate
 from ..report import Figure, Section, Table
+from ..report._verdict import pvalue_text
 from ..validate import ValidationReport
 
 __all__ = ["REPORT_KEYS", "DivergedRun", "check_outputs", "check_sizes", "keyed",
@@ -226,11 +227,11 @@ def validation_section(report: ValidationReport, fig_sim: Path, fig_res: Path) -
             ("RMSE", f"{report.rmse:.4g}"),
             ("VAF", f"{report.vaf:.2f} %"),
             ("relative error", f"{report.relative_error:.3g} %"),
-            ("residual whiteness (Ljung–Box p)",
-             f"{res.whiteness_pvalue:.3g} → {'white' if res.is_white else 'not white'}"),
-            ("input–residual independence (p)",
+            ("residual whiteness (Ljung–Box)",
+             f"{pvalue_text(res.whiteness_pvalue)} → {'white' if res.is_white else 'not white'}"),
+            ("input–residual independence",
              "n/a" if res.independence_pvalue != res.independence_pvalue else
-             f"{res.independence_pvalue:.3g} → "
+             f"{pvalue_text(res.independence_pvalue)} → "
              f"{'independent' if res.is_independent else 'correlated'}"),
         ),
         caption="On data not used for fitting",

@@ -40,6 +40,10 @@ class DemoResult(Displayed):
     identification: ClosedLoopIdentification
     rig_files: tuple[Path, ...]
 
+    def verdict(self) -> Any:
+        """The identification's verdict (:meth:`ClosedLoopIdentification.verdict`)."""
+        return self.identification.verdict()
+
     def to_dict(self) -> dict[str, Any]:
         """Plain data for ``--json``."""
         ident = self.identification
@@ -49,6 +53,7 @@ class DemoResult(Displayed):
             "parameters": ident.table(),
             "validation_fit_percent": {a: v.fit_percent for a, v in ident.validations.items()},
             "notes": list(ident.notes),
+            "verdict": ident.verdict().to_dict(),
             "report": str(ident.folder / "report.html") if ident.folder else None,
             "files": [str(f) for f in ident.files],
         }

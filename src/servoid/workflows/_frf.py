@@ -17,12 +17,13 @@ from .._errors import ServoidError
 from ..data import Experiment, ExperimentSpec
 from ..estimate import estimate_frf, fit_frf
 from ..models import FrequencyResponseData, bandwidth, phase_lag, resonance_peak
-from ..report import Figure, Page, Section, Table, plot_bode_bands
+from ..report import Check, Conditions, Figure, Page, Section, Table, Verdict, plot_bode_bands
 from ._common import sha256, spec_inputs
 from ._lti import IdentificationResult, lti_result
 from ._options import choice, integer, number, optional, text
 from ._registry import FigureWriter, Method, Option
 from ._summary import Displayed
+from ._verdict import NO_PEAK, count_check, spec_conditions, spec_text
 
 __all__ = ["FRF", "FrfIdentification", "spec_numbers"]
 
@@ -44,6 +45,8 @@ class FrfIdentification(Displayed):
         Remarks (nonlinear distortion, an undefined number).
     folder, files
         Where the results were written.
+    conditions : tuple of Conditions
+        Rate, length, excitation and band of the record(s).
     """
 
     spec: ExperimentSpec
@@ -52,14 +55,58 @@ class FrfIdentification(Displayed):
     notes: tuple[str, ...] = ()
     folder: Path | None = None
     files: tuple[Path, ...] = field(default=())
+    conditions: tuple[Conditions, ...] = ()
+
+    def verdict(self) -> Verdict:
+        """The spec numbers and how far the measured response can be trusted."""
+        f = self.frd
+        checks = []
+        d = f.distortion
+        if d is None or d.detected is None:
+            checks.append(Check("nonlinear distortion", "not tested", "info",
+                                "it needs a periodic excitation that leaves some lines "
+                                "unexcited (estimator = \"periodic\")"))
+        elif d.detected:
+            checks.append(Check("nonlinear distortion", f"p = {d.p_value:.2g}", "caution",
+                                "detected at the non-excited lines: the response is the best "
+                                "linear approximation at this amplitude"))
+        else:
+            checks.append(Check("nonlinear distortion", f"p = {d.p_value:.2g}", "pass",
+                                "none detected at the non-excited lines"))
+        quality = _line_quality(f, self.numbers)
+        if quality is not None:
+            checks.append(quality)
+        for name, value in self.numbers.items():
+            if spec_text(name, value, self.numbers) == NO_PEAK:
+                checks.append(Check(name, "none", "info",
+                                    "the gain has no peak above its low-frequency level"))
+            elif math.isnan(value):
+                checks.append(Check(name, "undefined", "caution",
+                                    "not defined inside the measured band"))
+            else:
+                checks.append(Check(name, _num(value), "pass",
+                                    "no peak above the low-frequency level" if
+                                    name == "resonance peak [dB]" and value == 0.0 else
+                                    "read from the measured response"))
+        checks.append(count_check("notes", self.notes, "listed under the response"))
+        tested = (f"the {f.method} frequency response of {f.output_name} from {f.input_name}"
+                  + (f" referred to {f.reference_name}" if f.reference_name else "")
+                  + f" ({f.n_lines} lines, {f.n_averages} averages) and the spec numbers read "
+                  "from it.")
+        table = Table(("spec number", "value"),
+                      tuple((k, spec_text(k, v, self.numbers)) for k, v in self.numbers.items()),
+                      "Spec numbers")
+        return Verdict(tested, tuple(checks), self.conditions, (table,))
 
     def __str__(self) -> str:
         f = self.frd
         lines = [f"measured frequency response ({f.method}, {f.n_lines} lines, "
                  f"{f.n_averages} averages) of {f.output_name} from {f.input_name}"
                  + (f", referred to {f.reference_name}" if f.reference_name else "")]
-        lines += [f"  {name:<28} {_num(value)}" for name, value in self.numbers.items()]
+        lines += [f"  {name:<28} {spec_text(name, value, self.numbers)}"
+                  for name, value in self.numbers.items()]
         lines += [f"  note: {n}" for n in self.notes]
+        lines += ["  " + line for line in self.verdict().lines()[:1]]
         if self.folder:
             lines.append(f"  report: {self.folder / 'report.html'}")
         return "\n".join(lines)
@@ -72,6 +119,7 @@ class FrfIdentification(Displayed):
             "data_files": [{"path": str(p), "sha256": sha256(p)} for p in self.spec.data_paths],
             "spec_numbers": {k: (None if math.isnan(v) else v) for k, v in self.numbers.items()},
             "measured_frf": self.frd.to_dict(), "notes": list(self.notes),
+            "verdict": self.verdict().to_dict(),
         }
 
     def inputs(self) -> tuple[Path, ...]:
@@ -85,18 +133,16 @@ class FrfIdentification(Displayed):
     def page(self, files: Mapping[str, Path]) -> Page:
         """The report page."""
         f = self.frd
-        rows = tuple((k, _num(v)) for k, v in self.numbers.items())
         body = Section(
             "Measured frequency response",
             paragraphs=(
                 f"{f.method} estimate of {f.output_name} from {f.input_name}"
                 + (f" referred to {f.reference_name} (consistent in closed loop)"
                    if f.reference_name else "")
-                + f": {f.n_lines} lines, {f.n_averages} averages.",
+                + f": {f.n_lines} lines, {f.n_averages} averages. The spec numbers read from it "
+                "are in the verdict above.",
                 *self.notes,
             ),
-            tables=(Table(("quantity", "value"), rows, "The numbers actuator specs are written "
-                          "in"),),
             figures=(Figure.from_file(files["frf.png"], "Measured frequency response with its "
                                       "±2σ band or coherence"),),
         )
@@ -118,7 +164,8 @@ def spec_numbers(model: Any, *, level_db: float, phase_frequency: float | None,
     try:
         peak = resonance_peak(model, reference_frequency=reference_frequency)
         out["resonance peak [dB]"] = float(peak.peak_db)
-        out["resonance frequency [Hz]"] = float(peak.frequency)
+        # no peak above the low-frequency level (0 dB): no resonance, so no frequency of one
+        out["resonance frequency [Hz]"] = float(peak.frequency) if peak.peak_db > 0 else math.nan
     except ServoidError:  # an undefined number is reported as NaN, not a crash
         out["resonance peak [dB]"] = out["resonance frequency [Hz]"] = math.nan
     return out
@@ -141,18 +188,19 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                      f"{frd.distortion.p_value:.2g}): the FRF is the best linear approximation "
                      "at this amplitude")
     if options["n_poles"] is None:
-        return FrfIdentification(spec, frd, numbers, tuple(notes))
+        return FrfIdentification(spec, frd, numbers, tuple(notes), conditions=spec_conditions(
+            spec, estimation, (), _channel(first, options)))
     target = _without_hold(frd) if options["intersample"] == "zoh" else frd
     est = fit_frf(target, options["n_poles"], options["n_zeros"], delay=options["delay"])
     est = _with_channels(est, frd, options)
     fitted = spec_numbers(est.model, level_db=options["level_db"],
                           phase_frequency=options["phase_frequency"])
-    notes.append("measured: " + ", ".join(f"{k} {_num(v)}" for k, v in numbers.items()))
-    notes.append("fitted model: " + ", ".join(f"{k} {_num(v)}" for k, v in fitted.items()))
     title = f"continuous transfer function fitted to the FRF ({options['n_poles']} poles, " \
             f"{est.options.get('n_zeros', options['n_zeros'])} zeros)"
     return lti_result(spec, "frf", est, title, validations, options, measured=frd, truth=truth,
-                      notes=notes, closed_loop=options["reference"] is not None)
+                      notes=notes, closed_loop=options["reference"] is not None,
+                      records=estimation,
+                      spec_numbers={k: (numbers[k], fitted[k]) for k in numbers})
 
 
 def _without_hold(frd: FrequencyResponseData) -> FrequencyResponseData:
@@ -180,6 +228,43 @@ def _with_channels(est: Any, frd: FrequencyResponseData, options: Mapping[str, A
                                              "intersample": options["intersample"]})
 
 
+def _channel(exp: Experiment, options: Mapping[str, Any]) -> str | None:
+    """The excitation channel: the reference of a closed-loop record, else the input."""
+    for key in ("reference", "input"):
+        name = options[key]
+        if name in ("u", "r"):
+            names = exp.names_of(name)
+            name = names[0] if names else None
+        if name:
+            return str(name)
+    return None
+
+
+def _line_quality(frd: FrequencyResponseData, numbers: Mapping[str, float]) -> Check | None:
+    """Median coherence (Welch) or relative std of the lines up to the bandwidth.
+
+    Up to the bandwidth (or the resonance, if higher) lies what the spec
+    numbers describe; beyond it the gain falls towards the noise.
+    """
+    f = np.asarray(frd.frequency, dtype=float)
+    edges = [v for k, v in numbers.items() if k.startswith(("bandwidth", "resonance frequency"))
+             and math.isfinite(v)]
+    keep = (f > 0) & (f <= max(edges)) if edges else f > 0
+    if not keep.any():
+        return None
+    where = f"over the {int(keep.sum())} lines up to {max(edges):.3g} Hz" if edges else \
+        "over the lines"
+    if frd.coherence is not None:
+        value = float(np.median(np.asarray(frd.coherence)[keep]))
+        return Check("coherence", f"median {value:.2f}", "info",
+                     f"{where}; 1 where the output is linear in the input and noise-free")
+    if frd.variance is not None:
+        rel = np.sqrt(np.asarray(frd.variance)[keep]) / np.abs(np.asarray(frd.response)[keep])
+        return Check("line uncertainty", f"median {100 * float(np.median(rel)):.2g} %", "info",
+                     f"standard deviation of |G| relative to |G| {where}")
+    return None
+
+
 def _safe(fn: Any) -> float:
     try:
         return float(fn())
@@ -189,6 +274,7 @@ def _safe(fn: Any) -> float:
 
 def _num(x: float) -> str:
     return "undefined in the measured band" if math.isnan(x) else f"{x:.5g}"
+
 
 
 def _plot(frd: FrequencyResponseData, path: Path, overwrite: bool) -> None:

@@ -162,7 +162,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     title = (f"grey-box ODE {system.source} ({len(states)} states, {n_free} estimated "
              f"parameters{', compiled' if system.compiled else ''})")
     result = lti_result(spec, "greybox", estimate, title, validations, options, notes=notes,
-                        truth=truth)
+                        truth=truth, records=estimation)
     return GreyboxResult(**{f.name: getattr(result, f.name)
                             for f in dataclasses.fields(IdentificationResult)})
 

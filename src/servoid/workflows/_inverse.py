@@ -57,10 +57,12 @@ from ..estimate import (
 )
 from ..estimate._inverse import INVERSE_PIPELINES
 from ..report import (
+    Conditions,
     Figure,
     Page,
     Section,
     Table,
+    Verdict,
     plot_force_fit,
     plot_friction,
     plot_linear,
@@ -71,6 +73,7 @@ from ._common import parameter_table, report_options, sha256
 from ._options import boolean, choice, choices, integer, number, optional, text
 from ._registry import FigureWriter, Method, Option
 from ._summary import Displayed
+from ._verdict import loop_verdict, record_conditions
 
 __all__ = ["METHOD", "InverseDynamicsIdentification", "controller_from_table"]
 
@@ -119,6 +122,8 @@ class InverseDynamicsIdentification(Displayed):
         The ``[identify]`` options used.
     records : tuple of Experiment
         The validation records (for the figures).
+    conditions : tuple of Conditions
+        Rate, length, excitation and band of each record.
     """
 
     spec: ExperimentSpec
@@ -136,6 +141,11 @@ class InverseDynamicsIdentification(Displayed):
     data: Experiment | None = None
     options: Mapping[str, Any] = field(default_factory=dict)
     records: tuple[Experiment, ...] = ()
+    conditions: tuple[Conditions, ...] = ()
+
+    def verdict(self) -> Verdict:
+        """Closed-loop simulation of data the fit did not use, estimate by estimate."""
+        return loop_verdict(self)
 
     @property
     def estimate(self) -> Estimate:
@@ -162,6 +172,7 @@ class InverseDynamicsIdentification(Displayed):
             if self.validation else None,
             "published": dict(self.published) if self.published else None,
             "notes": list(self.notes),
+            "verdict": self.verdict().to_dict(),
         }
         for key, est in self.estimates.items():
             entry = est.to_dict()
@@ -240,6 +251,7 @@ class InverseDynamicsIdentification(Displayed):
                 lines.append(f"    {key:<26} inverse {errs['inverse']:.4f} %; position "
                              f"{errs['position']:.4g} %, force {errs['force']:.4f} %")
         lines += [f"  note: {n}" for n in self.notes]
+        lines += ["  " + line for line in self.verdict().lines()[:1]]
         if self.folder:
             lines.append(f"  report: {self.folder / 'report.html'}")
         return "\n".join(lines)
@@ -338,7 +350,22 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     return InverseDynamicsIdentification(spec, controller, estimates, loop_errors, linear,
                                          holdout, validation, loop, published,
                                          notes=tuple(notes), data=data, options=options,
-                                         records=records)
+                                         records=records,
+                                         conditions=_conditions(spec, data, records, holdout))
+
+
+def _conditions(spec: ExperimentSpec, data: Experiment, records: tuple[Experiment, ...],
+                holdout: Any) -> tuple[Conditions, ...]:
+    """The records' conditions: the record fitted and what was held back."""
+    name = spec.data_path.name
+    if holdout:  # the reported estimates use the whole record; the check refits the first part
+        held = spec.split_data(data)[1]
+        return (record_conditions(data, f"estimation: {name}"),
+                record_conditions(held, f"validation: {name}, held-back part (checked on a "
+                                  "fit of the first part)"))
+    return (record_conditions(data, f"estimation: {name}"),
+            *(record_conditions(r, f"validation: {p.name}")
+              for p, r in zip(spec.validation_paths, records, strict=False)))
 
 
 # -- steps ------------------------------------------------------------------------------------
@@ -602,6 +629,12 @@ def _plot_linear(ident: InverseDynamicsIdentification, path: Path, overwrite: bo
                 overwrite)
 
 
+def _signed(x: float, unit: str) -> str:
+    """A difference to 3 decimals; one that rounds to zero is 0.000, not -0.000."""
+    text = f"{x:+.3f}"
+    return f"{'0.000' if float(text) == 0.0 else text} {unit}"
+
+
 def _fmt(x: float | None, digits: int = 6) -> str:
     return "—" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}g}"
 
@@ -615,13 +648,14 @@ def _page(ident: InverseDynamicsIdentification, files: Mapping[str, Path]) -> Pa
         if comparison and comparison["parameters"]:
             rows = tuple(
                 (name, _fmt(c["value"]), _fmt(c["std"], 3), _fmt(c["published"]),
-                 _fmt(c["published_std"], 3), f"{c['difference_percent']:+.3f} %")
+                 _fmt(c["published_std"], 3), _signed(c["difference_percent"], "%"))
                 for name, c in comparison["parameters"].items())
             if comparison.get("published_relative_error") is not None \
                     and est.method == "idim-ls":
                 rows += (("relative error [%]", _fmt(comparison["relative_error"], 5), "",
                           _fmt(comparison["published_relative_error"], 5), "",
-                          f"{comparison['relative_error'] - comparison['published_relative_error']:+.3f} pp"),)
+                          _signed(comparison["relative_error"]
+                                  - comparison["published_relative_error"], "pp")),)
             tables.append(Table(("parameter", "servoid", "std", "published", "published std",
                                  "difference"), rows, f"{key} against the reference"))
     loop_rows = []

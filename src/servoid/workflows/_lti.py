@@ -24,10 +24,13 @@ from .._errors import ServoidError, ServoidWarning, SimulationDivergedError
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 from ..estimate import Estimate, frequency_band
 from ..report import (
+    Check,
+    Conditions,
     Figure,
     Page,
     Section,
     Table,
+    Verdict,
     plot_bode_bands,
     plot_pole_zero,
     plot_residuals,
@@ -47,6 +50,14 @@ from ._common import (
 )
 from ._registry import FigureWriter
 from ._summary import Displayed
+from ._verdict import (
+    count_check,
+    diverged_check,
+    interval_check,
+    spec_conditions,
+    spec_text,
+    validation_checks,
+)
 
 __all__ = ["IdentificationResult", "OrderRow", "gain_unit", "lti_result", "model_dict",
            "fit_or_search", "n_inputs", "on_edge", "order_grid",
@@ -101,6 +112,12 @@ class IdentificationResult(Displayed):
         Whether the estimation record looks closed loop (open-loop methods).
     folder, files
         Where the results were written.
+    conditions : tuple of Conditions
+        Rate, length, excitation and band of each record.
+    edge : tuple of str
+        Orders whose chosen value sits on the edge of the searched grid.
+    spec_numbers : mapping
+        Spec number → (measured, fitted model) for a model fitted to an FRF.
     """
 
     spec: ExperimentSpec
@@ -119,6 +136,9 @@ class IdentificationResult(Displayed):
     feedback: Any = None
     folder: Path | None = None
     files: tuple[Path, ...] = field(default=())
+    conditions: tuple[Conditions, ...] = ()
+    edge: tuple[str, ...] = ()
+    spec_numbers: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def validation(self) -> ValidationReport | DivergedRun:
@@ -153,8 +173,14 @@ class IdentificationResult(Displayed):
         lines += self._extra_lines()
         for v in self.validations:
             lines.append(f"  {v}")
+        measured = {k: m for k, (m, _) in self.spec_numbers.items()}
+        fitted = {k: f for k, (_, f) in self.spec_numbers.items()}
+        for name in self.spec_numbers:
+            lines.append(f"  {name}: measured {spec_text(name, measured[name], measured)}, "
+                         f"fitted model {spec_text(name, fitted[name], fitted)}")
         for note in self.notes:
             lines.append(f"  note: {note}")
+        lines += ["  " + line for line in self.verdict().lines()[:1]]
         if self.folder:
             lines.append(f"  report: {self.folder / 'report.html'}")
         return "\n".join(lines)
@@ -184,6 +210,9 @@ class IdentificationResult(Displayed):
             "validation": self.validation.summary(),
             "validations": [v.summary() for v in self.validations],
             "notes": list(self.notes),
+            "spec_numbers": {k: {"measured": _finite(m), "fitted": _finite(f)}
+                             for k, (m, f) in self.spec_numbers.items()} or None,
+            "verdict": self.verdict().to_dict(),
         }
 
     # -- files ------------------------------------------------------------------------------
@@ -245,7 +274,7 @@ class IdentificationResult(Displayed):
                 title += f" ({v.output})"
             sections.append(Section(title, section.paragraphs, section.tables, section.figures))
         sections.append(Section("Notes", paragraphs=self.notes or
-                                ("The validation data do not reject the model.",)))
+                                ("None: no step of the run warned.",)))
         name = spec.source.name if spec.source else "experiment"
         return Page(
             title=f"Identification report: {name}",
@@ -291,6 +320,66 @@ class IdentificationResult(Displayed):
 
     def _truth(self, name: str) -> float | None:
         return None if not self.truth else self.truth.get(name)
+
+    # -- the verdict --------------------------------------------------------------------------
+    def verdict(self) -> Verdict:
+        """What the report decides: the checks on each validation record, one decision."""
+        est = self.estimate
+        checks: list[Check] = []
+        several = len(self.validations) > 1
+        multi = len(outputs_of(est)) > 1
+        covariance = est.options.get("covariance")
+        for v in self.validations:
+            if isinstance(v, DivergedRun):
+                checks.append(diverged_check(v))
+                continue
+            record = " ".join(x for x in ((v.experiment or "held-back part") if several else "",
+                                          v.output if multi else "") if x)
+            checks += validation_checks(v, covariance=covariance, record=record)
+        checks += self._verdict_checks()
+        if self.feedback is not None and self.feedback.has_feedback:
+            p = f"p = {self.feedback.pvalue:.2g}"
+            if self.method == "bj":
+                checks.append(Check("feedback test", p, "info",
+                                    "the record looks closed loop; BJ on (u, y) is the direct "
+                                    "approach, consistent when its noise model is right (see "
+                                    "the residual whiteness)"))
+            else:
+                checks.append(Check("feedback test", p, "caution",
+                                    f"the record looks closed loop: {self.method} on (u, y) is "
+                                    "biased under feedback"))
+        if self.edge:
+            checks.append(Check("order search", ", ".join(self.edge), "caution",
+                                "the chosen order sits on the edge of the searched grid"))
+        if not str(est.status).startswith("ok"):
+            checks.append(Check("solver", str(est.status), "caution",
+                                "the estimate did not converge cleanly"))
+        if covariance:
+            checks.append(interval_check(covariance))
+        checks.append(count_check("notes", self.notes, "listed under Notes"))
+        tables: tuple[Table, ...] = ()
+        if self.spec_numbers:
+            measured = {k: m for k, (m, _) in self.spec_numbers.items()}
+            fitted = {k: f for k, (_, f) in self.spec_numbers.items()}
+            tables = (Table(("spec number", "measured FRF", "fitted model"),
+                            tuple((k, spec_text(k, m, measured), spec_text(k, f, fitted))
+                                  for k, (m, f) in self.spec_numbers.items()),
+                            "Spec numbers"),)
+        return Verdict(self._tested(), tuple(checks), self.conditions, tables)
+
+    def _tested(self) -> str:
+        """What was tested, in one sentence."""
+        est = self.estimate
+        o = est.options
+        records = len(self.validations)
+        return (f"{self.title}, output {', '.join(outputs_of(est))} from "
+                f"{', '.join(o.get('inputs', []))} ({o.get('input', 'u')}), fitted on "
+                f"{est.n_samples} samples and simulated from the input on "
+                f"{'a record' if records == 1 else f'{records} records'} not used for fitting.")
+
+    def _verdict_checks(self) -> list[Check]:
+        """A method's own checks (block and NARX models add theirs)."""
+        return []
 
 
 # -- the run flow shared by the black-box methods --------------------------------------------
@@ -364,6 +453,8 @@ def lti_result(
     modal: bool = True,
     result_type: type[IdentificationResult] | None = None,
     extra: Mapping[str, Any] | None = None,
+    records: Experiment | ExperimentSet | None = None,
+    spec_numbers: Mapping[str, tuple[float, float]] | None = None,
 ) -> IdentificationResult:
     """Validate an estimate on each record and assemble the result.
 
@@ -383,6 +474,9 @@ def lti_result(
     ``modal = False`` skips the static gain, ω_n and ζ (a nonlinear
     model has none); ``result_type`` is the class to build (a subclass of
     :class:`IdentificationResult`) with its own fields in ``extra``.
+    The test conditions (rate, length, excitation, band) are read from
+    ``estimation`` (or ``records``, the estimation data of a method that
+    does not want the feedback test) and the validation records.
     """
     input_role = estimate.options.get("input", "u")
     feedback = None
@@ -428,10 +522,15 @@ def lti_result(
         warnings.warn(note, ServoidWarning, stacklevel=4)  # lti_result ← run ← identify ← user
     if truth is None:
         truth = truth_from_spec(spec, [*estimate.names, *(r.name for r in characteristics)])
+    data = estimation if estimation is not None else records
+    # the excitation: the model's input in open loop, the reference in closed loop
+    channel = None if closed_loop else next(iter(estimate.options.get("inputs") or []), None)
+    conditions = () if data is None else spec_conditions(spec, data, validations, channel)
     return (result_type or IdentificationResult)(
         spec, method, estimate, tuple(reports), title, tuple(orders), criterion,
         tuple(characteristics), measured, tuple(float(s) for s in singular_values), truth,
-        tuple(all_notes), gain_unit(validations[0], estimate), feedback, **(extra or {}))
+        tuple(all_notes), gain_unit(validations[0], estimate), feedback, conditions=conditions,
+        edge=tuple(edge), spec_numbers=dict(spec_numbers or {}), **(extra or {}))
 
 
 def _feedback(data: Experiment | ExperimentSet, estimate: Estimate) -> Any:
@@ -544,6 +643,10 @@ def model_dict(model: Any) -> dict[str, Any]:
 
 
 # -- private ------------------------------------------------------------------------------
+
+
+def _finite(x: float) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
 
 
 def _complex_list(values: Any) -> list[dict[str, float]]:

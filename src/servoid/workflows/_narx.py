@@ -96,7 +96,8 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     title = (f"NARX (na = {o['na']}, nb = {_short(o['nb'])}, nk = {_short(o['nk'])}, degree = "
              f"{o['degree']}, {estimate.parameters.size} terms)")
     result = lti_result(spec, "narx", estimate, title, validations, options, notes=notes,
-                        truth=truth, modal=False, result_type=NarxResult)
+                        truth=truth, modal=False, result_type=NarxResult,
+                        records=estimation)
     assert isinstance(result, NarxResult)
     return result
 

@@ -48,12 +48,23 @@ from ..multistep import (
     RecordComparison,
     identify_multistep,
 )
-from ..report import Figure, Page, Section, Table, new_figure, save_figure
+from ..report import (
+    Check,
+    Conditions,
+    Figure,
+    Page,
+    Section,
+    Table,
+    Verdict,
+    new_figure,
+    save_figure,
+)
 from ..report._text import plain
 from ._common import read_truth, report_options, sha256
 from ._options import boolean, choice, number, optional, text
 from ._registry import FigureWriter, Method, Option
 from ._summary import Displayed
+from ._verdict import count_check, record_conditions
 
 __all__ = ["METHOD", "PneumaticIdentification"]
 
@@ -82,6 +93,8 @@ class PneumaticIdentification(Displayed):
         Results folder, when written.
     files : tuple of Path
         Files written.
+    conditions : tuple of Conditions
+        Rate, length, excitation and band of each test record.
     """
 
     spec: ExperimentSpec
@@ -90,6 +103,36 @@ class PneumaticIdentification(Displayed):
     truth: Mapping[str, float] | None = None
     folder: Path | None = None
     files: tuple[Path, ...] = ()
+    conditions: tuple[Conditions, ...] = ()
+
+    def verdict(self) -> Verdict:
+        """S6: the assembled model simulated on the held-back record, channel by channel."""
+        res = self.result
+        checks = []
+        for label, comp in (("", res.validation), (" (refined)", res.refined_validation)):
+            if comp is None:
+                continue
+            for ch, fit in comp.fit.items():
+                name = f"S6 fit {_LABELS[ch][0]}{label}"
+                if fit < 0:
+                    checks.append(Check(name, f"{fit:.1f} %", "fail",
+                                        "the simulated channel is further from the measurement "
+                                        "than its mean value"))
+                else:
+                    checks.append(Check(name, f"{fit:.1f} %", "pass",
+                                        f"simulated on the record {comp.record!r}, not used by "
+                                        "any step"))
+        checks.append(count_check("step warnings", res.notes,
+                                  "the steps warned (listed under Notes): read them before "
+                                  "accepting", "caution"))
+        n = len(res.table())
+        tested = (f"the servopneumatic model assembled from the steps S0–S5 ({n} parameters, "
+                  "each from the test that excites it), simulated on the held-back record "
+                  f"{res.validation.record!r} "
+                  + ("in closed loop from its reference" if res.validation.closed_loop
+                     else "from its input u")
+                  + " (S6) and compared channel by channel.")
+        return Verdict(tested, tuple(checks), self.conditions)
 
     def table(self) -> list[dict[str, Any]]:
         """Parameter rows with the truth and the relative error."""
@@ -111,6 +154,7 @@ class PneumaticIdentification(Displayed):
             "truth": dict(self.truth) if self.truth else None,
             "parameters": self.table(),
             **{k: v for k, v in self.result.to_dict().items() if k != "parameters"},
+            "verdict": self.verdict().to_dict(),
         }
 
     def inputs(self) -> tuple[Path, ...]:
@@ -146,9 +190,10 @@ class PneumaticIdentification(Displayed):
     def __str__(self) -> str:
         lines = [str(self.result)]
         if self.truth:
-            errs = ", ".join(f"{r['name']} {r['error_percent']:+.2f} %" for r in self.table()
+            errs = ", ".join(f"{r['name']} {_signed(r['error_percent'], 2)}" for r in self.table()
                              if r["error_percent"] is not None)
             lines.append(f"  error vs truth: {errs}")
+        lines += ["  " + line for line in self.verdict().lines()[:1]]
         if self.folder:
             lines.append(f"  report: {self.folder / 'report.html'}")
         return "\n".join(lines)
@@ -214,7 +259,9 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     )
     if truth is None:
         truth = _truth(spec, base)
-    return PneumaticIdentification(spec, result, sources, truth)
+    conditions = tuple(record_conditions(records[test], f"{test}: {_data_file(path).name}")
+                       for test, path in sources.items())
+    return PneumaticIdentification(spec, result, sources, truth, conditions=conditions)
 
 
 # -- helpers --------------------------------------------------------------------------------
@@ -326,7 +373,7 @@ def _page(ident: PneumaticIdentification, files: Mapping[str, Path]) -> Page:
         cells += [f"{r['value']:.6g}", f"{r['std']:.3g}",
                   f"[{r['ci95'][0]:.6g}, {r['ci95'][1]:.6g}]", r["unit"], r["step"]]
         if truth:
-            cells.append("—" if r["error_percent"] is None else f"{r['error_percent']:+.3f} %")
+            cells.append("—" if r["error_percent"] is None else _signed(r["error_percent"]))
         rows.append(tuple(cells))
     summary = Section(
         "Identified parameters",
@@ -389,6 +436,12 @@ def _page(ident: PneumaticIdentification, files: Mapping[str, Path]) -> Page:
               *((f"{k} record", f"{p.name} (sha256 {sha256(_data_file(p))[:12]}…)")
                 for k, p in ident.sources.items())),
     )
+
+
+def _signed(x: float, digits: int = 3) -> str:
+    """A relative error [%] to ``digits`` decimals; one that rounds to zero has no sign."""
+    text = f"{x:+.{digits}f}"
+    return f"{f'{0.0:.{digits}f}' if float(text) == 0.0 else text} %"
 
 
 def _data_file(path: Path) -> Path:

@@ -8,7 +8,10 @@ A method is one module that declares
 
 The result (an :class:`Identification`) contributes the rest: its console
 text (``__str__``), ``results.json`` (``to_dict``), its figures
-(``figures``: file name → writer) and its report page (``page``).  The
+(``figures``: file name → writer), its report page (``page``) and the
+verdict the page opens with (``verdict``: a :class:`~servoid.report.Verdict`
+built from the result's own numbers; a result without one is judged from
+its ``results.json``).  The
 command line, the TOML loader, the report writer and the fleet runner see
 only this registry; :func:`servoid.workflows.identify` walks
 spec → method → result → files.  Adding a method is one module and one

@@ -236,8 +236,10 @@ def _write(result: Identification, folder: Path, overwrite: bool, lock: FolderLo
         write_json(result.to_dict(), targets["results.json"], overwrite=True)
         page = result.page(targets)
         done = {n: p for n, p in targets.items() if n != "report.html"}
+        verdict = result.verdict().section() if callable(getattr(result, "verdict", None)) \
+            else verdict_section(result.to_dict())
         page = dataclasses.replace(page, meta=(*page.meta, *provenance(result, done)),
-                                   sections=(verdict_section(result.to_dict()), *page.sections))
+                                   sections=(verdict, *page.sections))
         write_html(page, targets["report.html"], overwrite=True)
         write_json(_manifest(result, targets), manifest, overwrite=False)
     except BaseException:

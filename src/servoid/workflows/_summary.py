@@ -1,9 +1,12 @@
 """One identification's ``results.json`` in brief: parameters, fit, test verdicts, flags.
 
-The report's verdict box and the fleet runner read only the dictionary
-every result writes to ``results.json``.  Each method family writes its
-parameters in one of a few shapes; :func:`summarise` knows them and
-returns the same plain :class:`RecordSummary` for all.
+The fleet runner and :func:`~servoid.workflows.load_results` read only the
+dictionary every result writes to ``results.json``.  Each method family
+writes its parameters in one of a few shapes; :func:`summarise` knows them
+and returns the same plain :class:`RecordSummary` for all, with the
+decision of the run's verdict (its ``"verdict"`` entry).  A report is
+written from the result itself (``result.verdict()``); :func:`verdict_of`
+rebuilds the verdict of a ``results.json`` for what has only the file.
 """
 
 from __future__ import annotations
@@ -13,10 +16,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
-if TYPE_CHECKING:
-    from ..report import Section
+from .._errors import ServoidError
 
-__all__ = ["ParameterValue", "RecordSummary", "summarise", "verdict_section"]
+if TYPE_CHECKING:
+    from ..report import Section, Verdict
+
+__all__ = ["ParameterValue", "RecordSummary", "summarise", "verdict_of", "verdict_section"]
 
 
 @dataclass(frozen=True)
@@ -52,6 +57,14 @@ class RecordSummary:
     diverged : tuple of str
         The validation records on which the model's free run diverged
         (the model failed there; they have no metrics).
+    decision : str or None
+        The verdict's ``"accept"``, ``"reject"`` or ``"inconclusive"``
+        (None for a results file that predates verdicts).
+    reason : str
+        Why, in words.
+    conditions : tuple of dict
+        The test conditions of each record (rate, length, excitation,
+        band), as ``results.json`` holds them.
     """
 
     parameters: tuple[ParameterValue, ...]
@@ -62,6 +75,9 @@ class RecordSummary:
     flags: tuple[str, ...] = ()
     notes: int = 0
     diverged: tuple[str, ...] = ()
+    decision: str | None = None
+    reason: str = ""
+    conditions: tuple[dict[str, Any], ...] = ()
 
     def names(self) -> tuple[str, ...]:
         """Parameter names, in order."""
@@ -72,8 +88,16 @@ def summarise(results: Mapping[str, Any]) -> RecordSummary:
     """Return the summary of a ``results.json`` dictionary (see :func:`_summarise`)."""
     summary = _summarise(results)
     notes = results.get("notes")
+    verdict = results.get("verdict")
+    verdict = verdict if isinstance(verdict, Mapping) else {}
+    decision = verdict.get("decision")
+    conditions = verdict.get("conditions")
     return replace(summary, notes=len(notes) if isinstance(notes, list) else 0,
-                   diverged=_diverged(results))
+                   diverged=_diverged(results),
+                   decision=str(decision) if isinstance(decision, str) else None,
+                   reason=str(verdict.get("reason") or ""),
+                   conditions=tuple(dict(c) for c in conditions if isinstance(c, Mapping))
+                   if isinstance(conditions, list) else ())
 
 
 def _diverged(results: Mapping[str, Any]) -> tuple[str, ...]:
@@ -165,40 +189,56 @@ def _num(x: Any) -> float:
         return math.nan
 
 
-def verdict_section(results: Mapping[str, Any]) -> Section:
-    """The report's verdict box: fit, residual tests, structure test, warnings."""
-    from ..report import Section
+def verdict_of(results: Mapping[str, Any]) -> Verdict:
+    """The verdict of a ``results.json``: its own, or one rebuilt from its numbers.
 
+    A file written with a verdict holds it whole (``"verdict"``); for an
+    older file the fit, the residual tests, the structure test, the flags
+    and the notes become checks, so its report still opens with a decision.
+    """
+    from ..report import Check, Verdict
+
+    held = results.get("verdict")
+    if isinstance(held, Mapping):
+        try:
+            return Verdict.from_dict(held)
+        except (KeyError, TypeError, ValueError, ServoidError):
+            pass  # a damaged entry: judge the numbers instead
     s = summarise(results)
-    lines = []
-    if s.diverged:
-        lines.append(f"Validation: FAILED — the model's free run diverges on "
-                     f"{'; '.join(s.diverged)}. The model is unstable in simulation there, "
-                     "whatever its one-step fit; that record has no metrics.")
+    checks = [Check(f"free run ({where})", "diverges", "fail",
+                    "the model is unstable in simulation there; no metrics")
+              for where in s.diverged]
     if s.fit_percent is not None:
-        lines.append(f"Validation fit: {s.fit_percent:.1f} %"
-                     + (" — the model does worse than the output's mean." if s.fit_percent < 0
-                        else "."))
-    elif not s.diverged:
-        lines.append("Validation fit: not computed by this method.")
-    for verdict, good, bad in (
-            (s.white, "Residuals: white — no structure left that the model misses.",
-             ("Residuals: NOT white — the noise model or the model order is too simple; the "
-             "intervals assume more than the data show.")),
-            (s.independent, "Residuals independent of the input — no input dynamics left.",
-             ("Residuals correlated with the input — the model structure is rejected by the "
-             "data."))):
-        if verdict is not None:
-            lines.append(good if verdict else bad)
+        checks.append(Check("simulation fit", f"{s.fit_percent:.1f} %",
+                            "fail" if s.fit_percent < 0 else "pass",
+                            "worse than the output's mean" if s.fit_percent < 0 else
+                            "on data not used for fitting"))
+    if s.independent is not None:
+        checks.append(Check("input–residual independence",
+                            "independent" if s.independent else "correlated",
+                            "pass" if s.independent else "fail",
+                            "no input dynamics left" if s.independent else
+                            "the dynamics from the input are not captured"))
+    if s.white is not None:
+        checks.append(Check("residual whiteness", "white" if s.white else "not white", "info",
+                            "what it means for the model is in the notes"))
     if s.structure_rejected is not None:
-        lines.append("Structure test: the data reject the reduced model — its intervals "
-                     "understate the error (see the structure test)." if s.structure_rejected
-                     else "Structure test: no richer structure explains the data significantly "
-                     "better.")
+        checks.append(Check("structure test", "rejected" if s.structure_rejected else "passed",
+                            "fail" if s.structure_rejected else "pass",
+                            "a richer structure explains the data better" if s.structure_rejected
+                            else "no richer structure explains the data significantly better"))
     if s.flags:
-        lines.append("Flags: " + "; ".join(s.flags) + ".")
-    lines.append(f"Warnings: {s.notes} (see the notes)." if s.notes else "Warnings: none.")
-    return Section("Verdict", paragraphs=tuple(lines), box=True)
+        checks.append(Check("flags", str(len(s.flags)), "caution", "; ".join(s.flags)))
+    checks.append(Check("notes", str(s.notes), "info", "listed under Notes" if s.notes
+                        else "none"))
+    method = results.get("method") or "closedloop"
+    return Verdict(f"the results of a {method} run, judged from its results.json.",
+                   tuple(checks))
+
+
+def verdict_section(results: Mapping[str, Any]) -> Section:
+    """The report's verdict box of a ``results.json`` (see :func:`verdict_of`)."""
+    return verdict_of(results).section()
 
 
 class Displayed:
@@ -212,9 +252,12 @@ class Displayed:
         import html
 
         try:
-            section = verdict_section(self.to_dict())  # type: ignore[attr-defined]
-            verdict = "".join(f"<div>{html.escape(p)}</div>" for p in section.paragraphs)
-        except Exception:  # noqa: BLE001 - a result without a summary still shows its text
-            verdict = ""
-        return (f'<div style="border:1px solid #aaa;padding:.3em .6em;margin:.3em 0">{verdict}'
+            verdict = self.verdict()  # type: ignore[attr-defined]
+            rows = "".join(f"<tr><td>{html.escape(c.name)}</td><td>{html.escape(c.value)}</td>"
+                           f"<td>{html.escape(c.meaning)}</td></tr>" for c in verdict.checks)
+            head = (f"<div><b>{html.escape(verdict.decision.upper())}</b> — "
+                    f"{html.escape(verdict.reason)}</div><table>{rows}</table>")
+        except Exception:  # noqa: BLE001 - a result without a verdict still shows its text
+            head = ""
+        return (f'<div style="border:1px solid #aaa;padding:.3em .6em;margin:.3em 0">{head}'
                 f"</div><pre>{html.escape(str(self))}</pre>")
