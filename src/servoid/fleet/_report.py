@@ -201,10 +201,7 @@ def _parameter_section(result: FleetResult, p: ParameterStats) -> Section:
 
 
 def _trend_figure(result: FleetResult, p: ParameterStats) -> Figure:
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    from matplotlib.figure import Figure as MplFigure
+    from matplotlib.figure import Figure as MplFigure  # pyplot-free: no backend chosen here
 
     from ._result import _axis
 
