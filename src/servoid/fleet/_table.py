@@ -7,6 +7,11 @@ Columns, in order: ``record``, the manifest's metadata, ``status``,
 ``pass_<p>``, then ``outlier`` (the parameters whose robust z-score
 exceeds the cut-off) and ``pass``.  Values the record has not (a failed
 record, a parameter another method estimates) are empty.
+
+A text cell that a spreadsheet would run as a formula (one starting with
+``=``, ``+``, ``-``, ``@``, a tab or a carriage return, such as a manifest
+serial ``=HYPERLINK(...)``) is written with a leading ``'``, which shows
+the text as it is; numbers are written as they are.
 """
 
 from __future__ import annotations
@@ -15,14 +20,17 @@ import csv
 import io
 import math
 import os
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from .._atomic import atomic_path
 
-__all__ = ["columns", "write_csv", "write_parquet"]
+__all__ = ["columns", "neutralise", "write_csv", "write_parquet"]
 
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 _FIXED = ("status", "error", "method", "seconds", "fit_percent", "white", "independent",
           "structure_rejected", "flags")
 
@@ -36,6 +44,13 @@ def columns(meta: Sequence[str], parameters: Sequence[str], limited: Sequence[st
     return [*out, "outlier", "pass"]
 
 
+def neutralise(text: str) -> str:
+    """A CSV text cell that no spreadsheet runs as a formula; numbers are left as they are."""
+    if not text.startswith(_FORMULA_START) or _NUMBER.fullmatch(text):
+        return text
+    return "'" + text
+
+
 def _cell(value: Any) -> str:
     if value is None:
         return ""
@@ -43,7 +58,9 @@ def _cell(value: Any) -> str:
         return "true" if value else "false"
     if isinstance(value, float):
         return "" if math.isnan(value) else repr(value)
-    return str(value)
+    if isinstance(value, int):
+        return str(value)
+    return neutralise(str(value))
 
 
 def write_csv(rows: Sequence[Mapping[str, Any]], names: Sequence[str],
@@ -51,7 +68,7 @@ def write_csv(rows: Sequence[Mapping[str, Any]], names: Sequence[str],
     """Write the table as CSV (UTF-8, a header row, empty cells for missing values)."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(names)
+    writer.writerow([neutralise(str(c)) for c in names])
     for row in rows:
         writer.writerow([_cell(row.get(c)) for c in names])
     with atomic_path(path, overwrite=True) as tmp:
