@@ -17,7 +17,6 @@ from _arx_fleet import write_fleet, write_record
 
 from servoid import DataError, OptionError
 from servoid.fleet import load_fleet_spec, run_fleet
-from servoid.fleet._table import neutralise
 
 
 def _fifo_with_a_late_writer(path: Path) -> threading.Thread:
@@ -161,13 +160,3 @@ def test_spreadsheet_formulas_in_fleet_csv_are_neutralised(tmp_path):
     assert first[header.index("'=cmd|' /C calc'!A0")] == "'\tx"
     assert float(first[header.index("a1")]) < 0  # negative estimates untouched
     assert result.rows[0]["serial"] == hostile  # the data themselves are not changed
-
-
-@pytest.mark.parametrize(
-    ("cell", "written"),
-    [("=1+1", "'=1+1"), ("+49 30 1234", "'+49 30 1234"), ("-2+3+cmd|' /C calc'!A0",
-     "'-2+3+cmd|' /C calc'!A0"), ("@SUM(A1:A9)", "'@SUM(A1:A9)"), ("\t=1", "'\t=1"),
-     ("\r=1", "'\r=1"), ("-0.25", "-0.25"), ("+3e-5", "+3e-5"), ("SN-1", "SN-1"), ("", "")],
-)
-def test_neutralise(cell, written):
-    assert neutralise(cell) == written

@@ -11,7 +11,8 @@ record, a parameter another method estimates) are empty.
 A text cell that a spreadsheet would run as a formula (one starting with
 ``=``, ``+``, ``-``, ``@``, a tab or a carriage return, such as a manifest
 serial ``=HYPERLINK(...)``) is written with a leading ``'``, which shows
-the text as it is; numbers are written as they are.
+the text as it is (:mod:`servoid._spreadsheet`); numbers are written as
+they are.
 """
 
 from __future__ import annotations
@@ -20,17 +21,15 @@ import csv
 import io
 import math
 import os
-import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from .._atomic import atomic_path
+from .._spreadsheet import neutralise
 
-__all__ = ["columns", "neutralise", "write_csv", "write_parquet"]
+__all__ = ["columns", "write_csv", "write_parquet"]
 
-_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
-_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 _FIXED = ("status", "error", "method", "seconds", "fit_percent", "white", "independent",
           "structure_rejected", "flags")
 
@@ -42,13 +41,6 @@ def columns(meta: Sequence[str], parameters: Sequence[str], limited: Sequence[st
         out += [p, f"{p}_std", f"{p}_ci_low", f"{p}_ci_high"]
     out += [f"pass_{p}" for p in limited]
     return [*out, "outlier", "pass"]
-
-
-def neutralise(text: str) -> str:
-    """A CSV text cell that no spreadsheet runs as a formula; numbers are left as they are."""
-    if not text.startswith(_FORMULA_START) or _NUMBER.fullmatch(text):
-        return text
-    return "'" + text
 
 
 def _cell(value: Any) -> str:
