@@ -19,46 +19,55 @@ from servoid import DataError, OptionError
 from servoid.fleet import load_fleet_spec, run_fleet
 
 
-def _fifo_with_a_late_writer(path: Path) -> threading.Thread:
-    """A FIFO that a writer fills after a while: code that opens it waits, then reads data.
+@pytest.fixture
+def fifo():
+    """Make named pipes that a writer serves, from 3 s on, to whoever opens them.
 
-    Without the check a fleet would read the pipe and go on (the test then
-    fails) instead of waiting for ever.
+    Code that opens one waits, then reads a line and goes on, so a fleet
+    without the check fails the test instead of waiting for ever.
     """
-    os.mkfifo(path)
+    stop = threading.Event()
+    writers = []
 
-    def write() -> None:
-        try:
-            fd = os.open(path, os.O_WRONLY | os.O_NONBLOCK)
-        except OSError:  # no reader: the fleet did not open it, as it should
-            return
-        with os.fdopen(fd, "w") as f:
-            f.write("time [s],u [V],y [m]\n0,0,0\n")
+    def make(path: Path) -> Path:
+        os.mkfifo(path)
 
-    writer = threading.Timer(3.0, write)
-    writer.start()
-    return writer
+        def serve() -> None:
+            stop.wait(3.0)
+            while not stop.is_set():
+                try:
+                    fd = os.open(path, os.O_WRONLY | os.O_NONBLOCK)
+                except OSError:  # no reader now
+                    stop.wait(0.2)
+                    continue
+                with os.fdopen(fd, "w") as f:
+                    f.write("x\n")
+
+        writers.append(threading.Thread(target=serve, daemon=True))
+        writers[-1].start()
+        return path
+
+    yield make
+    stop.set()
+    for writer in writers:
+        writer.join()
 
 
-def test_a_fifo_as_a_data_file_is_refused_by_name_before_any_record(tmp_path):
+def test_a_fifo_as_a_data_file_is_refused_by_name_before_any_record(tmp_path, fifo):
     fleet = write_fleet(tmp_path, ["A", "B", "C"])
     data = tmp_path / "units" / "U1" / "data.csv"
     data.unlink()
-    writer = _fifo_with_a_late_writer(data)
-    try:
-        with pytest.raises(DataError, match=r"U1/data\.csv \(of record .*\) is a named pipe "
-                                            r"\(FIFO\).*regular files only"):
-            run_fleet(fleet, workers=1, progress=False)
-    finally:
-        writer.cancel()
-        writer.join()
+    fifo(data)
+    with pytest.raises(DataError, match=r"U1/data\.csv \(of record .*\) is a named pipe "
+                                        r"\(FIFO\).*regular files only"):
+        run_fleet(fleet, workers=1, progress=False)
     assert not (tmp_path / "fleet-results").exists()  # the refused run left no folder
 
 
 @pytest.mark.parametrize(
     ("make", "fragment"),
     [
-        (lambda p: p.symlink_to("/dev/zero"), "is a device, not a file"),
+        (lambda p: p.symlink_to("/dev/null"), "is a device, not a file"),
         (lambda p: p.symlink_to(p.name), "is a loop of symbolic links"),
         (lambda p: p.mkdir(), "is a folder, not a file"),
     ],
@@ -72,26 +81,26 @@ def test_other_data_files_that_are_not_files(tmp_path, make, fragment):
         run_fleet(fleet, workers=1, progress=False)
 
 
-def test_fleet_file_manifest_and_experiment_files_must_be_regular(tmp_path):
+def test_fleet_file_manifest_and_experiment_files_must_be_regular(tmp_path, fifo):
     fleet = write_fleet(tmp_path, ["A", "B"])
-    os.mkfifo(tmp_path / "pipe.toml")
+    fifo(tmp_path / "pipe.toml")
     with pytest.raises(DataError, match=r"fleet file .*pipe\.toml is a named pipe"):
         load_fleet_spec(tmp_path / "pipe.toml")
     (tmp_path / "units.csv").rename(tmp_path / "saved.csv")
-    os.mkfifo(tmp_path / "units.csv")
+    fifo(tmp_path / "units.csv")
     with pytest.raises(DataError, match=r"manifest .*units\.csv is a named pipe"):
         load_fleet_spec(fleet)
     (tmp_path / "units.csv").unlink()
     (tmp_path / "saved.csv").rename(tmp_path / "units.csv")
     toml = tmp_path / "units" / "U1" / "exp.toml"
     toml.unlink()
-    os.mkfifo(toml)
+    fifo(toml)
     with pytest.raises(DataError, match=r"names 1 path\(s\) that are not regular files: "
                                         r".*U1/exp\.toml is a named pipe"):
         load_fleet_spec(fleet)
 
 
-def test_globs_stay_in_the_fleet_files_folder(tmp_path):
+def test_globs_stay_in_the_fleet_files_folder(tmp_path, fifo):
     for k in range(2):
         write_record(tmp_path / "runs" / f"r{k}", seed=k)
     fleet = tmp_path / "fleet.toml"
@@ -117,7 +126,7 @@ def test_globs_stay_in_the_fleet_files_folder(tmp_path):
     write_record(tmp_path / ".old" / "r9", seed=9)
     assert len(spec("**/exp.toml").records) == 2
     assert len(spec(".old/*/exp.toml").records) == 1
-    os.mkfifo(tmp_path / "runs" / "r0" / "x.toml")
+    fifo(tmp_path / "runs" / "r0" / "x.toml")
     with pytest.raises(DataError, match=r"finds 1 path\(s\) that are not regular files: "
                                         r".*x\.toml is a named pipe"):
         spec("runs/*/*.toml")

@@ -7,7 +7,9 @@ message on stderr naming the problem and the fix, no traceback, the same
 answer under ``--json``, and the folder exactly as it was (no results
 folder from a refused run).  The classes:
 
-- a file that is not a regular file — a named pipe (FIFO), a device, a
+- a file that is not a regular file — a named pipe (FIFO), a device
+  (``/dev/null`` here: a fleet that read ``/dev/zero`` would never end,
+  and this catalogue must fail, not hang, when a check is lost), a
   symbolic-link loop — as the fleet file, the manifest, a record's
   experiment file, its data file or a TLS file: refused by name before
   anything is read (a FIFO used to stall the whole fleet);
@@ -31,6 +33,7 @@ import json
 import os
 import shutil
 import stat
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -90,12 +93,43 @@ def base(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 # -- edits of a copy ---------------------------------------------------------------------------
 
+_STOP = threading.Event()
+_WRITERS: list[threading.Thread] = []
+
+
+@pytest.fixture(autouse=True)
+def _no_writer_left():
+    _STOP.clear()
+    yield
+    _STOP.set()
+    while _WRITERS:
+        _WRITERS.pop().join()
+
+
 def fifo(name: str) -> Edit:
-    """Replace a file of the fleet folder with a named pipe."""
+    """Replace a file of the fleet folder with a named pipe, which a writer serves from 3 s on.
+
+    A fleet that opened the pipe would wait, then read a line and go on:
+    the case fails instead of hanging the suite.
+    """
     def edit(folder: Path) -> None:
         path = folder / name
         path.unlink(missing_ok=True)
         os.mkfifo(path)
+
+        def serve() -> None:
+            _STOP.wait(3.0)
+            while not _STOP.is_set():
+                try:
+                    fd = os.open(path, os.O_WRONLY | os.O_NONBLOCK)
+                except OSError:  # no reader now
+                    _STOP.wait(0.2)
+                    continue
+                with os.fdopen(fd, "w") as f:
+                    f.write("x\n")
+
+        _WRITERS.append(threading.Thread(target=serve, daemon=True))
+        _WRITERS[-1].start()
     return edit
 
 
@@ -142,9 +176,9 @@ CASES = {
                            "units/U1/data.csv (of record"),
     "fifo data file named": Case((), (fifo("units/U1/data.csv"),),
                                  "is a named pipe (FIFO), not a file"),
-    "device data file": Case((), (link("units/U0/data.csv", "/dev/zero"),),
+    "device data file": Case((), (link("units/U0/data.csv", "/dev/null"),),
                              "data.csv (of record"),
-    "device named": Case((), (link("units/U0/data.csv", "/dev/zero"),),
+    "device named": Case((), (link("units/U0/data.csv", "/dev/null"),),
                          "is a device, not a file"),
     "link loop data file": Case((), (link("units/U2/data.csv", "data.csv"),),
                                 "is a loop of symbolic links"),
