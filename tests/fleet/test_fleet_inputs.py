@@ -6,6 +6,7 @@ before any record runs and name the file and the fix.
 
 from __future__ import annotations
 
+import codecs
 import csv
 import os
 import shutil
@@ -169,3 +170,19 @@ def test_spreadsheet_formulas_in_fleet_csv_are_neutralised(tmp_path):
     assert first[header.index("'=cmd|' /C calc'!A0")] == "'\tx"
     assert float(first[header.index("a1")]) < 0  # negative estimates untouched
     assert result.rows[0]["serial"] == hostile  # the data themselves are not changed
+
+
+def test_a_manifest_with_a_byte_order_mark_reads_as_without(tmp_path):
+    """Spreadsheets save "CSV UTF-8" with a BOM; its first column is still ``path``."""
+    fleet = write_fleet(tmp_path, ["A", "B"])
+    manifest = tmp_path / "units.csv"
+    manifest.write_bytes(codecs.BOM_UTF8 + manifest.read_bytes())
+    assert [r.serial for r in load_fleet_spec(fleet).records] == ["A", "B"]
+
+
+def test_a_record_whose_experiment_file_nests_too_deeply_is_a_failed_row(tmp_path):
+    fleet = write_fleet(tmp_path, ["A", "B"])
+    (tmp_path / "units" / "U1" / "exp.toml").write_text(
+        "[data]\nfile = " + "[" * 100_000 + "]" * 100_000 + "\n", encoding="utf-8")
+    result = run_fleet(fleet, workers=1, progress=False)
+    assert [r["status"] for r in result.rows] == ["ok", "failed"]

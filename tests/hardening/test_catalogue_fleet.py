@@ -15,6 +15,9 @@ folder from a refused run).  The classes:
   anything is read (a FIFO used to stall the whole fleet);
 - a glob leaving the fleet file's folder (``/**`` walked the whole file
   system);
+- a fleet file nested too deeply, with numbers beyond a float or of
+  thousands of digits, or not in UTF-8 (a UTF-16 or Latin-1 file; a UTF-8
+  byte-order mark is accepted);
 - a record that is a byte-identical copy of another (it counted as a
   second unit);
 - a scheduler address that is malformed, of an unsupported protocol,
@@ -142,9 +145,11 @@ def link(name: str, target: str) -> Edit:
     return edit
 
 
-def fleet_file(text: str) -> Edit:
+def fleet_file(text: str | bytes, name: str = "fleet.toml") -> Edit:
+    """Replace the fleet file (or another file of the folder)."""
     def edit(folder: Path) -> None:
-        (folder / "fleet.toml").write_text(text, encoding="utf-8")
+        data = text if isinstance(text, bytes) else text.encode("utf-8")
+        (folder / name).write_bytes(data)
     return edit
 
 
@@ -158,6 +163,7 @@ def copy_record(source: str, target: str, serial: str) -> Edit:
 
 
 GLOB = '[records]\nglob = "{}"\n'
+MANIFEST = '[records]\nmanifest = "units.csv"\n'
 
 
 @dataclass(frozen=True)
@@ -202,6 +208,29 @@ CASES = {
     "glob finding a fifo": Case((), (fleet_file(GLOB.format("units/*/*.toml")),
                                      fifo("units/U0/x.toml")),
                                 "x.toml is a named pipe"),
+    # what the fleet file holds: nesting, numbers, encodings
+    "deeply nested array": Case((), (fleet_file("[records]\nglob = " + "[" * 100_000
+                                                + "]" * 100_000 + "\n"),),
+                                "nests arrays or tables too deeply"),
+    "deeply nested tables": Case((), (fleet_file("a = " + "{b=" * 3000 + "1" + "}" * 3000
+                                                 + "\n"),),
+                                 "nests arrays or tables too deeply"),
+    "limit beyond a float": Case((), (fleet_file(MANIFEST + "[limits.a1]\nmin = 1"
+                                                 + "0" * 400 + "\n"),),
+                                 "min must be a finite number (at most about 1.8e308)"),
+    "integer of 5000 digits": Case((), (fleet_file(MANIFEST + "[limits.a1]\nmin = 1"
+                                                   + "0" * 5000 + "\n"),),
+                                   "holds an integer of over 4300 digits"),
+    "tolerance beyond a float": Case((), (fleet_file(MANIFEST + "[limits.a1]\nnominal = 1e308"
+                                                     "\ntolerance_percent = 100\n"),),
+                                     "nominal ± tolerance finite"),
+    "utf-16 fleet file": Case((), (fleet_file(MANIFEST.encode("utf-16")),),
+                              "is UTF-16 text"),
+    "latin-1 fleet file": Case((), (fleet_file(("# café\n" + MANIFEST).encode("latin-1")),),
+                               "is not UTF-8 text (byte 0xe9 on line 1); save it as UTF-8"),
+    "utf-16 manifest": Case((), (fleet_file("path,serial\nunits/U0/exp.toml,A\n".encode(
+                                "utf-16"), "units.csv"),),
+                            "units.csv is UTF-16 text"),
     # a copy of a record is not a second unit
     "byte-identical record": Case((), (copy_record("U1", "U9", "SN-9"),),
                                   "SN-9 (" ),

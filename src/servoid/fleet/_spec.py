@@ -27,7 +27,9 @@ options are valid.
 
 from __future__ import annotations
 
+import codecs
 import csv
+import io
 import os
 import tomllib
 from collections.abc import Mapping
@@ -110,10 +112,17 @@ def load_fleet_spec(path: str | os.PathLike[str]) -> FleetSpec:
         raise DataError(f"fleet file {source} not found; check the path")
     if problem is not None:
         raise DataError(f"fleet file {source} {problem}; {REGULAR_ONLY}")
+    text = _text(source, "the fleet file")
     try:
-        doc = tomllib.loads(source.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
         raise FileFormatError(f"{source} is not a valid TOML fleet file: {exc}") from None
+    except ValueError:  # Python refuses to convert an integer of over 4300 digits
+        raise FileFormatError(f"{source} holds an integer of over 4300 digits, which no "
+                              "fleet file needs; check what wrote it") from None
+    except RecursionError:  # tomllib recurses once per level of nesting
+        raise FileFormatError(f"{source} nests arrays or tables too deeply to be a fleet file "
+                              "(a fleet file is a few flat tables); check what wrote it") from None
     unknown = sorted(set(doc) - set(_TABLES))
     if unknown:
         raise OptionError(f"unknown table(s) in {source.name}: {', '.join(unknown)}; a fleet "
@@ -216,6 +225,20 @@ def _glob(pattern: Any, base: Path) -> list[Path]:
     return paths
 
 
+def _text(path: Path, what: str) -> str:
+    """A text file as UTF-8, with or without a byte-order mark (spreadsheets write one)."""
+    data = path.read_bytes()
+    if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        raise FileFormatError(f"{what} {path} is UTF-16 text (it starts with a UTF-16 byte-order "
+                              "mark); save it as UTF-8")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise FileFormatError(f"{what} {path} is not UTF-8 text (byte {data[exc.start]:#04x} on "
+                              f"line {line}); save it as UTF-8") from None
+
+
 def _listing(items: list[str]) -> str:
     more = f" and {len(items) - 5} more" if len(items) > 5 else ""
     return "; ".join(items[:5]) + more
@@ -257,7 +280,7 @@ def _manifest(path: Path) -> list[FleetRecord]:
 
 def _csv_rows(path: Path) -> list[dict[str, Any]]:
     try:
-        with path.open(newline="", encoding="utf-8") as f:
+        with io.StringIO(_text(path, "the manifest"), newline="") as f:
             rows = list(csv.DictReader(f))
     except (UnicodeDecodeError, csv.Error) as exc:
         raise FileFormatError(f"manifest {path} is not a readable CSV file: {exc}") from None

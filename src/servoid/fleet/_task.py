@@ -146,8 +146,8 @@ def _inputs(path: Path) -> tuple[list[Path], Any]:
         raise DataError(f"{path} {problem}; {REGULAR_ONLY}")
     try:
         spec = load_experiment_spec(path)
-    except (ServoidError, OSError):
-        return files, None  # the task will report why; the key still covers the experiment file
+    except Exception:  # noqa: BLE001 - the task reports why; the key still covers the file
+        return files, None
     return [*files, *spec.data_paths, *spec.validation_paths], spec
 
 
