@@ -8,8 +8,9 @@ self-signed certificate generated for this run and held in memory
 (:meth:`distributed.security.Security.temporary`); each side of every
 connection must present that certificate, so another user of the machine
 who finds a port cannot connect.  The HTTP servers Dask starts with every
-scheduler and worker get no pages and are stopped once the cluster is up:
-no dashboard, unless asked for (then on 127.0.0.1, with Dask's pages).
+scheduler and worker get no pages and are stopped once the cluster is up
+(a worker its nanny restarts has one again, still without pages): no
+dashboard, unless asked for (then on 127.0.0.1, with Dask's pages).
 
 A scheduler given by address is used only as the user says: ``tls://``
 with the TLS files given (or those in Dask's configuration,
