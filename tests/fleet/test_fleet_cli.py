@@ -50,3 +50,24 @@ def test_bad_fleet_commands(tmp_path, capsys, monkeypatch, argv, code, fragment)
     err = capsys.readouterr().err
     assert fragment in err and "Traceback" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_cluster_flags_reach_run_fleet(tmp_path, monkeypatch, capsys):
+    pytest.importorskip("distributed")
+    import servoid.fleet
+
+    seen = {}
+
+    def fake(*args, **kwargs):
+        seen.update(kwargs)
+        raise KeyboardInterrupt  # stop here: only the wiring is tested
+
+    monkeypatch.setattr(servoid.fleet, "run_fleet", fake)
+    (tmp_path / "ca.pem").write_text("x", encoding="utf-8")
+    pem = str(tmp_path / "ca.pem")
+    assert main(["fleet", "f.toml", "--scheduler", "tls://h:1", "--tls-ca-file", pem,
+                 "--tls-cert", pem, "-v", "--allow-duplicates"]) == 130
+    assert seen["scheduler"] == "tls://h:1" and seen["verbose"] and seen["allow_duplicates"]
+    assert seen["security"].tls_ca_file == pem and not seen["insecure"]
+    assert main(["fleet", "f.toml", "--dashboard"]) == 130
+    assert seen["dashboard"] and seen["security"] is None and not seen["verbose"]

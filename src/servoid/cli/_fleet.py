@@ -21,9 +21,11 @@ def add_fleet(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
         "glob of experiment files) with one registered method, check acceptance limits (a "
         "unit passes only when its 95 % interval lies inside), find trends, drift and "
         "outliers, and write fleet.csv, fleet.parquet, fleet.json and report.html. Records "
-        "run as Dask tasks on a local cluster (one worker per core) unless --workers 1; "
-        "finished records are stored and skipped when the command is run again with the "
-        "same inputs (--force redoes them). See docs/fleets.md.",
+        "run as Dask tasks on a local cluster (one worker per core) unless --workers 1; it "
+        "listens on 127.0.0.1 only, over TLS with credentials made for this run, and has "
+        "no dashboard unless --dashboard. Finished records are stored and skipped when the "
+        "command is run again with the same inputs (--force redoes them). See "
+        "docs/fleets.md.",
     )
     fleet.add_argument("fleet", type=Path, help="fleet file (.toml)")
     fleet.add_argument("--out", type=out_path, help="results folder (default: [report] folder, "
@@ -32,7 +34,23 @@ def add_fleet(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
                        help="worker processes of the local Dask cluster (default: one per "
                        "core); 1 runs the records one after another in this process")
     fleet.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="address of a running Dask scheduler, e.g. tcp://host:8786")
+                       help="address of a running Dask scheduler: tls://host:8786 with its "
+                       "TLS files (--tls-*, or Dask's configuration), or tcp://host:8786 "
+                       "with --insecure")
+    fleet.add_argument("--tls-ca-file", type=Path, metavar="PEM",
+                       help="the scheduler's CA certificate (with --scheduler tls://...)")
+    fleet.add_argument("--tls-cert", type=Path, metavar="PEM",
+                       help="this client's certificate (with --scheduler tls://...)")
+    fleet.add_argument("--tls-key", type=Path, metavar="PEM",
+                       help="this client's private key, when not in --tls-cert")
+    fleet.add_argument("--insecure", action="store_true",
+                       help="accept a plain tcp:// scheduler: anyone who can reach it runs "
+                       "code as you")
+    fleet.add_argument("--dashboard", action="store_true",
+                       help="serve the local cluster's Dask dashboard on 127.0.0.1 (8787 "
+                       "when free); every user of this machine can view it")
+    fleet.add_argument("--allow-duplicates", action="store_true",
+                       help="accept records whose data are byte-identical copies of another's")
     fleet.add_argument("--force", action="store_true",
                        help="identify every record again, also those already done")
     fleet.add_argument("--allow-outside", action="store_true",
@@ -41,6 +59,8 @@ def add_fleet(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
                        help="replace files in the results folder that an earlier servoid "
                        "fleet did not write there (the inputs never)")
     fleet.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    fleet.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                       help="let Dask log (quiet by default)")
     json_flag(fleet)
     fleet.set_defaults(run=_run_fleet)
 
@@ -55,9 +75,24 @@ def _run_fleet(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
         raise OptionError("--workers sets the local cluster; with --scheduler the cluster's "
                           "own workers run the records: give one of them")
+    tls = (args.tls_ca_file, args.tls_cert, args.tls_key)
+    security = None
+    if any(f is not None for f in tls):
+        from ..fleet import tls_security
+
+        if args.scheduler is None:
+            from .._errors import OptionError
+
+            raise OptionError("--tls-ca-file, --tls-cert and --tls-key are for a scheduler "
+                              "given with --scheduler tls://...; the local cluster makes its "
+                              "own credentials")
+        security = tls_security(*tls)
     result = run_fleet(args.fleet, args.out, scheduler=args.scheduler, workers=args.workers,
                        force=args.force, allow_outside=args.allow_outside,
-                       progress=not (args.quiet or args.json), overwrite=args.overwrite)
+                       progress=not (args.quiet or args.json), overwrite=args.overwrite,
+                       security=security, insecure=args.insecure, dashboard=args.dashboard,
+                       verbose=bool(getattr(args, "verbose", False)),
+                       allow_duplicates=args.allow_duplicates)
     if result.interrupted:
         print(str(result), file=sys.stderr)
         raise KeyboardInterrupt

@@ -52,6 +52,7 @@ from .._errors import (
     ServoidError,
     ServoidWarning,
 )
+from .._spreadsheet import is_formula
 from ._columns import (
     DEFAULT_MAX_BYTES,
     TIME_TOLERANCE,
@@ -464,6 +465,10 @@ def write_csv(
     if time:
         header.insert(0, "time [s]")
         cols.insert(0, exp.time)
+    formula = next((cell for cell in header if is_formula(cell)), None)
+    if formula is not None:  # a spreadsheet opening the file would run it
+        raise DataError(f"the CSV header cell {formula!r} starts with {formula[0]!r}, which a "
+                        "spreadsheet runs as a formula; rename the channel, or write TDMS")
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerow(header)
     _check_header(buf.getvalue(), exp)

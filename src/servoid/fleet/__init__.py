@@ -5,7 +5,10 @@ identification of every record a fleet file names — each record as a Dask
 task, checkpointed as it finishes and skipped on a re-run when its inputs
 and options are unchanged — and writes one table (``fleet.csv``,
 ``fleet.parquet``), a summary (``fleet.json``) and a report with
-acceptance limits, trends, control limits, drift and outliers.
+acceptance limits, trends, control limits, drift and outliers.  The
+local Dask cluster is private to its user (TLS on 127.0.0.1 with
+credentials made for the run); a scheduler given by address is used only
+with the security the user gives (:func:`tls_security`).
 
 >>> from servoid.fleet import run_fleet                      # doctest: +SKIP
 >>> result = run_fleet("batch.toml", workers=1)              # doctest: +SKIP
@@ -14,6 +17,7 @@ acceptance limits, trends, control limits, drift and outliers.
 """
 
 from ..workflows._summary import ParameterValue, RecordSummary, summarise
+from ._cluster import tls_security
 from ._limits import RULE, Limit
 from ._result import FleetResult, ParameterStats
 from ._run import run_fleet
@@ -37,4 +41,5 @@ __all__ = [
     "robust_z",
     "run_fleet",
     "summarise",
+    "tls_security",
 ]

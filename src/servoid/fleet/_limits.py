@@ -80,8 +80,9 @@ def _limit(name: str, spec: Any, where: str) -> Limit:
                               "tolerance_percent (or min/max without nominal)")
         nominal = values["nominal"]
         tol = values.get("tolerance", abs(nominal) * values.get("tolerance_percent", 0.0) / 100)
-        if tol <= 0:
-            raise OptionError(f"{where}: the tolerance must be > 0; got {tol:g}")
+        if not tol > 0 or not math.isfinite(nominal + tol) or not math.isfinite(nominal - tol):
+            raise OptionError(f"{where}: the tolerance must be > 0 and nominal ± tolerance "
+                              f"finite; got {nominal:g} ± {tol:g}")
         text = (f"{nominal:g} ± {tol:g}" if "tolerance" in values
                 else f"{nominal:g} ± {values['tolerance_percent']:g} %")
         return Limit(name, nominal - tol, nominal + tol, text)
@@ -100,9 +101,9 @@ def _number(value: Any, where: str, key: str) -> float:
         raise OptionTypeError(f"{where} {key} must be a number; got {value!r}")
     try:
         number = float(value)
-    except OverflowError:  # an integer past the largest float (10**400)
-        number = math.inf
+    except OverflowError:  # an integer beyond the largest float, like 10**400
+        raise OptionError(f"{where} {key} must be a finite number (at most about 1.8e308); "
+                          "got a larger integer") from None
     if not math.isfinite(number):
-        raise OptionError(f"{where} {key} must be finite (within ±1.8e308); got "
-                          f"{value if isinstance(value, float) else 'a larger integer'}")
+        raise OptionError(f"{where} {key} must be finite; got {value!r}")
     return number

@@ -8,13 +8,17 @@ of the same command reuses every stored outcome whose key is unchanged
 stopped and gives the same table as an uninterrupted one.  The table, the
 summary and the report are rebuilt from the outcomes at the end — also
 after Ctrl-C, from the records finished so far.
+
+The local Dask cluster is private to the user who runs the fleet, and a
+scheduler given by address is used only with the security the user gives
+(:mod:`servoid.fleet._cluster`).
 """
 
 from __future__ import annotations
 
 import json
-import logging
 import os
+import sys
 import threading
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -23,12 +27,13 @@ from typing import Any
 
 from .._atomic import atomic_path
 from .._checks import as_bool
+from .._errors import DataError, OptionError, OptionTypeError
 from .._lock import FolderLock, hold_folder, ledger, sha256_file, write_ledger
-from .._errors import OptionError, OptionTypeError
 from .._progress import Progress
+from ._cluster import check_scheduler, connect, dashboard_link, quiet_dask, start_local
 from ._result import FleetResult, assemble
-from ._spec import FleetSpec, load_fleet_spec
-from ._task import identify_record, identify_records, record_inputs, record_key
+from ._spec import FleetRecord, FleetSpec, load_fleet_spec
+from ._task import identify_record, identify_records, record_hashes, record_inputs
 
 __all__ = ["run_fleet"]
 
@@ -55,6 +60,11 @@ def run_fleet(
     progress: bool = True,
     allow_outside: bool = False,
     overwrite: bool = False,
+    security: Any = None,
+    insecure: bool = False,
+    dashboard: bool = False,
+    verbose: bool = False,
+    allow_duplicates: bool = False,
 ) -> FleetResult:
     """Identify every record of a fleet and write its table, summary and report.
 
@@ -66,10 +76,14 @@ def run_fleet(
         Results folder; default ``[report] folder`` or ``<fleet>-results``
         beside the fleet file.
     scheduler : str, optional
-        Address of a running Dask scheduler (``tcp://host:8786``).
+        Address of a running Dask scheduler: ``tls://host:8786`` (with
+        `security`, or the TLS files in Dask's configuration), or plain
+        ``tcp://host:8786`` with ``insecure=True``.
     workers : int, optional
         Worker processes of the local Dask cluster (default: one per
         core); ``1`` runs the records one after another in this process.
+        The local cluster listens on 127.0.0.1 only, over TLS with
+        credentials generated for this run.
     force : bool
         Identify every record again, even those whose stored outcome has
         the same inputs and options.
@@ -81,6 +95,20 @@ def run_fleet(
         Replace files in the folder that an earlier ``servoid fleet`` did
         not write (or that changed since); without it they are refused
         before any record runs.  The fleet's inputs are never written.
+    security : distributed.security.Security, optional
+        TLS settings for a ``tls://`` `scheduler` (see
+        :func:`servoid.fleet.tls_security`); default: Dask's configuration.
+    insecure : bool
+        Accept a plain ``tcp://`` `scheduler`, which lets anyone who can
+        reach it run code as you.
+    dashboard : bool
+        Serve Dask's dashboard of the local cluster on 127.0.0.1 (port
+        8787 when free; the address is printed on stderr).
+    verbose : bool
+        Let Dask log as it is configured to; default: quiet.
+    allow_duplicates : bool
+        Accept records whose data are byte-identical copies of another's
+        (otherwise refused: a copy would count as a second unit).
 
     Returns
     -------
@@ -88,31 +116,47 @@ def run_fleet(
         The table and its statistics; ``interrupted`` when Ctrl-C stopped
         the batch (the files then hold the records finished so far).
     """
+    _check_flags(workers, verbose, dashboard, allow_duplicates)
+    if scheduler is not None:
+        if dashboard:
+            raise OptionError("dashboard=True (--dashboard) shows the local cluster; a "
+                              "scheduler given by address serves its own dashboard")
+        scheduler = check_scheduler(scheduler, security, insecure)
+    elif security is not None or insecure is not False:
+        raise OptionError("security and insecure (--tls-*, --insecure) apply to a scheduler "
+                          "given by address (--scheduler); the local cluster is always private")
     if not isinstance(spec, FleetSpec):
         spec = load_fleet_spec(spec)
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
-                                or workers < 1):
-        raise OptionTypeError(f"workers must be a whole number >= 1 (--workers); got {workers!r}")
     overwrite = as_bool("overwrite", overwrite)
-    folder = _folder(spec, out, allow_outside)
-    store = folder / "records"
-    _protect(spec, folder)
-    with hold_folder(folder, subfolders=("records",)) as lock:  # one fleet run owns the folder
-        _refuse_foreign(folder, overwrite, lock)
-        store.mkdir(exist_ok=True)
-        return _run_locked(spec, folder, store, lock, scheduler, workers, force, progress)
+    with quiet_dask(verbose, scheduler is not None or workers != 1):
+        folder = _folder(spec, out, allow_outside)
+        _protect(spec, folder)
+        with hold_folder(folder, subfolders=("records",)) as lock:  # one fleet run owns it
+            _refuse_foreign(folder, overwrite, lock)
+            return _run_locked(spec, folder, lock, scheduler=scheduler, workers=workers,
+                               force=force, progress=progress, security=security,
+                               dashboard=dashboard, verbose=verbose,
+                               allow_duplicates=allow_duplicates)
 
 
-def _run_locked(spec: FleetSpec, folder: Path, store: Path, lock: FolderLock,
-                scheduler: str | None, workers: int | None, force: bool,
-                progress: bool) -> FleetResult:
+def _run_locked(spec: FleetSpec, folder: Path, lock: FolderLock, *, scheduler: str | None,
+                workers: int | None, force: bool, progress: bool, security: Any,
+                dashboard: bool, verbose: bool, allow_duplicates: bool) -> FleetResult:
     """:func:`run_fleet` in a folder it holds."""
+    store = folder / "records"
+    made = [] if store.exists() else [store]  # removed if the records are refused below
+    store.mkdir(exist_ok=True)
     # a local cluster starts (its workers import servoid) while the inputs are hashed here,
     # unless the store looks complete (a re-run that may need no worker at all)
     early = force or sum(1 for _ in store.glob("*.json")) < len(spec.records)
-    pool = _Pool(scheduler, workers, len(spec.records) if early else 0)
+    pool = _Pool(scheduler, workers, len(spec.records) if early else 0, security=security,
+                 dashboard=dashboard, verbose=verbose)
     try:
-        keys = _keys(spec)
+        try:
+            keys = _keys(spec, allow_duplicates)
+        except DataError:
+            _remove_empty(made)
+            raise
         bar = Progress(len(keys), "identifying", enabled=progress)
         outcomes: dict[int, dict[str, Any]] = {}
         todo = []
@@ -153,13 +197,67 @@ def _run_locked(spec: FleetSpec, folder: Path, store: Path, lock: FolderLock,
         pool.close()
 
 
-def _keys(spec: FleetSpec) -> list[str]:
-    """Every record's key; the hashing runs on one thread per core (it releases the GIL)."""
+def _check_flags(workers: Any, verbose: Any, dashboard: Any, allow_duplicates: Any) -> None:
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or workers < 1):
+        raise OptionTypeError(f"workers must be a whole number >= 1 (--workers); got {workers!r}")
+    for name, value in (("verbose", verbose), ("dashboard", dashboard),
+                        ("allow_duplicates", allow_duplicates)):
+        if not isinstance(value, bool):
+            raise OptionTypeError(f"{name} must be True or False; got {value!r}")
+    if dashboard and workers == 1:
+        raise OptionError("dashboard=True (--dashboard) shows the local Dask cluster, but "
+                          "workers=1 (--workers 1) runs the records in this process without one")
+
+
+def _keys(spec: FleetSpec, allow_duplicates: bool = False) -> list[str]:
+    """Every record's key, each file read once; the hashing runs on one thread per core.
+
+    Refuses, naming them, records with a file that is not a regular file,
+    and (unless `allow_duplicates`) records that repeat another's data.
+    """
+    def one(path: Path) -> tuple[str, str | None] | str:
+        try:
+            return record_hashes(path, spec.identify)
+        except DataError as exc:
+            return str(exc)
+
     paths = [r.path for r in spec.records]
     if len(paths) < 8:
-        return [record_key(p, spec.identify) for p in paths]
-    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as threads:
-        return list(threads.map(lambda p: record_key(p, spec.identify), paths))
+        hashes = [one(p) for p in paths]
+    else:
+        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as threads:
+            hashes = list(threads.map(one, paths))
+    refused = [h for h in hashes if isinstance(h, str)]
+    if refused:
+        more = f"; and {len(refused) - 3} more" if len(refused) > 3 else ""
+        raise DataError(f"{len(refused)} record(s) name a file that servoid will not read: "
+                        + "; ".join(refused[:3]) + more)
+    pairs = [h for h in hashes if not isinstance(h, str)]
+    if not allow_duplicates:
+        _check_copies(spec.records, [data for _, data in pairs])
+    return [key for key, _ in pairs]
+
+
+def _check_copies(records: Sequence[FleetRecord], data: Sequence[str | None]) -> None:
+    """Refuse records whose data (bytes and channels) repeat an earlier record's."""
+    first: dict[str, FleetRecord] = {}
+    copies = []
+    for record, digest in zip(records, data, strict=True):
+        if digest is None:
+            continue
+        if digest in first:
+            copies.append(f"{record.serial} ({record.path}) repeats {first[digest].serial} "
+                          f"({first[digest].path})")
+        else:
+            first[digest] = record
+    if copies:
+        more = f"; and {len(copies) - 3} more" if len(copies) > 3 else ""
+        raise DataError(
+            f"{len(copies)} record(s) hold byte-identical copies of another record's data: "
+            + "; ".join(copies[:3]) + more + ". A copy would count as a second unit and "
+            "narrow the fleet's scatter: remove the copies from the fleet (or pass "
+            "--allow-duplicates, allow_duplicates=True, when repeating a record is intended)")
 
 
 def _execute(spec: FleetSpec, todo: Sequence[int],
@@ -186,9 +284,11 @@ class _Pool:
     written; :meth:`close` waits for that.
     """
 
-    def __init__(self, scheduler: str | None, workers: int | None, n_records: int) -> None:
+    def __init__(self, scheduler: str | None, workers: int | None, n_records: int, *,
+                 security: Any = None, dashboard: bool = False, verbose: bool = False) -> None:
         self.scheduler = scheduler
         self.workers = workers or os.cpu_count() or 1
+        self.security, self.dashboard, self.verbose = security, dashboard, verbose
         self._cluster: Any = None
         self._client: Any = None
         self._error: BaseException | None = None
@@ -204,7 +304,7 @@ class _Pool:
         if self.scheduler is None and (self.workers == 1 or n_todo == 1):
             return None
         if self.scheduler is not None:
-            self._client = _connect(self.scheduler)
+            self._client = connect(self.scheduler, self.security)
             return self._client
         if self._starting is None:  # not started early: start it now
             self._start_local(min(self.workers, n_todo))
@@ -213,25 +313,25 @@ class _Pool:
         if isinstance(self._error, ImportError):
             raise OptionError("running a fleet in parallel needs Dask: pip install "
                               "'servoid[fleet]', or pass --workers 1 for a serial run") from None
+        if isinstance(self._error, OptionError):
+            raise self._error
         if self._error is not None:
             raise OptionError(f"could not start a local Dask cluster ({self._error}); run the "
                               "records in this process with --workers 1 (workers=1)") from None
+        if self.dashboard:
+            print(f"Dask dashboard: {dashboard_link(self._cluster)}", file=sys.stderr)
         return self._client
 
     def _start_local(self, n: int) -> None:
         try:
-            from distributed import Client, LocalCluster
+            import distributed  # noqa: F401 - only whether it is installed
         except ImportError as exc:
             self._error = exc
             return
         try:
-            import dask
-
-            with dask.config.set(_WORKER_CONFIG):
-                self._cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                             dashboard_address=None, silence_logs=logging.ERROR,
-                                             env=_WORKER_ENV)
-            self._client = Client(self._cluster)
+            self._cluster, self._client = start_local(
+                n, dashboard=self.dashboard, verbose=self.verbose, config=_WORKER_CONFIG,
+                env=_WORKER_ENV)
             self._client.run(_warm_up)  # compiled kernels loaded before the first record
         except Exception as exc:  # noqa: BLE001 - reported by client() in the user's words
             self._error = exc
@@ -260,20 +360,6 @@ class _Pool:
         finally:
             if cluster is not None:
                 cluster.close()
-
-
-def _connect(scheduler: str) -> Any:
-    try:
-        from distributed import Client
-    except ImportError:
-        raise OptionError("running a fleet on a Dask scheduler needs Dask: pip install "
-                          "'servoid[fleet]', or pass --workers 1 for a serial run") from None
-    try:
-        return Client(scheduler, timeout="10s")
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise OptionError(f"cannot reach the Dask scheduler at {scheduler!r} ({exc}); check "
-                          "that it runs and the address, or drop --scheduler to use a "
-                          "local cluster") from None
 
 
 _MAX_BATCH = 8
@@ -372,7 +458,7 @@ def _folder(spec: FleetSpec, out: str | os.PathLike[str] | None, allow_outside: 
         if not isinstance(folder, str):
             raise OptionTypeError(f"[report] folder must be a folder name; got {folder!r}")
         path = base / folder
-        if not allow_outside and not path.resolve().is_relative_to(base.resolve()):
+        if not allow_outside and not _real(path).is_relative_to(_real(base)):
             raise OptionError(f"[report] folder = {folder!r} points outside the fleet file's "
                               f"folder ({base}); pass --out <folder> (or --allow-outside)")
         return path
@@ -384,15 +470,28 @@ def _protect(spec: FleetSpec, folder: Path) -> None:
     """No output of the fleet may land on one of its inputs."""
     from .._errors import OutputExistsError
 
-    inputs = {p.resolve() for p in (spec.source, spec.manifest) if p is not None}
+    inputs = {_real(p) for p in (spec.source, spec.manifest) if p is not None}
     for record in spec.records:
-        inputs.update(p.resolve() for p in record_inputs(record.path))
-    outputs = [folder / name for name in FleetResult.FILES]
+        inputs.update(_real(p) for p in record_inputs(record.path))
+    outputs = {_real(folder / name) for name in FleetResult.FILES}
     for path in inputs:
-        if path in {o.resolve() for o in outputs} or path.is_relative_to(
-                (folder / "records").resolve()):
+        if path in outputs or path.is_relative_to(_real(folder / "records")):
             raise OutputExistsError(f"refusing to write the fleet results into {folder}: it "
                                     f"would replace the input {path}; choose another --out")
+
+
+def _real(path: Path) -> Path:
+    """The path with its links resolved; a link loop stays as it is (the checks name it)."""
+    return Path(os.path.realpath(path))
+
+
+def _remove_empty(folders: Sequence[Path]) -> None:
+    """Remove the folders a refused run made (innermost first), if nothing was put in them."""
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:
+            return
 
 
 def _refuse_foreign(folder: Path, overwrite: bool, lock: FolderLock) -> None:

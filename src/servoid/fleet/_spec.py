@@ -27,17 +27,19 @@ options are valid.
 
 from __future__ import annotations
 
+import codecs
 import csv
-import glob as globbing
+import io
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePath
 from types import MappingProxyType
 from typing import Any
 
 from .._errors import DataError, FileFormatError, OptionError, OptionTypeError
 from ..data._toml import read_toml
+from ._files import REGULAR_ONLY, file_problem
 from ._limits import Limit, parse_limits
 
 __all__ = ["FleetRecord", "FleetSpec", "load_fleet_spec"]
@@ -105,8 +107,11 @@ def load_fleet_spec(path: str | os.PathLike[str]) -> FleetSpec:
     from ..workflows import get_method
 
     source = Path(path)
-    if not source.is_file():
+    problem = file_problem(source)
+    if problem == "does not exist":
         raise DataError(f"fleet file {source} not found; check the path")
+    if problem is not None:
+        raise DataError(f"fleet file {source} {problem}; {REGULAR_ONLY}")
     doc = read_toml(source, "fleet file")
     unknown = sorted(set(doc) - set(_TABLES))
     if unknown:
@@ -147,15 +152,7 @@ def _records(table: Mapping[str, Any], base: Path) -> list[FleetRecord]:
         raise OptionError("[records] takes exactly one of glob = \"runs/*.toml\" or "
                           "manifest = \"units.csv\"")
     if "glob" in table:
-        pattern = table["glob"]
-        if not isinstance(pattern, str):
-            raise OptionTypeError(f"[records] glob must be text; got {pattern!r}")
-        paths = sorted(Path(p) for p in globbing.glob(str(base / pattern), recursive=True))
-        paths = [p for p in paths if p.is_file()]
-        if not paths:
-            raise DataError(f"[records] glob = {pattern!r} finds no file under {base}; "
-                            "check the pattern")
-        records = [FleetRecord(p) for p in paths]
+        records = [FleetRecord(p) for p in _glob(table["glob"], base)]
     else:
         manifest = table["manifest"]
         if not isinstance(manifest, str):
@@ -165,21 +162,99 @@ def _records(table: Mapping[str, Any], base: Path) -> list[FleetRecord]:
     return records
 
 
+def _glob(pattern: Any, base: Path) -> list[Path]:
+    """The files a glob finds in the fleet file's folder and its subfolders, sorted.
+
+    The pattern is relative to that folder (an absolute one must lie in
+    it) and has no ``..``; ``**`` does not descend into linked folders, so
+    a link cannot lead the walk elsewhere or round a loop.  Hidden files
+    and folders are found only when the pattern names them.  Folders it
+    matches are left out; any other match that is not a regular file is
+    refused by name.
+    """
+    if not isinstance(pattern, str):
+        raise OptionTypeError(f"[records] glob must be text; got {pattern!r}")
+    if not pattern.strip() or "\0" in pattern:
+        raise OptionError(f"[records] glob = {pattern!r} is not a pattern; write one like "
+                          "\"units/**/*.toml\", relative to the fleet file's folder")
+    relative = PurePath(pattern)
+    if relative.is_absolute():
+        inside = [relative.relative_to(b) for b in {base.absolute(), base.resolve()}
+                  if relative.is_relative_to(b)]
+        if inside:
+            relative = inside[0]
+        else:
+            raise OptionError(
+                f"[records] glob = {pattern!r} is outside the fleet file's folder ({base}); a "
+                "glob finds records in that folder and its subfolders: write it relative to "
+                "the folder, like \"units/**/*.toml\", or move the fleet file")
+    if ".." in relative.parts:
+        raise OptionError(f"[records] glob = {pattern!r} leaves the fleet file's folder with "
+                          f"'..'; a glob finds records in {base} and its subfolders: move the "
+                          "fleet file up, or list the records in a manifest")
+    if not relative.parts:
+        raise OptionError(f"[records] glob = {pattern!r} names the fleet file's folder itself; "
+                          "write a pattern of files, like \"units/**/*.toml\"")
+    hidden = any(part.startswith(".") for part in relative.parts)
+    paths, refused = [], []
+    for p in sorted(base.glob(str(relative))):
+        if not hidden and any(part.startswith(".") for part in p.relative_to(base).parts):
+            continue
+        problem = file_problem(p)
+        if problem is None:
+            paths.append(p)
+        elif problem != "is a folder, not a file":
+            refused.append(f"{p} {problem}")
+    if refused:
+        raise DataError(f"[records] glob = {pattern!r} finds {len(refused)} path(s) that are not "
+                        f"regular files: {_listing(refused)}; {REGULAR_ONLY}, or narrow the "
+                        "pattern")
+    if not paths:
+        raise DataError(f"[records] glob = {pattern!r} finds no file under {base}; "
+                        "check the pattern")
+    return paths
+
+
+def _text(path: Path, what: str) -> str:
+    """A text file as UTF-8, with or without a byte-order mark (spreadsheets write one)."""
+    data = path.read_bytes()
+    if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        raise FileFormatError(f"{what} {path} is UTF-16 text (it starts with a UTF-16 byte-order "
+                              "mark); save it as UTF-8")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise FileFormatError(f"{what} {path} is not UTF-8 text (byte {data[exc.start]:#04x} on "
+                              f"line {line}); save it as UTF-8") from None
+
+
+def _listing(items: list[str]) -> str:
+    more = f" and {len(items) - 5} more" if len(items) > 5 else ""
+    return "; ".join(items[:5]) + more
+
+
 def _manifest(path: Path) -> list[FleetRecord]:
-    if not path.is_file():
+    problem = file_problem(path)
+    if problem == "does not exist":
         raise DataError(f"[records] manifest {path} not found; check the path")
+    if problem is not None:
+        raise DataError(f"[records] manifest {path} {problem}; {REGULAR_ONLY}")
     rows = _parquet_rows(path) if path.suffix.lower() == ".parquet" else _csv_rows(path)
     if not rows:
         raise DataError(f"manifest {path} lists no records")
     if "path" not in rows[0]:
         raise DataError(f"manifest {path} needs a 'path' column (the experiment file of each "
                         f"row); it has {', '.join(rows[0])}")
-    records, missing = [], []
+    records, missing, refused = [], [], []
     for row in rows:
         file = Path(str(row["path"]))
         file = file if file.is_absolute() else path.parent / file
-        if not file.is_file():
+        problem = file_problem(file)
+        if problem == "does not exist":
             missing.append(str(file))
+        elif problem is not None:
+            refused.append(f"{file} {problem}")
         meta = {k: "" if v is None else str(v) for k, v in row.items() if k != "path"}
         records.append(FleetRecord(file, MappingProxyType(meta)))
     if missing:
@@ -187,12 +262,15 @@ def _manifest(path: Path) -> list[FleetRecord]:
                                           else "")
         raise DataError(f"manifest {path.name} names {len(missing)} file(s) that do not exist: "
                         f"{shown}; fix the paths or remove the rows")
+    if refused:
+        raise DataError(f"manifest {path.name} names {len(refused)} path(s) that are not regular "
+                        f"files: {_listing(refused)}; {REGULAR_ONLY}")
     return records
 
 
 def _csv_rows(path: Path) -> list[dict[str, Any]]:
     try:
-        with path.open(newline="", encoding="utf-8") as f:
+        with io.StringIO(_text(path, "the manifest"), newline="") as f:
             rows = list(csv.DictReader(f))
     except (UnicodeDecodeError, csv.Error) as exc:
         raise FileFormatError(f"manifest {path} is not a readable CSV file: {exc}") from None

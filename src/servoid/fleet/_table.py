@@ -7,6 +7,12 @@ Columns, in order: ``record``, the manifest's metadata, ``status``,
 ``pass_<p>``, then ``outlier`` (the parameters whose robust z-score
 exceeds the cut-off) and ``pass``.  Values the record has not (a failed
 record, a parameter another method estimates) are empty.
+
+A text cell that a spreadsheet would run as a formula (one starting with
+``=``, ``+``, ``-``, ``@``, a tab or a carriage return, such as a manifest
+serial ``=HYPERLINK(...)``) is written with a leading ``'``, which shows
+the text as it is (:mod:`servoid._spreadsheet`); numbers are written as
+they are.
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from .._atomic import atomic_path
+from .._spreadsheet import neutralise
 
 __all__ = ["columns", "write_csv", "write_parquet"]
 
@@ -43,7 +50,9 @@ def _cell(value: Any) -> str:
         return "true" if value else "false"
     if isinstance(value, float):
         return "" if math.isnan(value) else repr(value)
-    return str(value)
+    if isinstance(value, int):
+        return str(value)
+    return neutralise(str(value))
 
 
 def write_csv(rows: Sequence[Mapping[str, Any]], names: Sequence[str],
@@ -51,7 +60,7 @@ def write_csv(rows: Sequence[Mapping[str, Any]], names: Sequence[str],
     """Write the table as CSV (UTF-8, a header row, empty cells for missing values)."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(names)
+    writer.writerow([neutralise(str(c)) for c in names])
     for row in rows:
         writer.writerow([_cell(row.get(c)) for c in names])
     with atomic_path(path, overwrite=True) as tmp:

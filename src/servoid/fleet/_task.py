@@ -19,10 +19,11 @@ from types import MappingProxyType
 from typing import Any
 
 from .. import __version__
-from .._errors import ServoidError
+from .._errors import DataError, ServoidError
 from ..workflows._summary import summarise
+from ._files import REGULAR_ONLY, file_problem, open_regular
 
-__all__ = ["identify_record", "identify_records", "record_inputs", "record_key"]
+__all__ = ["identify_record", "identify_records", "record_hashes", "record_inputs", "record_key"]
 
 _CHUNK = 1 << 20
 
@@ -32,32 +33,49 @@ def record_key(path: Path, identify: Mapping[str, Any] | None) -> str:
 
     A record whose key is unchanged since its outcome was stored is not run again.
     """
+    return record_hashes(path, identify)[0]
+
+
+def record_hashes(path: Path, identify: Mapping[str, Any] | None) -> tuple[str, str | None]:
+    """The record's key (see :func:`record_key`) and what identifies its measurement.
+
+    Every file is read once.  The second hash covers the bytes of the data
+    files and the channels read from them, not the experiment file's name
+    or options: two records with the same one are the same test (a copy),
+    whatever they are called.  It is None when the experiment file cannot
+    be read (the task will report why).
+
+    Raises
+    ------
+    DataError
+        A file of the record is not a regular file (a FIFO, a device, a
+        folder, a symbolic-link loop): reading it could wait forever.
+    """
+    files, spec = _inputs(path)
     h = hashlib.sha256()
     h.update(f"servoid {__version__}\n{path.resolve()}\n".encode())
     h.update(json.dumps(dict(identify) if identify is not None else None, sort_keys=True,
                         default=str).encode())
-    for file in record_inputs(path):
-        h.update(f"\n{file.name}\n".encode())
+    data = None
+    if spec is not None and len(files) > 1:
+        data = hashlib.sha256(repr((spec.channels, spec.group, spec.time)).encode())
+    for k, file in enumerate(files):
+        problem = file_problem(file)
+        if problem is not None and problem != "does not exist":
+            raise DataError(f"{file} (of record {path}) {problem}; {REGULAR_ONLY}")
         try:
-            with file.open("rb") as f:
-                while chunk := f.read(_CHUNK):
-                    h.update(chunk)
+            digest = _digest(file)
         except OSError:
-            h.update(b"<unreadable>")
-    return h.hexdigest()
+            digest, data = b"<unreadable>", None  # the task will report why
+        h.update(f"\n{file.name}\n".encode() + digest)
+        if k and data is not None:
+            data.update(digest)
+    return h.hexdigest(), None if data is None else data.hexdigest()
 
 
 def record_inputs(path: Path) -> list[Path]:
     """The experiment file and the data files it names (as far as it can be read)."""
-    from ..data import load_experiment_spec
-
-    files = [path]
-    try:
-        spec = load_experiment_spec(path)
-        files += [*spec.data_paths, *spec.validation_paths]
-    except (ServoidError, OSError):
-        pass  # the task will report why; the key still covers the experiment file
-    return files
+    return _inputs(path)[0]
 
 
 def identify_records(paths: Sequence[str],
@@ -114,3 +132,28 @@ def _peak_rss_mb() -> float | None:
     except ImportError:  # pragma: no cover - Windows
         return None
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def _inputs(path: Path) -> tuple[list[Path], Any]:
+    """The record's files and its parsed experiment file (None when it cannot be read)."""
+    from ..data import load_experiment_spec
+
+    files = [path]
+    problem = file_problem(path)
+    if problem is not None:
+        if problem == "does not exist":
+            return files, None
+        raise DataError(f"{path} {problem}; {REGULAR_ONLY}")
+    try:
+        spec = load_experiment_spec(path)
+    except Exception:  # noqa: BLE001 - the task reports why; the key still covers the file
+        return files, None
+    return [*files, *spec.data_paths, *spec.validation_paths], spec
+
+
+def _digest(file: Path) -> bytes:
+    h = hashlib.sha256()
+    with open_regular(file) as f:
+        while chunk := f.read(_CHUNK):
+            h.update(chunk)
+    return h.digest()
