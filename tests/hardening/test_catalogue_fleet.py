@@ -211,23 +211,24 @@ CASES = {
     # what the fleet file holds: nesting, numbers, encodings
     "deeply nested array": Case((), (fleet_file("[records]\nglob = " + "[" * 100_000
                                                 + "]" * 100_000 + "\n"),),
-                                "nests arrays or tables too deeply"),
+                                "are nested too deeply to read"),
     "deeply nested tables": Case((), (fleet_file("a = " + "{b=" * 3000 + "1" + "}" * 3000
                                                  + "\n"),),
-                                 "nests arrays or tables too deeply"),
+                                 "are nested too deeply to read"),
     "limit beyond a float": Case((), (fleet_file(MANIFEST + "[limits.a1]\nmin = 1"
                                                  + "0" * 400 + "\n"),),
                                  "min must be a finite number (at most about 1.8e308)"),
     "integer of 5000 digits": Case((), (fleet_file(MANIFEST + "[limits.a1]\nmin = 1"
                                                    + "0" * 5000 + "\n"),),
-                                   "holds an integer of over 4300 digits"),
+                                   "(4300 digits) for integer string conversion"),
     "tolerance beyond a float": Case((), (fleet_file(MANIFEST + "[limits.a1]\nnominal = 1e308"
                                                      "\ntolerance_percent = 100\n"),),
                                      "nominal ± tolerance finite"),
     "utf-16 fleet file": Case((), (fleet_file(MANIFEST.encode("utf-16")),),
                               "is UTF-16 text"),
     "latin-1 fleet file": Case((), (fleet_file(("# café\n" + MANIFEST).encode("latin-1")),),
-                               "is not UTF-8 text (byte 0xe9 on line 1); save it as UTF-8"),
+                               "is not UTF-8 text: invalid continuation byte at byte 5 (line 1); "
+                               "save it as UTF-8"),
     "utf-16 manifest": Case((), (fleet_file("path,serial\nunits/U0/exp.toml,A\n".encode(
                                 "utf-16"), "units.csv"),),
                             "units.csv is UTF-16 text"),

@@ -105,7 +105,7 @@ def test_results_without_a_lock_or_manifest_are_not_servoids_to_replace(rig):
     out = rig / "res"
     out.mkdir()
     (out / "report.html").write_text("the user's own report")
-    with pytest.raises(OutputExistsError, match="only with --overwrite"):
+    with pytest.raises(OutputExistsError, match="only with overwrite=True"):
         identify(path, out)
     assert (out / "report.html").read_text() == "the user's own report"
     assert sorted(p.name for p in out.iterdir()) == ["report.html"]
@@ -118,7 +118,7 @@ def test_a_changed_file_makes_the_manifest_incomplete(rig):
     out = rig / "res"
     identify(path, out)
     (out / "report.html").write_text("edited by hand")
-    with pytest.raises(OutputExistsError, match="only with --overwrite"):
+    with pytest.raises(OutputExistsError, match="only with overwrite=True"):
         identify(path, out)
     assert (out / "report.html").read_text() == "edited by hand"
 

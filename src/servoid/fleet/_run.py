@@ -30,6 +30,7 @@ from .._checks import as_bool
 from .._errors import DataError, OptionError, OptionTypeError
 from .._lock import FolderLock, hold_folder, ledger, sha256_file, write_ledger
 from .._progress import Progress
+from .._words import option
 from ._cluster import check_scheduler, connect, dashboard_link, quiet_dask, start_local
 from ._result import FleetResult, assemble
 from ._spec import FleetRecord, FleetSpec, load_fleet_spec
@@ -508,5 +509,6 @@ def _refuse_foreign(folder: Path, overwrite: bool, lock: FolderLock) -> None:
         if name not in ours or not path.is_file() or sha256_file(path) != ours[name]:
             raise OutputExistsError(
                 f"{path} exists and is not a file an earlier servoid fleet wrote here (or it "
-                "changed since): servoid replaces it only with --overwrite (overwrite=True); "
-                "or choose another --out")
+                f"changed since): servoid replaces it only with "
+                f"{option('overwrite=True', '--overwrite')}; or choose another "
+                f"{option('out', '--out')}")

@@ -35,6 +35,7 @@ from .._errors import (
 )
 from .._lock import FolderLock, hold_folder
 from .._progress import stage
+from .._words import option
 from ..data import ExperimentSpec, load_experiment_spec
 from ._common import check_outputs, check_sizes, report_options, sha256, spec_inputs
 from ._methods import METHODS
@@ -298,13 +299,14 @@ def _refuse_foreign(targets: Sequence[Path], inputs: Sequence[Path], overwrite: 
             left.append(path)
             continue
         if complete and path.name in _manifest_names(folder / MANIFEST):
-            raise OutputExistsError(f"{path} exists from an earlier run; pass --overwrite "
-                                    "(overwrite=True) or choose another folder")
+            raise OutputExistsError(f"{path} exists from an earlier run; pass "
+                                    f"{option('overwrite=True', '--overwrite')} or choose "
+                                    "another folder")
         raise OutputExistsError(
             f"{path} exists and is not a file of this run or of an interrupted servoid run "
             "(neither a complete manifest.json nor the lock of a run killed there lists it "
-            "as it is): servoid replaces it only with --overwrite (overwrite=True); or choose "
-            "another folder")
+            f"as it is): servoid replaces it only with {option('overwrite=True', '--overwrite')}; "
+            "or choose another folder")
     return left
 
 
