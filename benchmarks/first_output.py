@@ -3,8 +3,8 @@
 Runs a command twice — with its stdout and stderr on a pseudo-terminal (as
 in an interactive shell) and on a pipe (as under CI or ``| tee``) — and
 prints, for each, the time to the first byte of output, the longest gap
-between two outputs (the start of the run counts as one), the total time and
-the number of lines.  The interpreter is this one; ``PYTHONPATH`` and the
+between two outputs (the start and the end of the run count as outputs) and
+when it began, the total time and the number of lines.  The interpreter is this one; ``PYTHONPATH`` and the
 environment are passed on.
 
 Usage::
@@ -39,17 +39,20 @@ def main() -> int:
         parser.error("give a command after --")
     if command[0] == "servoid":
         command = [sys.executable, "-m", "servoid", *command[1:]]
-    print(f"{'output':<9} {'first (s)':>9} {'longest silence (s)':>20} {'total (s)':>9} "
-          f"{'lines':>5}")
+    print(f"{'output':<9} {'first (s)':>9} {'longest silence (s)':>20} {'from (s)':>8} "
+          f"{'total (s)':>9} {'lines':>5}")
     for kind in ("terminal", "pipe"):
         for _ in range(args.repeat):
             chunks, total = _run(command, kind == "terminal")
             times = [t for t, _ in chunks]
             first = times[0] if times else total
-            gaps = [b - a for a, b in zip([0.0, *times], [*times, total], strict=True)]
+            ends = list(zip([0.0, *times], [*times, total], strict=True))
+            gaps = [b - a for a, b in ends]
+            where = ends[gaps.index(max(gaps))][0]
             text = b"".join(c for _, c in chunks).decode(errors="replace")
             lines = text.replace("\r", "\n").count("\n")
-            print(f"{kind:<9} {first:>9.2f} {max(gaps):>20.2f} {total:>9.2f} {lines:>5}")
+            print(f"{kind:<9} {first:>9.2f} {max(gaps):>20.2f} {where:>8.2f} {total:>9.2f} "
+                  f"{lines:>5}")
             if args.show:
                 for t, chunk in chunks:
                     print(f"  {t:7.2f} {chunk.decode(errors='replace')!r}")

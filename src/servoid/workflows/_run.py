@@ -13,7 +13,6 @@ import dataclasses
 import json
 import os
 import re
-import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -25,12 +24,12 @@ from .._errors import (
     OptionError,
     OutputExistsError,
     ServoidWarning,
-    check_option,
 )
 from .._progress import stage
+from .._warn import warn
 from ..data import ExperimentSpec, load_experiment_spec
 from ._common import check_outputs, check_sizes, report_options, sha256, spec_inputs
-from ._methods import METHODS
+from ._methods import get_method, method_names
 from ._provenance import provenance
 from ._registry import Identification, Method
 from ._summary import verdict_section
@@ -47,23 +46,6 @@ _TEMPORARY = re.compile(r"^\..+\.[0-9a-f]{12}\.tmp$")
 _OPTIONAL_TABLES = ("validation",)
 # methods that fit every output channel when [identify] output is not set
 _MULTI_OUTPUT = ("n4sid",)
-
-
-def method_names() -> tuple[str, ...]:
-    """Names ``[identify] method`` accepts, in registry order."""
-    return tuple(METHODS)
-
-
-def get_method(name: str) -> Method:
-    """Return the registered method called ``name``.
-
-    Raises
-    ------
-    OptionError
-        No such method; the message lists the registered ones.
-    """
-    check_option("[identify] method", name, METHODS)
-    return METHODS[name]
 
 
 def identify(
@@ -182,8 +164,8 @@ def write_results(result: Identification, folder: str | os.PathLike[str], *,
     left = [p for p in (*targets.values(), manifest) if p.exists()]
     interrupted = bool(left) and not _complete(manifest)
     if interrupted and not overwrite:
-        warnings.warn(f"{folder} holds an interrupted earlier run (no complete {MANIFEST}); its "
-                      "files are replaced", ServoidWarning, stacklevel=3)
+        warn(f"{folder} holds an interrupted earlier run (no complete {MANIFEST}); its "
+             "files are replaced", ServoidWarning)
     check_outputs([*targets.values(), manifest], list(result.inputs()),
                   overwrite or interrupted)
     replace = overwrite or interrupted
