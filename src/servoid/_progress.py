@@ -322,7 +322,7 @@ def _tick(now: float) -> None:
             _, text = _S.notices.pop(0)
             _write(None, text, now, final=True)
         if isinstance(_S.line, Progress) and \
-                now - _S.quiet_since < (_STAGE_DELAY if _S.tty else 2 * _LINE_INTERVAL):
+                now - _S.quiet_since < (_STAGE_DELAY if _S.tty else 2 * _EVERY):
             return  # a batch that moves speaks for itself
         target = _target(now)
         if target is None:
