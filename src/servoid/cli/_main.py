@@ -54,22 +54,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     said: list[str] = []  # servoid's warnings, in order, once each
     others: list[warnings.WarningMessage] = []  # other libraries' warnings
     try:
-        payload, text = _run(args, words, _command(parser, words), shown, said, others)
+        try:
+            payload, text = _run(args, words, _command(parser, words), shown, said, others)
+        finally:  # the warnings not shown yet, then the output goes back to silent
+            pending = take_notices() if shown else [f"servoid: warning: {m}" for m in said]
+            configure(False)
     except KeyboardInterrupt:
-        _pending(take_notices() if shown else said, "")
+        _pending(pending, "")
         print("servoid: interrupted", file=sys.stderr)
         return 130
     except (ServoidError, OSError) as exc:
         message = str(exc) or type(exc).__name__
-        _pending(take_notices() if shown else said, "")  # they may explain the failure
+        _pending(pending, "")  # they may explain the failure
         if as_json:
             print(json.dumps({"ok": False, "error": message, "type": type(exc).__name__}))
         print(f"servoid: error: {message}", file=sys.stderr)
         return 1
-    finally:
-        configure(False)
     # before the results, not after them: a warning may change what they mean
-    _pending(take_notices() if shown else said, "" if as_json else text)
+    _pending(pending, text)
     _libraries(others, verbose)
     if as_json:
         from ..report import to_jsonable

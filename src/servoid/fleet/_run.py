@@ -24,7 +24,7 @@ from typing import Any
 
 from .._atomic import atomic_path
 from .._errors import OptionError, OptionTypeError
-from .._progress import Progress
+from .._progress import Progress, stage
 from ._result import FleetResult, assemble
 from ._spec import FleetSpec, load_fleet_spec
 from ._task import identify_record, identify_records, record_inputs, record_key
@@ -193,7 +193,8 @@ class _Pool:
         if self._starting is None:  # not started early: start it now
             self._start_local(min(self.workers, n_todo))
         else:
-            self._starting.join()
+            with stage("starting the Dask workers (each loads servoid once)"):
+                self._starting.join()
         if isinstance(self._error, ImportError):
             raise OptionError("running a fleet in parallel needs Dask: pip install "
                               "'servoid[fleet]', or pass --workers 1 for a serial run") from None
