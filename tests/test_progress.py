@@ -241,6 +241,15 @@ def test_a_terminal_notice_ends_the_stage_line_and_the_stage_comes_back(clock):
     assert "\rservoid: warning: slow\x1b[K\n\rservoid: fitting … 0:03" in text
 
 
+def test_a_stage_ended_by_an_error_says_it_stopped(clock):
+    out = io.StringIO()
+    configure(True, out)
+    with pytest.raises(KeyboardInterrupt), stage("fitting"):
+        clock.run_to(3.0)
+        raise KeyboardInterrupt
+    assert out.getvalue().splitlines()[-1] == "servoid: fitting stopped after 0:03"
+
+
 def test_live_stream_tells_a_pipe_from_a_buffer(tmp_path):
     assert not progress.live_stream(io.StringIO())
     assert progress.live_stream(_Tty())
@@ -265,6 +274,6 @@ def test_a_real_compilation_is_named_and_a_cached_load_is_not(clock, monkeypatch
     assert _square_plus_one(2.0) == 5.0
     first = out.getvalue()
     assert _square_plus_one(3.0) == 10.0  # compiled already: nothing more to say
-    assert "compiling test_progress._square_plus_one (first use; cached for later runs)" \
-        in first
+    # cache=False: nothing is kept for later runs, and the line does not promise it
+    assert "servoid: compiling test_progress._square_plus_one … 0:10\n" in first
     assert out.getvalue() == first

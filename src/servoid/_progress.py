@@ -142,10 +142,12 @@ def stage(label: str) -> Iterator[None]:
         me = _Stage(label, _now())
         _OPEN.append(me)
         _start_ticker()
+    ok = False
     try:
         yield
+        ok = True
     finally:
-        _close(me, _now())
+        _close(me, _now(), ok)
 
 
 def notice(text: str) -> None:
@@ -278,16 +280,21 @@ def watch_compiles() -> None:
         def on_start(self, ev: Any) -> None:
             self.depth += 1
             if self.depth == 1:
-                func = getattr(ev.data.get("dispatcher"), "py_func", None)
+                dispatcher = ev.data.get("dispatcher")
+                func = getattr(dispatcher, "py_func", None)
                 where = getattr(func, "__module__", "") or ""
                 name = f"{where.rsplit('.', 1)[-1].lstrip('_')}.{getattr(func, '__name__', '?')}"
-                self.open = stage(f"compiling {name} (first use; cached for later runs)")
+                cached = type(getattr(dispatcher, "_cache", None)).__name__ not in ("NullCache",
+                                                                                   "NoneType")
+                self.open = stage(f"compiling {name}"
+                                  + (" (first use; cached for later runs)" if cached else ""))
                 self.open.__enter__()
 
         def on_end(self, ev: Any) -> None:
             self.depth -= 1
             if self.depth == 0 and self.open is not None:
-                self.open.__exit__(None, None, None)
+                failed = (RuntimeError, RuntimeError("numba could not compile it"), None)
+                self.open.__exit__(*(failed if ev.is_failed else (None, None, None)))
                 self.open = None
 
     event.register("numba:compile", _Compiles())
@@ -348,14 +355,15 @@ def _target(now: float) -> _Stage | None:
     return None
 
 
-def _close(me: _Stage, now: float) -> None:
+def _close(me: _Stage, now: float, ok: bool) -> None:
     with _LOCK:
         if me in _OPEN:
             _OPEN.remove(me)
         if not _S.enabled:
             return
         if me.shown and now - me.start >= _STAGE_DELAY:
-            _write(me, f"servoid: {me.label} done in {_clock(now - me.start)}", now, final=True)
+            end = "done in" if ok else "stopped after"
+            _write(me, f"servoid: {me.label} {end} {_clock(now - me.start)}", now, final=True)
         elif _S.line is me:  # shown briefly: clear it; an outer stage takes the line back
             _S.stream.write("\r\x1b[K")  # type: ignore[union-attr]
             _S.stream.flush()  # type: ignore[union-attr]

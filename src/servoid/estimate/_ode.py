@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import re
 import time
 import traceback
 from collections.abc import Callable
@@ -224,9 +225,8 @@ def make_system(
         fast(np.ascontiguousarray(x0, dtype=float), probe_u, np.ascontiguousarray(p, dtype=float),
              1e-3, 1, *bounds, got)
     except Exception as exc:  # noqa: BLE001 — numba fails in many ways: any failure falls back
-        first = next((line for line in str(exc).splitlines() if line.strip()), type(exc).__name__)
-        return _replace(system, note=f"{source} does not compile with numba ({first.strip()[:160]}"
-                        "); the Python integrator runs (much slower)")
+        return _replace(system, note=f"{source} does not compile with numba ({_why(exc)}); the "
+                        "Python integrator runs (much slower)")
     if not np.allclose(got, expected, rtol=1e-9, atol=1e-300, equal_nan=True):
         return _replace(system, note=f"{source} gives other numbers compiled than in Python; the "
                         "Python integrator runs (much slower)")
@@ -283,6 +283,19 @@ def _replace(system: OdeSystem, **changes: Any) -> OdeSystem:
     import dataclasses
 
     return dataclasses.replace(system, **changes)
+
+
+def _why(exc: BaseException) -> str:
+    """numba's reason in one line, with the user's line it names ("Failed in …" skipped)."""
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    reason = next((line for line in lines if not line.startswith("Failed in ")),
+                  lines[0] if lines else type(exc).__name__)[:160]
+    here = Path(__file__).name
+    for line in lines:
+        found = re.match(r'File "(.+)", line (\d+):', line)
+        if found and Path(found[1]).name != here:
+            return f"{reason}; {Path(found[1]).name}, line {found[2]}"
+    return reason
 
 
 def _arity(fn: Callable[..., Any], source: str, forms: tuple[str, ...]) -> int:
