@@ -4,13 +4,16 @@ Runs a command twice — with its stdout and stderr on a pseudo-terminal (as
 in an interactive shell) and on a pipe (as under CI or ``| tee``) — and
 prints, for each, the time to the first byte of output, the longest gap
 between two outputs (the start and the end of the run count as outputs) and
-when it began, the total time and the number of lines.  The interpreter is this one; ``PYTHONPATH`` and the
-environment are passed on.
+when it began, the total time and the number of lines.  The interpreter is
+this one; ``PYTHONPATH`` and the environment are passed on.  The end of the
+run includes the interpreter's exit, which can take a second or more after
+the last line (numba, scipy and matplotlib loaded).
 
 Usage::
 
     python benchmarks/first_output.py -- servoid methods
-    python benchmarks/first_output.py --repeat 3 -- servoid identify exp.toml --out /tmp/r --overwrite
+    python benchmarks/first_output.py --repeat 3 -- \
+        servoid identify exp.toml --out /tmp/r --overwrite
 
 ``servoid`` as the first word runs ``python -m servoid``.  Linux/macOS only
 (the terminal run needs :mod:`pty`).

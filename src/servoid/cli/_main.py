@@ -65,10 +65,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except (ServoidError, OSError) as exc:
         message = str(exc) or type(exc).__name__
-        _pending(pending, "")  # they may explain the failure
         if as_json:
             print(json.dumps({"ok": False, "error": message, "type": type(exc).__name__}))
         print(f"servoid: error: {message}", file=sys.stderr)
+        _pending(pending, "")  # the error first, then what was said on the way (it may explain)
         return 1
     # before the results, not after them: a warning may change what they mean
     _pending(pending, text)

@@ -425,7 +425,8 @@ def _check_time_unit(path: Path, stamps: NDArray[np.float64], name: str, stated:
         warn(
             f"{path}: time column {name!r} has no unit and steps by {step:g} s, a slow rate for "
             f"a servo test ({1 / step:g} Hz); if it is in milliseconds, say so: time_unit='ms' "
-            f"([data] time_unit = \"ms\" in an experiment file) or a header '{name} [ms]'", ServoidWarning)
+            f"([data] time_unit = \"ms\" in an experiment file) or a header '{name} [ms]'",
+            ServoidWarning)
 
 
 def write_csv(
