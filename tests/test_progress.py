@@ -216,6 +216,22 @@ def test_on_a_pipe_a_moving_batch_keeps_the_stage_quiet(clock, monkeypatch):
     assert lines[-1] == "servoid: bench fleet done in 1:02"
 
 
+def test_a_step_that_starts_after_the_batch_spoke_is_named(clock):
+    """A batch bar holds the line against the stages around it, not against a new step."""
+    out = io.StringIO()
+    configure(True, out)
+    with stage("fleet"):
+        bar = Progress(25, "identifying")
+        bar.update()  # the first record, run here; then the workers must start
+        clock.run_to(1.0)
+        with stage("starting the Dask workers"):
+            clock.run_to(6.0)
+    lines = out.getvalue().splitlines()
+    assert lines[0].startswith("identifying 1/25")
+    assert lines[1] == "servoid: starting the Dask workers … 0:00"  # half a second in
+    assert lines[2] == "servoid: starting the Dask workers done in 0:05"
+
+
 def test_notices_show_while_the_run_goes_on_and_the_rest_are_taken(clock):
     out = _Timed(clock)
     configure(True, out)

@@ -328,10 +328,10 @@ def _tick(now: float) -> None:
         while _S.notices and now - _S.notices[0][0] >= _NOTICE_DELAY:
             _, text = _S.notices.pop(0)
             _write(None, text, now, final=True)
-        if isinstance(_S.line, Progress) and \
-                now - _S.quiet_since < (_STAGE_DELAY if _S.tty else 2 * _EVERY):
-            return  # a batch that moves speaks for itself
-        target = _target(now)
+        # a batch that moves speaks for itself: of the stages, only one opened since it spoke
+        held = isinstance(_S.line, Progress) and \
+            now - _S.quiet_since < (_STAGE_DELAY if _S.tty else 2 * _EVERY)
+        target = _target(now, after=_S.quiet_since if held else None)
         if target is None:
             return
         if _S.tty:
@@ -345,12 +345,18 @@ def _tick(now: float) -> None:
         target.shown, target.told = True, now
 
 
-def _target(now: float) -> _Stage | None:
-    """The innermost stage that is showing or due to be shown."""
+def _target(now: float, after: float | None = None) -> _Stage | None:
+    """The innermost stage that is showing or due to be shown (opened ``after``, if given)."""
     for st in reversed(_OPEN):
-        if st.shown or now - st.start >= _STAGE_DELAY or now - _S.quiet_since >= _STAGE_DELAY:
+        if after is not None:
+            if st.start <= after:
+                return None
+            if now - st.start >= _SWITCH:
+                return st
+        elif st.shown or now - st.start >= _STAGE_DELAY or \
+                now - _S.quiet_since >= _STAGE_DELAY:
             return st
-        if _S.tty and isinstance(_S.line, _Stage) and now - st.start >= _SWITCH:
+        elif _S.tty and isinstance(_S.line, _Stage) and now - st.start >= _SWITCH:
             return st
     return None
 
