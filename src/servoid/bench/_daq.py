@@ -8,13 +8,13 @@ seed that is written into the record.
 
 from __future__ import annotations
 
-import warnings
 from numbers import Integral
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .._errors import DataError, OptionTypeError, ServoidWarning
+from .._warn import warn
 
 __all__ = ["note_warning", "quantise", "resolve_rng"]
 
@@ -32,14 +32,10 @@ def quantise(v: NDArray[np.float64], bits: int,
     return np.clip(codes, -top, top - 1) * lsb, clipped
 
 
-def note_warning(notes: list[str], message: str, stacklevel: int = 4) -> None:
-    """Record `message` in a run's notes and warn (ServoidWarning).
-
-    The default `stacklevel` points at the caller of a public function
-    that calls a private one that calls this.
-    """
+def note_warning(notes: list[str], message: str) -> None:
+    """Record `message` in a run's notes and warn (ServoidWarning, at the caller's line)."""
     notes.append(message)
-    warnings.warn(message, ServoidWarning, stacklevel=stacklevel)
+    warn(message, ServoidWarning)
 
 
 def resolve_rng(rng: object, caller: str) -> tuple[np.random.Generator, int | None]:

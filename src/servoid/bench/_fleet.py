@@ -40,6 +40,7 @@ import numpy as np
 from .._atomic import atomic_path, check_writable
 from .._checks import as_path
 from .._errors import DataError
+from .._progress import Progress
 from ..actuators import SET_B, EhsaParameters
 from ._config import EhsaBench
 from ._files import write_bench_files
@@ -137,6 +138,7 @@ def write_virtual_fleet(
     excitation = prbs(register, clock=clock, amplitude=1e-3, periods=1, dt=1e-3)
     start = dt.date(2026, 1, 5)
     rows, truth, bad, damaged = [], [], [], []
+    bar = Progress(units + corrupt, "simulating units", failures=False)  # the command line's
     for k in range(units + corrupt):
         serial = f"SN-{k + 1:04d}"
         date = start + dt.timedelta(days=k)
@@ -163,6 +165,8 @@ def write_virtual_fleet(
                       "omega_hp": params.omega_hp, "delta_hp": params.delta_hp,
                       "defect": defect or ("corrupt file" if k >= units else ""),
                       **{f"factor_{n}": f for n, f in factors.items()}})
+        bar.update()
+    bar.close()
     manifest = _write_csv(root / "units.csv", rows, overwrite)
     truth_file = _write_csv(root / "truth.csv", truth, overwrite)
     fleet_file = root / "fleet.toml"

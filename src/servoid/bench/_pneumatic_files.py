@@ -34,6 +34,7 @@ import numpy as np
 from .._atomic import atomic_path, check_writable
 from .._checks import as_bool, as_instance, as_int, as_path, as_str, type_error
 from .._errors import DataError, OptionTypeError, ServoidWarning, check_option
+from .._warn import warn
 from ..actuators import PNEUMATIC_NOMINAL, PneumaticParameters
 from ..data import Experiment, write_csv, write_experiment_spec, write_tdms
 from ._files import RigFormat
@@ -173,7 +174,7 @@ def write_pneumatic_campaign(
             text = str(w.message)
             if text not in issued:
                 issued.append(text)
-                warnings.warn(text, ServoidWarning, stacklevel=2)
+                warn(text, ServoidWarning)
         doc = pneumatic_experiment_document(rec, f"{test.name}.{format}")
         records.append((rec.raw, doc, _test_info(rec)))
         del rec

@@ -276,7 +276,7 @@ def run(
     notes: list[str] = []
     unresolved = bench.resolution_note()
     if unresolved:  # before the simulation, which is long at the rates that resolve it
-        note_warning(notes, unresolved, stacklevel=3)
+        note_warning(notes, unresolved)
     return _run(bench, excitation, gen, seed, notes)
 
 
@@ -321,7 +321,7 @@ def digitize(
     sos = _anti_alias(bench)[hold]
     out, clipped = quantise(_sample(sos, x, bench.oversample), bench.bits, bench.lsb)
     if clipped:
-        note_warning([], _clip_message("signal", clipped, out.size, bench), stacklevel=3)
+        note_warning([], _clip_message("signal", clipped, out.size, bench))
     return out
 
 

@@ -1,5 +1,11 @@
 """The ``servoid`` command: a thin shell over the public API.
 
+Progress goes to stderr — a redrawn line on a terminal, plain lines on a
+pipe or in a file — so that no command is silent for more than about 2 s;
+servoid's warnings come as they happen, and any not shown yet come before
+the results, not after them.  Other libraries' logging and warnings stay
+quiet unless ``-v``/``--verbose`` is given.
+
 Exit codes: 0 success, 1 a servoid or file error (the message says what
 and how to fix it), 2 a usage error (from the argument parser), 130
 interrupted (Ctrl-C; a fleet writes the table of the records done first). With
@@ -10,9 +16,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
+import os
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -38,47 +47,125 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except SystemExit as stop:  # argparse exits on --help/--version (0)
         return int(stop.code or 0)
-    from .._progress import configure, watch_compiles
-    from ..workflows._provenance import set_command
+    from .._progress import configure, live_stream, take_notices
 
-    set_command(["servoid", *words])
-    shown = (sys.stderr.isatty() and not getattr(args, "json", False)
-             and not getattr(args, "quiet", False))
-    configure(shown)
-    if shown and args.run.__name__ not in _LIGHT:  # these compute: say when numba compiles
-        watch_compiles()
+    as_json, verbose = getattr(args, "json", False), getattr(args, "verbose", False)
+    # progress on a terminal, a pipe or a file (CI, | tee); not into an in-memory buffer
+    shown = not as_json and not getattr(args, "quiet", False) and live_stream(sys.stderr)
+    configure(shown, sys.stderr, verbose=verbose)
+    said: list[str] = []  # servoid's warnings, in order, once each
+    others: list[warnings.WarningMessage] = []  # other libraries' warnings
     try:
-        with warnings.catch_warnings(record=True) as caught, command_line_words():
-            warnings.simplefilter("always", ServoidWarning)
-            payload, text = args.run(args)
+        try:
+            with command_line_words():  # messages name --flags, not keyword=values
+                payload, text = _run(args, words, _command(parser, words), shown, said, others)
+        finally:  # the warnings not shown yet, then the output goes back to silent
+            pending = take_notices() if shown else [f"servoid: warning: {m}" for m in said]
+            configure(False)
     except KeyboardInterrupt:
+        _pending(pending, "")
         print("servoid: interrupted", file=sys.stderr)
         return 130
     except (ServoidError, OSError) as exc:
         message = str(exc) or type(exc).__name__
-        if getattr(args, "json", False):
+        if as_json:
             print(json.dumps({"ok": False, "error": message, "type": type(exc).__name__}))
         print(f"servoid: error: {message}", file=sys.stderr)
+        _pending(pending, "")  # the error first, then what was said on the way (it may explain)
         return 1
-    said = _warnings(caught)
-    if getattr(args, "json", False):
+    # before the results, not after them: a warning may change what they mean
+    _pending(pending, text)
+    _libraries(others, verbose)
+    if as_json:
         from ..report import to_jsonable
 
-        print(json.dumps({"ok": True, **to_jsonable(payload), "warnings": said}, indent=2))
-    else:
-        print(text)
-    for message in said:  # a result's notes already print them; say the others once
-        if message not in text:
-            print(f"servoid: warning: {message}", file=sys.stderr)
+        text = json.dumps({"ok": True, **to_jsonable(payload), "warnings": said}, indent=2)
+    try:
+        print(text, flush=True)
+    except BrokenPipeError:  # the reader stopped (| head): no traceback, and none at exit
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
 
-def _warnings(caught: list[warnings.WarningMessage]) -> list[str]:
-    messages = [str(w.message) for w in caught if issubclass(w.category, ServoidWarning)]
-    for w in caught:  # a library's warning: its words, without Python source lines
-        if not issubclass(w.category, ServoidWarning):
-            print(f"servoid: warning ({w.category.__name__}): {w.message}", file=sys.stderr)
-    return list(dict.fromkeys(messages))
+def _run(args: argparse.Namespace, words: list[str], command: list[str], shown: bool,
+         said: list[str], others: list[warnings.WarningMessage]) -> tuple[dict[str, Any], str]:
+    """Run the command in a stage of its name, its warnings shown as they come."""
+    from .._progress import notice, stage, watch_compiles
+
+    def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+             file: Any = None, line: str | None = None) -> None:
+        if issubclass(category, ServoidWarning):
+            if str(message) not in said:
+                said.append(str(message))
+                notice(f"servoid: warning: {message}")  # shown while the run goes on
+        else:
+            others.append(warnings.WarningMessage(message, category, filename, lineno))
+
+    with _library_logging(getattr(args, "verbose", False)), warnings.catch_warnings():
+        warnings.simplefilter("always", ServoidWarning)
+        warnings.showwarning = show
+        with stage(" ".join(command)):  # from here on, nothing is silent for long
+            if command != ["methods"]:  # a report names the command that wrote it
+                from ..workflows._provenance import set_command
+
+                set_command(["servoid", *words])
+            if shown and args.run.__name__ not in _LIGHT:  # these compute: name numba's compiles
+                watch_compiles()
+            return args.run(args)  # type: ignore[no-any-return]
+
+
+def _pending(lines: list[str], text: str) -> None:
+    """Print the warnings not shown yet, except those the results' notes already give."""
+    for line in lines:
+        message = line.removeprefix("servoid: warning: ")
+        if not (text and message in text):
+            print(f"servoid: warning: {message}", file=sys.stderr)
+
+
+def _libraries(caught: list[warnings.WarningMessage], verbose: bool) -> None:
+    """Other libraries' warnings: each with -v, else one line that counts them."""
+    if verbose:
+        for w in caught:  # their words and where, without Python source lines
+            print(f"servoid: warning ({w.category.__name__}, {Path(w.filename).name}:{w.lineno}): "
+                  f"{w.message}", file=sys.stderr)
+    elif caught:
+        kinds = ", ".join(sorted({w.category.__name__ for w in caught}))
+        print(f"servoid: {len(caught)} warning{'s' * (len(caught) > 1)} from other libraries "
+              f"({kinds}) not shown; -v shows them", file=sys.stderr)
+
+
+@contextmanager
+def _library_logging(verbose: bool) -> Iterator[None]:
+    """Other libraries' logging (numba, matplotlib, …): silent, or with -v shown from INFO up."""
+    root = logging.getLogger()
+    level = root.level
+    if verbose:
+        handler: logging.Handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("servoid: log (%(name)s, %(levelname)s): "
+                                               "%(message)s"))
+        root.setLevel(logging.INFO)
+    else:  # a handler on the root: records no library handles go nowhere, not to stderr
+        handler = logging.NullHandler()
+    root.addHandler(handler)
+    try:
+        yield
+    finally:
+        root.removeHandler(handler)
+        root.setLevel(level)
+
+
+def _command(parser: argparse.ArgumentParser, words: Sequence[str]) -> list[str]:
+    """The command's words (``bench fleet``), without its options and arguments."""
+    names: list[str] = []
+    for word in words:
+        sub = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)),
+                   None)
+        if sub is None:
+            break
+        if word in sub.choices:
+            names.append(word)
+            parser = sub.choices[word]
+    return names
 
 
 class _UsageError(Exception):
@@ -108,6 +195,7 @@ def _parser() -> argparse.ArgumentParser:
         epilog="Run 'servoid COMMAND --help' for the options of a command.",
     )
     parser.add_argument("--version", action="version", version=f"servoid {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help=_VERBOSE)
     commands = parser.add_subparsers(title="commands", metavar="COMMAND", required=True)
 
     demo = commands.add_parser(
@@ -166,7 +254,23 @@ def _parser() -> argparse.ArgumentParser:
     add_bench(commands, _json_flag)
     add_fleet(commands, _json_flag)
     add_export(commands, _json_flag)
+    _add_verbose(parser)
     return parser
+
+
+_VERBOSE = "show other libraries' logging and warnings (numba, Dask, matplotlib)"
+
+
+def _add_verbose(parser: argparse.ArgumentParser) -> None:
+    """``-v`` after the command too (``servoid identify x.toml -v``), on every leaf command."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in dict.fromkeys(action.choices.values()):
+                if any(isinstance(a, argparse._SubParsersAction) for a in sub._actions):
+                    _add_verbose(sub)
+                else:
+                    sub.add_argument("-v", "--verbose", action="store_true",
+                                     default=argparse.SUPPRESS, help=_VERBOSE)
 
 
 def _json_flag(parser: argparse.ArgumentParser) -> None:
@@ -184,16 +288,17 @@ def _run_demo(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 
 def _run_methods(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
-    from ..workflows import get_method, method_names
+    from ..workflows._methods import METHODS, get_method
 
     if args.name:
         method = get_method(args.name)
         return method.to_dict(), method.describe()
-    listed = [get_method(n) for n in method_names()]
-    width = max(len(m.name) for m in listed)
-    text = "\n".join(f"{m.name:<{width}}  {m.summary}" for m in listed)
+    width = max(len(name) for name in METHODS)
+    text = "\n".join(f"{name:<{width}}  {METHODS.summary(name)}" for name in METHODS)
     text += "\n\n'servoid methods NAME' shows a method's [identify] keys."
-    return {"methods": [m.to_dict() for m in listed]}, text
+    if not args.json:  # the list needs no method loaded; the JSON gives every method's keys
+        return {}, text
+    return {"methods": [METHODS[name].to_dict() for name in METHODS]}, text
 
 
 def _run_identify(args: argparse.Namespace) -> tuple[dict[str, Any], str]:

@@ -21,7 +21,6 @@ is driven by the reference alone, and every method here uses r to reach it:
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from collections.abc import Sequence
 from typing import Literal
 
@@ -30,6 +29,7 @@ from numpy.typing import NDArray
 
 from .._checks import as_bool, as_int
 from .._errors import DataError, ServoidWarning, check_option
+from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate, fit_bj, fit_iv, fit_oe
 from ..estimate._covariance import Covariance
@@ -144,12 +144,11 @@ def fit_two_stage(
     check_excites(u_name, us, "u")
     ur, info = _stage1(rs, us, stage1_order, projection)
     if info["explained"] < _WEAK_REFERENCE:
-        warnings.warn(
+        warn(
             f"the reference explains only {100 * info['explained']:.2g} % of the variance of "
             f"{u_name!r}: the noise-free input û_r is weak, so the plant estimate will be "
             "poor. Raise the reference excitation",
             ServoidWarning,
-            stacklevel=2,
         )
     stage2 = ExperimentSet(tuple(
         Experiment.from_arrays(seg.dt, u=x, y=y, names={"u": u_name, "y": y_name}, t0=seg.t0,

@@ -26,7 +26,6 @@ the confidence level.
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any, NamedTuple
@@ -37,6 +36,7 @@ from numpy.typing import NDArray
 from .._checks import as_float, as_int, type_error
 from .._errors import DataError, IdentifiabilityError, ModelError, ServoidWarning
 from .._lazy import stats
+from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate
 from ..models import PolynomialModel, TransferFunction
@@ -327,8 +327,7 @@ def warn_if_feedback(
     """
     test = feedback_test(data, input=input, output=output, confidence=confidence)
     if test.has_feedback:
-        warnings.warn(f"{method} is an open-loop method, but {test.message}", ServoidWarning,
-                      stacklevel=2)
+        warn(f"{method} is an open-loop method, but {test.message}", ServoidWarning)
     return test
 
 

@@ -56,6 +56,7 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate, fit_arx, fit_iv, fit_oe
 from ..models import PolynomialModel, TransferFunction
@@ -236,11 +237,10 @@ def fit_indirect_tf(
         sigma2 = float(sum(e @ e for e in errors)) / max(n_samples - theta.size, 1)
         status = "ok" if converged else f"stopped at max_iter after {iterations} steps"
         if not converged:
-            warnings.warn(
+            warn(
                 f"the indirect refinement stopped at max_iter={max_iter} before converging; "
                 "increase max_iter or check the orders and the controller",
                 ServoidWarning,
-                stacklevel=2,
             )
         final = np.concatenate(errors)
         residuals = lambda: final

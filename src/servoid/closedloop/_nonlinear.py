@@ -62,7 +62,6 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any, Literal
 
@@ -79,6 +78,7 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._warn import warn
 from ..actuators import SET_B, EhsaParameters
 from ..data import Experiment, ExperimentSet, as_segments, detect_intersample
 from ..estimate import Estimate, check_identifiability
@@ -605,4 +605,4 @@ def _noise_level(records: Sequence[tuple[NDArray[np.float64], NDArray[np.float64
 
 
 def _warn(message: str) -> None:
-    warnings.warn(message, ServoidWarning, stacklevel=3)
+    warn(message, ServoidWarning)

@@ -14,7 +14,6 @@
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -23,6 +22,7 @@ import numpy as np
 
 from .._checks import as_float, as_instance, as_int, type_error
 from .._errors import DataError, ServoidWarning
+from .._warn import warn
 from ..actuators import SET_B, EhsaParameters
 from ..data import Experiment, ExperimentSet
 from ..estimate import Estimate
@@ -267,7 +267,7 @@ def refine_after_linear(
                       output=est.options["output"])
     out = NonlinearRefinement(est, result, refined, linear)
     if not out.improves:
-        warnings.warn(out.notes()[-1], ServoidWarning, stacklevel=2)
+        warn(out.notes()[-1], ServoidWarning)
     return out
 
 

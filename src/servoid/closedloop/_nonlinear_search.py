@@ -10,7 +10,6 @@ covariance from the shared :mod:`servoid.estimate._covariance`.
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -20,6 +19,7 @@ from numpy.typing import NDArray
 
 from .._errors import ConvergenceError, ServoidWarning
 from .._lazy import optimize
+from .._warn import warn
 from ..estimate._covariance import bootstrap_covariance, least_squares_covariance
 from ..estimate._diagnostics import draw_starts, summarise_starts
 from ._nonlinear_model import UNITS, NonlinearEhsa
@@ -316,4 +316,4 @@ def bound_notes(coords: Sequence[Coordinate], theta: NDArray[np.float64]) -> lis
 
 
 def _warn(message: str) -> None:
-    warnings.warn(message, ServoidWarning, stacklevel=4)
+    warn(message, ServoidWarning)

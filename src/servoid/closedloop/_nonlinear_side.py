@@ -24,7 +24,6 @@ y, P_s, P_t, oil temperature").  Where servoid's simulator uses them:
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -33,6 +32,7 @@ import numpy as np
 
 from .._checks import type_error
 from .._errors import ChannelError, DataError, ServoidWarning
+from .._warn import warn
 from ..data import Experiment
 
 __all__ = ["SUPPLY_SPREAD", "TEMPERATURE_DRIFT", "OperatingPoint", "operating_point"]
@@ -155,11 +155,11 @@ def operating_point(
         lo, hi = np.percentile(drop, [5.0, 95.0])
         spread = float((hi - lo) / (p_s - p_t))
         if spread > SUPPLY_SPREAD:
-            warnings.warn(
+            warn(
                 f"the valve pressure drop P_s − P_T varies by {100 * spread:.3g} % over the "
                 f"record (5–95 %); the simulator holds the supply constant at the median "
                 f"{(p_s - p_t) / 1e6:.4g} MPa, so the flow gain (∝ √(P_s − P_T)) is an average",
-                ServoidWarning, stacklevel=3)
+                ServoidWarning)
     temp = spread_t = None
     if oil_temperature is not None and not isinstance(oil_temperature, str):
         raise type_error("oil_temperature", oil_temperature, "a channel name or None")
@@ -170,10 +170,10 @@ def operating_point(
         lo, hi = np.percentile(series, [5.0, 95.0])
         spread_t = float(hi - lo)
         if spread_t > TEMPERATURE_DRIFT:
-            warnings.warn(
+            warn(
                 f"the oil temperature varies by {spread_t:.3g} °C over the record (5–95 %); the "
                 "simulator takes β_e, ρ, B_p and K_ce constant, so the refined parameters "
-                f"average over it (median {temp:.4g} °C)", ServoidWarning, stacklevel=3)
+                f"average over it (median {temp:.4g} °C)", ServoidWarning)
     return OperatingPoint(p_s, p_t, src_s, src_t, spread, temp, spread_t)
 
 

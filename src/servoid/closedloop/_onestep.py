@@ -41,6 +41,7 @@ from .._errors import (
     check_option,
 )
 from .._lazy import optimize
+from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments, detect_intersample
 from ..estimate import Estimate, fit_tf_greybox
 from ..models import TransferFunction, c2d
@@ -271,7 +272,7 @@ def greybox_result(
     warn_flagged(poles)
     flags = _resolution_flags(physical, dt, reference)
     for flag in flags:
-        warnings.warn(flag, ServoidWarning, stacklevel=3)
+        warn(flag, ServoidWarning)
     return ClosedLoopResult(
         approach, physical, closed_loop, plant, plant_c, poles, loop, 0.0, 0.0, est,
         discretization=discretization, intersample=hold or "none", intersample_note=note,
@@ -305,20 +306,20 @@ def _intersample(
     if discretization == "auto":
         hold: Hold = "zoh" if chain else check.kind
         if chain and check.kind != "zoh":
-            warnings.warn(
+            warn(
                 "the rig chain (anti-alias filter / decimation of y) is declared for a logged "
                 f"command, but the reference looks band-limited ({check.reason}); the staircase "
                 "model is used as declared. If r was read back through the same chain, declare "
                 "it so (it cancels) and use discretization='bandlimited'",
-                ServoidWarning, stacklevel=4)
+                ServoidWarning)
     else:
         hold = discretization  # type: ignore[assignment]
         if hold in ("zoh", "bandlimited") and check.kind != hold:
-            warnings.warn(
+            warn(
                 f"discretization={hold!r} assumes a {_KIND[hold]} reference, but it looks "
                 f"{_KIND[check.kind]} ({check.reason}); the estimate is biased if the "
                 "assumption is wrong: use 'auto' or declare how r was logged",
-                ServoidWarning, stacklevel=4)
+                ServoidWarning)
     if hold == "zoh":
         text = "reference taken as a staircase held over each sample (zero-order hold, exact)"
         if chain:

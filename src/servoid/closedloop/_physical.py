@@ -12,7 +12,6 @@ differences of the map along the principal axes of the source covariance.
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -20,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._errors import ModelError, ServoidWarning
+from .._warn import warn
 from ..estimate import Estimate
 from ..models import TransferFunction, d2c
 from ._loop import PARAMETER_NAMES, PARAMETER_UNITS, FeedbackLoop, tustin_inverse
@@ -193,11 +193,11 @@ def pole_report(
     return tuple(out)
 
 
-def warn_flagged(poles: tuple[PoleInfo, ...], stacklevel: int = 4) -> None:
+def warn_flagged(poles: tuple[PoleInfo, ...]) -> None:
     """Issue one ServoidWarning per flagged pole."""
     for p in poles:
         if not p.is_physical:
-            warnings.warn(p.note, ServoidWarning, stacklevel=stacklevel)
+            warn(p.note, ServoidWarning)
 
 
 def two_step_result(

@@ -58,7 +58,6 @@ says so, with how far the larger structures move them.
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -69,6 +68,7 @@ from numpy.typing import NDArray
 from .._checks import as_float, as_int, as_mapping, type_error
 from .._errors import ChannelError, DataError, OptionError, ServoidWarning
 from .._lazy import stats
+from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate
 from ..validate import residual_analysis
@@ -448,7 +448,7 @@ def compare_structures(
     result = StructureTest(base, tuple(rows), tests, level, n, rejected, tuple(reasons),
                            preferred, shifts, base_reduced)
     if rejected:
-        warnings.warn(result.verdict, ServoidWarning, stacklevel=2)
+        warn(result.verdict, ServoidWarning)
     return result
 
 
@@ -604,7 +604,7 @@ def _nested_test(
                 f"which is a point of {large} ({', '.join(extra_names)} at their null values): "
                 f"it missed its optimum; refit {large} from the {small} estimate. The test "
                 "counts LR = 0")
-        warnings.warn(note, ServoidWarning, stacklevel=3)
+        warn(note, ServoidWarning)
     lr = max(n * math.log(v_s / v_l), 0.0) if not note else 0.0
     scale = _scale(e_s - e_l, e_l, sizes) if lr > 0 else 1.0
     lr_robust = lr / scale

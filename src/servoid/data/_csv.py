@@ -35,7 +35,6 @@ import csv
 import io
 import os
 import re
-import warnings
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -53,6 +52,7 @@ from .._errors import (
     ServoidWarning,
 )
 from .._spreadsheet import is_formula
+from .._warn import warn
 from ._columns import (
     DEFAULT_MAX_BYTES,
     TIME_TOLERANCE,
@@ -423,10 +423,11 @@ def _check_time_unit(path: Path, stamps: NDArray[np.float64], name: str, stated:
         return
     step = float(np.median(np.diff(stamps[:1000])))
     if step >= 0.1:
-        warnings.warn(
+        warn(
             f"{path}: time column {name!r} has no unit and steps by {step:g} s, a slow rate for "
             f"a servo test ({1 / step:g} Hz); if it is in milliseconds, say so: time_unit='ms' "
-            f"([data] time_unit = \"ms\" in an experiment file) or a header '{name} [ms]'", ServoidWarning, stacklevel=4)
+            f"([data] time_unit = \"ms\" in an experiment file) or a header '{name} [ms]'",
+            ServoidWarning)
 
 
 def write_csv(

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import functools
-import warnings
 from collections.abc import Sequence
 from typing import Literal
 
@@ -14,6 +13,7 @@ from numpy.typing import NDArray
 from .._checks import as_int
 from .._errors import DataError, ServoidWarning, check_option
 from .._lazy import signal as sps
+from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import PolynomialModel
 from ._channels import LARGEST_VALUE, SMALLEST_VALUE, check_magnitude, check_not_constant
@@ -185,11 +185,10 @@ def fit_arx(
             )
         core = _gram_core(gram, n_rows, names)
         if core is None and method == "gram":
-            warnings.warn(
+            warn(
                 "the regressor is too ill-conditioned for the normal equations "
                 "(scaled condition number > 1e3); solved by QR instead",
                 ServoidWarning,
-                stacklevel=2,
             )
     stable: bool | None
     if core is not None:
@@ -491,11 +490,10 @@ def _warn_if_unstable(a: NDArray[np.float64], stable: bool | None = None) -> Non
         return
     radius = float(np.abs(np.roots(a)).max())
     if radius > 1.0 + 1e-9:
-        warnings.warn(
+        warn(
             f"the estimated model is unstable: largest pole magnitude {radius:.6g} > 1. "
             "Simulation will diverge; check for drift or an integrating plant in open loop",
             ServoidWarning,
-            stacklevel=3,
         )
 
 

@@ -77,7 +77,6 @@ parameter set.
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -85,6 +84,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import _warn
 from .._checks import as_array, as_str_list, type_error
 from .._errors import DataError, ServoidWarning
 from .._lazy import stats
@@ -344,8 +344,7 @@ def check_identifiability(
         jac = as_array("jacobian", jacobian)
         if jac.shape != (r0.size, n):
             raise DataError(f"jacobian must have shape {(r0.size, n)}, got {jac.shape}")
-    return assess(residual_fn, theta, r0, jac, cov, names, layout, multistart, warn=warn,
-                  stacklevel=2)
+    return assess(residual_fn, theta, r0, jac, cov, names, layout, multistart, warn=warn)
 
 
 def assess(
@@ -359,12 +358,8 @@ def assess(
     multistart: MultistartSummary | None = None,
     *,
     warn: bool = True,
-    stacklevel: int = 2,
 ) -> Identifiability:
-    """The checks of :func:`check_identifiability`, inputs trusted.
-
-    ``stacklevel`` is that of the caller's own warnings (its caller's line).
-    """
+    """The checks of :func:`check_identifiability`, inputs trusted."""
     n = theta.size
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -383,7 +378,7 @@ def assess(
                                    max(r0.size - n, 1), names)
     if warn:
         for f in flags:
-            warnings.warn(f.message, ServoidWarning, stacklevel=stacklevel + 1)
+            _warn.warn(f.message, ServoidWarning)
     return Identifiability(names, theta, std, corr, sv, weakest, ratio, floor, steps,
                            multistart, tuple(flags))
 

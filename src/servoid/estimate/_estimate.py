@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import functools
-import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -16,6 +15,7 @@ from numpy.typing import NDArray
 from .._checks import as_array, as_float, as_mapping, type_error
 from .._errors import ChannelError, DataError, ModelError
 from .._lazy import stats
+from .._warn import warn
 
 __all__ = ["Deferred", "Estimate", "ParameterRow"]
 
@@ -237,8 +237,8 @@ class Estimate:
         except ValueError:
             renamed = self.options.get("former_names", {}).get(name)
             if renamed in self.names:  # a name an older servoid gave, read for one release
-                warnings.warn(f"{self.method} parameter {name!r} is now {renamed!r}; read it "
-                              f"as {renamed!r}", DeprecationWarning, stacklevel=2)
+                warn(f"{self.method} parameter {name!r} is now {renamed!r}; read it as "
+                     f"{renamed!r}", DeprecationWarning)
                 return float(self.parameters[self.names.index(renamed)])
             raise ChannelError(f"no parameter {name!r}; parameters are "
                                f"{', '.join(self.names)}") from None

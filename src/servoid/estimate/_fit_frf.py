@@ -41,7 +41,6 @@ variance, as in ordinary least squares.
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import fields
 from typing import Literal
 
@@ -60,6 +59,7 @@ from .._errors import (
     check_option,
 )
 from .._lazy import optimize
+from .._warn import warn
 from ..models import FrequencyResponseData, TransferFunction
 from ._estimate import Estimate
 
@@ -254,12 +254,11 @@ def fit_frf(
 
     model = model_function(theta)
     if model.order and np.max(model.poles().real) >= 0:
-        warnings.warn(
+        warn(
             f"fit_frf: the fitted model has a pole in the closed right half-plane (largest "
             f"real part {np.max(model.poles().real):.4g} rad/s); check the orders and the "
             "band, or whether the measured system is unstable in this loop",
             ServoidWarning,
-            stacklevel=2,
         )
     unit = frd.unit
     units = tuple([_power_unit(unit, n - i) for i in range(m, -1, -1)]
@@ -400,12 +399,11 @@ def _variance_factors(estimated: bool, n_avg: int) -> tuple[float, float]:
     if not estimated:
         return 1.0, 1.0
     if n_avg <= 3:
-        warnings.warn(
+        warn(
             f"fit_frf: the line variances rest on {n_avg} average(s); with fewer than 4 their "
             "weights are too uncertain for a covariance (it is left uncorrected). Record more "
             "periods or longer data",
             ServoidWarning,
-            stacklevel=3,
         )
         return 1.0, math.nan if n_avg <= 2 else (n_avg - 1) / (n_avg - 2)
     return (n_avg - 1) / (n_avg - 3), (n_avg - 1) / (n_avg - 2)
@@ -424,13 +422,12 @@ def _check_cost(cost: float, dof: float, n_lines: int, n_theta: int, estimated: 
         term_var = 1.0  # |e|²/σ² of a circular complex normal error: Exp(1)
     spread = math.sqrt(n_lines * term_var)
     if cost > expected * dof + _REJECT_SIGMAS * spread:
-        warnings.warn(
+        warn(
             f"fit_frf: the cost V = {cost:.4g} is far above the {expected * dof:.4g} ± "
             f"{spread:.2g} the line variances allow: the model structure is rejected by the "
             "data. Raise n_poles / n_zeros, narrow the band (frd.select), or check for a "
             "delay; the covariance understates the error",
             ServoidWarning,
-            stacklevel=3,
         )
 
 

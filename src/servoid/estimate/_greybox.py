@@ -29,7 +29,6 @@ user ``simulate(theta) -> (N, p)`` callable (a compiled simulator).
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -47,8 +46,9 @@ from .._errors import (
     check_option,
 )
 from .._lazy import integrate, optimize
-from ..integrate import keep, rk4_step
+from .._warn import warn
 from ..data import Experiment
+from ..integrate import keep, rk4_step
 from ._covariance import (
     GREYBOX_COVARIANCES,
     CovarianceResult,
@@ -700,10 +700,9 @@ def _warn_on_bounds(
     for name, v, a, b in zip(names, theta, lo, hi, strict=True):
         for edge, label in ((a, "lower"), (b, "upper")):
             if np.isfinite(edge) and abs(v - edge) <= 1e-6 * max(abs(edge), 1.0):
-                warnings.warn(
+                warn(
                     f"{name} = {v:.6g} ends on its {label} bound {edge:.6g}: the optimum is "
                     "constrained and its covariance (which ignores the bound) is not reliable; "
                     "widen the bound or revisit the model",
                     ServoidWarning,
-                    stacklevel=3,
                 )

@@ -37,6 +37,8 @@ from __future__ import annotations
 
 import inspect
 import math
+import re
+import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -49,7 +51,7 @@ from numpy.typing import NDArray
 from .._errors import ModelError
 from ..integrate import rk4_step
 
-__all__ = ["OdeSystem", "make_system", "user_error"]
+__all__ = ["OdeSystem", "make_system", "simulation_seconds", "user_error"]
 
 #: samples the compiled and the Python integrators are compared on
 _PROBE = 8
@@ -224,9 +226,8 @@ def make_system(
         fast(np.ascontiguousarray(x0, dtype=float), probe_u, np.ascontiguousarray(p, dtype=float),
              1e-3, 1, *bounds, got)
     except Exception as exc:  # noqa: BLE001 — numba fails in many ways: any failure falls back
-        first = next((line for line in str(exc).splitlines() if line.strip()), type(exc).__name__)
-        return _replace(system, note=f"{source} does not compile with numba ({first.strip()[:160]}"
-                        "); the Python integrator runs (much slower)")
+        return _replace(system, note=f"{source} does not compile with numba ({_why(exc)}); the "
+                        "Python integrator runs (much slower)")
     if not np.allclose(got, expected, rtol=1e-9, atol=1e-300, equal_nan=True):
         return _replace(system, note=f"{source} gives other numbers compiled than in Python; the "
                         "Python integrator runs (much slower)")
@@ -235,6 +236,27 @@ def make_system(
             _COMPILED.pop(next(iter(_COMPILED)))
         _COMPILED[key] = fast
     return _replace(system, compiled=True, _kernel=fast)
+
+
+def simulation_seconds(system: OdeSystem, x0: NDArray[np.float64], u: NDArray[np.float64],
+                       p: NDArray[np.float64], dt: float, substeps: int, *,
+                       budget: float = 0.05) -> float:
+    """Seconds one simulation over all of ``u`` takes, from timing its first samples.
+
+    Simulates 16 samples, then four times more each round until a round
+    takes ``budget`` seconds or covers the record, and extrapolates by the
+    number of steps: a small part of one simulation, even for the Python
+    integrator.
+    """
+    n = u.shape[0]
+    k = min(n, 16)
+    while True:
+        start = time.perf_counter()
+        system.simulate(x0, u[:k], p, dt, substeps)
+        took = time.perf_counter() - start
+        if took >= budget or k >= n:
+            return took * max(n - 1, 1) / max(k - 1, 1)
+        k = min(n, 4 * k)
 
 
 def user_error(exc: BaseException, source: str, path: Path | None) -> ModelError:
@@ -266,6 +288,19 @@ def _replace(system: OdeSystem, **changes: Any) -> OdeSystem:
     import dataclasses
 
     return dataclasses.replace(system, **changes)
+
+
+def _why(exc: BaseException) -> str:
+    """numba's reason in one line, with the user's line it names ("Failed in …" skipped)."""
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    reason = next((line for line in lines if not line.startswith("Failed in ")),
+                  lines[0] if lines else type(exc).__name__)[:160]
+    here = Path(__file__).name
+    for line in lines:
+        found = re.match(r'File "(.+)", line (\d+):', line)
+        if found and Path(found[1]).name != here:
+            return f"{reason}; {Path(found[1]).name}, line {found[2]}"
+    return reason
 
 
 def _arity(fn: Callable[..., Any], source: str, forms: tuple[str, ...]) -> int:

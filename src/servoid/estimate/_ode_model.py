@@ -27,7 +27,6 @@ recorded, so the model read back replays bit for bit as the one fitted.
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,6 +46,7 @@ from .._errors import (
     check_option,
 )
 from .._lazy import optimize
+from .._warn import warn
 from ..data import Experiment
 from ._estimate import Estimate
 from ._greybox import GreyboxParameter, fit_greybox
@@ -368,9 +368,9 @@ class OdeModel:
                              f"{_SIGNATURES[int(system.takes_time)][3:]}, the record says "
                              f"{rec['signature'][3:]}; fit the model again")
         if rec["compiled"] and not system.compiled:
-            warnings.warn(f"{where}: the model was fitted with its compiled integrator and is "
-                          f"read back with the Python one ({system.note}): replay agrees to "
-                          "rounding, not bit for bit", ServoidWarning, stacklevel=3)
+            warn(f"{where}: the model was fitted with its compiled integrator and is "
+                 f"read back with the Python one ({system.note}): replay agrees to "
+                 "rounding, not bit for bit", ServoidWarning)
         return cls(system, rec["names"], theta, rec["states"], rec["x0"], rec["estimated"],
                    rec["dt"], rec["substeps"], inputs=rec["inputs"], output=rec["output_name"],
                    units=rec["units"], fixed=rec["fixed"], covariance=rec["covariance"],

@@ -43,7 +43,6 @@ The search
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -61,6 +60,7 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._warn import warn
 from ..data import Experiment, ExperimentSet
 from ..models import PolynomialModel
 from ._arx import _warn_if_unstable
@@ -479,16 +479,16 @@ def _fit(
     reflected = best.reflected + (reflected0 if k_best == 0 else 0)
     status = _status(best, reflected, singular)
     if not best.converged:
-        warnings.warn(
+        warn(
             f"the {method} search stopped at max_iter={max_iter} before converging; increase "
             "max_iter, try multistart=5 or initial='estimate', or check the orders",
-            ServoidWarning, stacklevel=3)
+            ServoidWarning)
     if singular:
-        warnings.warn(
+        warn(
             f"the {method} parameters are not all identifiable (singular information matrix: "
             "a pole–zero cancellation or a noise model without noise); the covariance uses a "
             "pseudo-inverse. Lower the orders",
-            ServoidWarning, stacklevel=3)
+            ServoidWarning)
     p = orders.split(best.theta)
     _warn_if_unstable(p.a)
     same = sum(1 for c in costs if np.isfinite(c) and abs(c - best.cost) <= _SAME_MINIMUM

@@ -53,7 +53,6 @@ series only with ``residuals=True``; otherwise the first access of
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -64,6 +63,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._checks import as_array
 from .._errors import DataError, ServoidWarning, check_option
+from .._warn import warn
 from ._estimate import Estimate
 from ._ls import RANK_COND_LIMIT, _check_columns, _check_rows, _rank_error
 from ._rls_kernel import GUARD_CODES, RlsPass, gram_pass, rls_pass, weighted_rss
@@ -279,12 +279,11 @@ def fit_rls(
     else:
         cov = sigma2 * _sandwich(h_weighted, g_weighted, np.sqrt(scale2), names_t)
     if events:
-        warnings.warn(
+        warn(
             f"rls: the covariance guard ({guard!r}) acted {events} times: trace(P) exceeded "
             f"{cap:.3g} — covariance windup from poor excitation under forgetting = {lam}; "
             "excite the system continuously or raise forgetting",
             ServoidWarning,
-            stacklevel=2,
         )
     estimate = Estimate(
         model=None,
@@ -362,11 +361,10 @@ def _sandwich(
     # excitation of the final window, judged in the record's scaled units as before
     s2 = np.linalg.eigvalsh(h / np.outer(scale, scale))
     if not s2[0] > s2[-1] / RANK_COND_LIMIT**2:
-        warnings.warn(
+        warn(
             "rls: the final memory window (~1/(1 − forgetting) samples) does not excite every "
             f"parameter ({', '.join(names)}); the covariance is unreliable",
             ServoidWarning,
-            stacklevel=3,
         )
     # invert on the window's own unit diagonal: a column the window barely sees (weights
     # λ^k of samples long gone) then costs no precision in the others

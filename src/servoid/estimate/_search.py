@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from .._checks import as_int, as_mapping
 from .._errors import DataError, OptionTypeError, ServoidError, ServoidWarning, check_option
+from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..validate import discrete_model, fit_percent, simulate_model
 from ._estimate import Estimate
@@ -235,7 +236,7 @@ def select_order(
                         "use lower orders")
     *_, k_best, estimate, notes = best_est
     for note in notes:  # the chosen fit's own warnings still reach the caller
-        warnings.warn(note, ServoidWarning, stacklevel=2)
+        warn(note, ServoidWarning)
     best = candidates[k_best]
     return StructureSelection(tuple(candidates), criterion, best, estimate,
                               _edges(best.orders, values), first,

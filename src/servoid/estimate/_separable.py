@@ -32,7 +32,6 @@ the profile variance for β and the inner LS covariance for θ — and
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Callable, Sequence
 from typing import Literal
 
@@ -42,6 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._checks import as_array, as_float_list, as_str_list, type_error
 from .._errors import DataError, IdentifiabilityError, ServoidWarning, check_option
 from .._lazy import optimize
+from .._warn import warn
 from ._estimate import Estimate
 from ._ls import lstsq
 
@@ -342,12 +342,11 @@ def _warn_edges(
     grid_rss: NDArray[np.float64],
 ) -> None:
     if min(beta - lo, hi - beta) <= max(10 * tol, 1e-12 * (hi - lo)):
-        warnings.warn(
+        warn(
             f"{name} = {beta:.6g} sits on an end of the search interval [{lo:.6g}, {hi:.6g}]: "
             "the minimum may lie outside; widen the interval. Its std assumes an interior "
             "optimum",
             ServoidWarning,
-            stacklevel=3,
         )
     if grid_rss.size >= 3:
         finite = np.where(np.isfinite(grid_rss), grid_rss, np.inf)
@@ -357,10 +356,9 @@ def _warn_edges(
             depths = np.sort(finite[minima])
             best, second = depths[0], depths[1]
             if second - best <= 0.1 * (finite.max() - best):
-                warnings.warn(
+                warn(
                     f"RSS({name}) has several local minima of similar depth on the grid "
                     f"(best {best:.4g}, next {second:.4g}); check the answer against the "
                     "physics or refine the grid",
                     ServoidWarning,
-                    stacklevel=3,
                 )

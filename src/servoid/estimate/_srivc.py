@@ -89,7 +89,6 @@ plant at rest (or the transient be short).
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass
 from typing import Literal
 
@@ -106,6 +105,7 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import TransferFunction
 from ._channels import check_magnitude, check_not_constant
@@ -328,18 +328,16 @@ def fit_tf(
         why = ("no step reduced the merit" if stalled
                else f"last relative step {last_step:.3g}, tol = {tol:g}")
         status = f"not converged in {iterations} iterations ({why})"
-        warnings.warn(
+        warn(
             f"fit_tf: SRIVC did not converge in {iterations} iterations ({why}); the estimate "
             "may be poor. Raise max_iter, check the orders and the delay, or start from init=",
             ServoidWarning,
-            stacklevel=2,
         )
     if n and np.any(model.poles().real >= 0.0):
-        warnings.warn(
+        warn(
             "fit_tf: the estimated model has a pole with Re >= 0; SRIVC filtered with its "
             "stabilised denominator, so suspect the orders, the delay or an integrating plant",
             ServoidWarning,
-            stacklevel=2,
         )
     resid_all = np.concatenate(resid)
 

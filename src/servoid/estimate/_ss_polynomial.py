@@ -17,7 +17,6 @@ from the exact output-error gradient.
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 from typing import Literal
 
@@ -28,6 +27,7 @@ from .._checks import as_int
 from .._errors import ModelError, OptionTypeError, ServoidWarning, check_option
 from .._lazy import linalg
 from .._lazy import signal as sps
+from .._warn import warn
 from ..models import PolynomialModel, StateSpace
 from ._gram import lagged_gram
 
@@ -109,12 +109,11 @@ def to_polynomial(
                              f"{model.n_states}; use nk <= {model.n_states}")
         dropped = np.max(np.abs(coeffs[:k]), initial=0.0)
         if dropped > _DROP_RTOL * np.max(np.abs(coeffs)):
-            warnings.warn(
+            warn(
                 f"nk[{i}] = {k} drops numerator coefficient(s) up to {dropped:.3g} "
                 f"(largest {np.max(np.abs(coeffs)):.3g}): the polynomial model differs from "
                 "the state-space model",
                 ServoidWarning,
-                stacklevel=2,
             )
         b.append(coeffs[k:])
     if structure == "oe":

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import partial
@@ -15,6 +14,7 @@ from numpy.typing import NDArray
 from .._checks import as_bool, as_int, as_str_list
 from .._errors import DataError, IdentifiabilityError, ServoidWarning, check_option
 from .._lazy import linalg
+from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import StateSpace
 from ._channels import check_magnitude, check_not_constant
@@ -241,7 +241,7 @@ def fit_n4sid(
             projection = _project(d, s1, s1, n_given, cap, weighting)
     result = _identify(d, projection, feedthrough)
     for message in result.messages:
-        warnings.warn(message, ServoidWarning, stacklevel=2)
+        warn(message, ServoidWarning)
     return _estimate(d, result, weighting, feedthrough, input,
                      {"horizon_rule": rule, "horizon_first_pass": first_pass,
                       "slowest_pole_first_pass": radius})

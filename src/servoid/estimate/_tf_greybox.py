@@ -37,7 +37,6 @@ Every fit also runs the identifiability checks of
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Callable, Sequence
 from typing import Any, Literal
 
@@ -57,6 +56,7 @@ from .._errors import (
 )
 from .._lazy import optimize
 from .._lazy import signal as sps
+from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..models import TransferFunction
 from ._channels import output_name
@@ -506,12 +506,11 @@ def _bootstrap_result(boot: BootstrapResult, n_bootstrap: int, method: str) -> N
             "covariance. Use covariance='robust' or check the model"
         )
     if boot.failed > 0.1 * n_bootstrap:
-        warnings.warn(
+        warn(
             f"{method}: {boot.failed} of {n_bootstrap} bootstrap refits failed and were left "
             "out; the bootstrap covariance may understate the spread (the failures are the "
             "resamples the model fits worst)",
             ServoidWarning,
-            stacklevel=3,
         )
     return boot.covariance
 
@@ -540,22 +539,20 @@ def _warn_on_bound(
     for name, v, a, b in zip(names, theta, lo, hi, strict=True):
         for edge, label in ((a, "lower"), (b, "upper")):
             if np.isfinite(edge) and abs(v - edge) <= 1e-6 * max(abs(edge), 1.0):
-                warnings.warn(
+                warn(
                     f"{name} = {v:.6g} sits on its {label} bound {edge:.6g}: the optimum is "
                     "constrained and its covariance (which ignores the bound) is not reliable; "
                     "widen the bound or revisit the model",
                     ServoidWarning,
-                    stacklevel=3,
                 )
 
 
 def _warn_if_unstable(model: TransferFunction, method_name: str) -> None:
     radius = float(np.max(np.abs(model.poles()))) if model.order else 0.0
     if radius > 1.0 + 1e-9:
-        warnings.warn(
+        warn(
             f"{method_name}: the fitted model is unstable (largest pole magnitude "
             f"{radius:.6g} > 1); the data came from a bounded response, so suspect the start "
             "values or the model structure",
             ServoidWarning,
-            stacklevel=3,
         )

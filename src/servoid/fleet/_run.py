@@ -29,7 +29,7 @@ from .._atomic import atomic_path
 from .._checks import as_bool
 from .._errors import DataError, OptionError, OptionTypeError
 from .._lock import FolderLock, hold_folder, ledger, sha256_file, write_ledger
-from .._progress import Progress
+from .._progress import Progress, stage
 from .._words import option
 from ._cluster import check_scheduler, connect, dashboard_link, quiet_dask, start_local
 from ._result import FleetResult, assemble
@@ -310,7 +310,8 @@ class _Pool:
         if self._starting is None:  # not started early: start it now
             self._start_local(min(self.workers, n_todo))
         else:
-            self._starting.join()
+            with stage("starting the Dask workers (each loads servoid once)"):
+                self._starting.join()
         if isinstance(self._error, ImportError):
             raise OptionError("running a fleet in parallel needs Dask: pip install "
                               "'servoid[fleet]', or pass --workers 1 for a serial run") from None

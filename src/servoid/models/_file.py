@@ -38,7 +38,6 @@ import importlib
 import json
 import re
 import sys
-import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -58,6 +57,7 @@ from .._errors import (
     ServoidError,
     ServoidWarning,
 )
+from .._warn import warn
 from ._polynomial import PolynomialModel
 from ._statespace import StateSpace
 from ._transfer import TransferFunction
@@ -159,9 +159,9 @@ def save_model(
             if np.all(np.isfinite(model.covariance)):
                 covariance = model.covariance
             else:
-                warnings.warn("the estimate's covariance has non-finite entries (a parameter "
-                              "the data do not determine): the model file is written without "
-                              "it", ServoidWarning, stacklevel=2)
+                warn("the estimate's covariance has non-finite entries (a parameter "
+                     "the data do not determine): the model file is written without "
+                     "it", ServoidWarning)
         model = model.model
     record = model_record(model)
     if covariance is not None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Literal
@@ -14,6 +13,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._checks import as_array
 from .._errors import DataError, ModelError, OptionTypeError, ServoidWarning
 from .._lazy import signal
+from .._warn import warn
 from ._common import as_coefficients, as_input_matrix, check_dt, readonly
 
 if TYPE_CHECKING:
@@ -350,10 +350,9 @@ class PolynomialModel:
         if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)) or horizon < 1:
             raise ModelError(f"horizon must be an int >= 1, None or math.inf, got {horizon!r}")
         if self.nc and np.any(np.abs(np.roots(self.c)) >= 1.0):
-            warnings.warn(
+            warn(
                 "C has roots on or outside the unit circle: the predictor is unstable",
                 ServoidWarning,
-                stacklevel=2,
             )
         rest, terms = self._predictor_filters(int(horizon))
         # one compiled pass per filter, each adding into ŷ (lfilter allocated per term)

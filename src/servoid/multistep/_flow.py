@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 
 from .._checks import as_float, as_float_list, as_int
 from .._errors import DataError, IdentifiabilityError, ServoidWarning
+from .._warn import warn
 from ..actuators import psi_ellipse, psi_max
 from ..data import Experiment
 from ..estimate import Estimate, fit_separable, lstsq
@@ -210,7 +211,7 @@ def identify_critical_pressure(
                             beta_name="p_krit", units=("m",) * len(edges), beta_unit="-")
     for w in caught:
         notes.append(f"S0 (p_krit): {w.message}")
-        warnings.warn(str(w.message), ServoidWarning, stacklevel=2)
+        warn(str(w.message), ServoidWarning)
     # the joint covariance σ̂²(JᵀJ)⁻¹ takes white residuals; the rig's ṁ noise passed the
     # anti-alias filter: Newey–West on the same Jacobian J = [∂r/∂b, Φ(b)]
     b_hat, coef = float(est["p_krit"]), np.asarray(est.parameters[1:], dtype=float)
@@ -402,7 +403,7 @@ def _chamber_data(
             msg = (f"{step}: the mass-flow channel mdot_{chamber} is saturated (|ṁ| >= "
                    f"{limit * 1e3:.3g} g/s) on {100 * share:.0f} % of the record; those samples "
                    "are excluded — reduce the excitation so |ṁ| stays within the sensor range")
-            warnings.warn(msg, ServoidWarning, stacklevel=3)
+            warn(msg, ServoidWarning)
             notes.append(msg)
     missing: dict[int, str] = {}
     mask = np.zeros(record.n_samples, dtype=bool)
@@ -454,6 +455,6 @@ def _chamber_data(
         msg = f"{step}: {text} (need at least {min_samples} unsaturated samples per edge)"
         if not chambers:
             raise IdentifiabilityError(msg)
-        warnings.warn(msg, ServoidWarning, stacklevel=3)
+        warn(msg, ServoidWarning)
         notes.append(msg)
     return chambers, notes, mask

@@ -40,6 +40,7 @@ from .._errors import (
     check_option,
 )
 from .._progress import stage
+from .._warn import warn
 from ..actuators import PneumaticParameters, PositionController
 from ..data import Experiment
 from ..estimate._covariance import GREYBOX_COVARIANCES, GreyboxCovariance
@@ -341,7 +342,7 @@ def identify_multistep(
             derivatives=derivatives, blend=blend, omega_f=friction_omega_f)
     notes = [str(w.message) for w in caught if issubclass(w.category, ServoidWarning)]
     for w in caught:  # re-issue so callers see them too
-        warnings.warn(w.message, w.category, stacklevel=2)
+        warn(w.message, w.category)
     values = _assemble(steps, given)
     params = known.to_parameters(**values)
     with stage("S6: simulating the multi-step model on the validation record"):

@@ -50,6 +50,7 @@ from .._errors import (
 )
 from .._lazy import optimize
 from .._lazy import signal as sps
+from .._warn import warn
 from ..data import Experiment, ExperimentSet
 from ..estimate import Estimate
 from ..estimate._channels import output_name
@@ -618,9 +619,8 @@ def _search(problem: _Problem, p0: NDArray[np.float64], max_iter: int, tol: floa
     status = "ok"
     if result.status == 0:
         status = "iteration limit reached"
-        warnings.warn(f"the block-model search stopped at {max_iter} iterations before "
-                      "converging; raise max_iter or check the start", ServoidWarning,
-                      stacklevel=4)
+        warn(f"the block-model search stopped at {max_iter} iterations before "
+             "converging; raise max_iter or check the start", ServoidWarning)
     elif result.status < 0:
         raise ConvergenceError(f"the block-model search failed: {result.message}")
     return np.asarray(result.x, dtype=float), int(result.nfev), status
@@ -689,8 +689,8 @@ def _estimate(problem: _Problem, p: NDArray[np.float64], nfev: int, status: str,
     model = problem.model(p)
     stable_den = problem.lin.polynomials(p[problem.nf_: problem.nf_ + problem.lin.size])[1]
     if stable_den.size > 1 and np.any(np.abs(np.roots(stable_den)) >= 1.0):
-        warnings.warn("the fitted linear block is unstable; its simulation diverges on a long "
-                      "record", ServoidWarning, stacklevel=4)
+        warn("the fitted linear block is unstable; its simulation diverges on a long "
+             "record", ServoidWarning)
     theta = p[:n_free].copy()
     tail = p[n_free:].copy()
 

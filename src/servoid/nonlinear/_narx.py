@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from .._checks import as_float, as_int, type_error
 from .._errors import DataError, OptionError, ServoidWarning, check_option
+from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate
 from ..estimate._channels import check_not_constant
@@ -325,12 +326,12 @@ def _warn_on_offsets(signals: Sequence[NDArray[np.float64]], names: Sequence[str
         x = np.concatenate([z[k] for z in signals])
         mean, spread = float(np.mean(x)), float(np.std(x))
         if abs(mean) > _OFFSET_RATIO * spread:
-            warnings.warn(
+            warn(
                 f"channel {name!r} has mean {mean:.4g} and spread (std) {spread:.3g}: its "
                 "powers and products are nearly combinations of lower-degree terms, which the "
                 "term selection cannot tell apart in double precision. Remove the offset "
                 "first (servoid.data.detrend, or [preprocess] detrend = \"mean\")",
-                ServoidWarning, stacklevel=3)
+                ServoidWarning)
 
 
 def _gram(z: NDArray[np.float64], sig: NDArray[np.int64], lag: NDArray[np.int64],
@@ -424,17 +425,17 @@ def _warn_on_stop(criterion: str, keep: int, n_path: int, limit: int, max_terms:
                   rss_path: NDArray[np.float64], yy: float, tolerance: float) -> None:
     if criterion == "err":
         if n_path and rss_path[n_path - 1] > tolerance * yy:
-            warnings.warn(
+            warn(
                 f"the ERR selection stopped after {n_path} terms with 1 − ΣERR = "
                 f"{rss_path[n_path - 1] / yy:.3g}, above tolerance = {tolerance:g} "
                 + ("(max_terms reached)" if max_terms is not None and n_path >= max_terms
                    else "(no candidate left that adds anything)")
                 + "; the noise share of Σy² may exceed the tolerance: raise it or use "
-                "criterion = \"bic\"", ServoidWarning, stacklevel=3)
+                "criterion = \"bic\"", ServoidWarning)
     elif keep == limit and max_terms is not None and keep == max_terms:
-        warnings.warn(
+        warn(
             f"the {criterion} criterion was still falling at max_terms = {max_terms}: more "
-            "terms would fit better; raise max_terms", ServoidWarning, stacklevel=3)
+            "terms would fit better; raise max_terms", ServoidWarning)
 
 
 def _design(signals: Sequence[NDArray[np.float64]], terms: Sequence[Term],
@@ -463,10 +464,10 @@ def _warn_if_diverges(model: NarxModel, z: NDArray[np.float64], start: int) -> N
         warnings.simplefilter("always", ServoidWarning)
         model.replay(z[0], z[1:].T)
     if caught:
-        warnings.warn(
+        warn(
             "the fitted NARX model's free run diverges on the estimation record: its one-step "
             "fit may be good, but it cannot simulate; try a lower degree, fewer terms or "
-            "criterion = \"bic\"", ServoidWarning, stacklevel=3)
+            "criterion = \"bic\"", ServoidWarning)
 
 
 def _units(terms: Sequence[Term], model: NarxModel) -> tuple[str, ...]:

@@ -9,7 +9,6 @@ validation compares with a record.
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
@@ -19,6 +18,7 @@ from numpy.typing import NDArray
 
 from .._checks import as_array, as_float, as_int, as_str, type_error
 from .._errors import DataError, ModelError, ServoidWarning, check_option
+from .._warn import warn
 from ..validate._simulate import INITIALS, Initial, check_signals
 from ._narx_kernel import predict_k, simulate_free
 
@@ -364,12 +364,12 @@ class NarxModel:
     def _free_run(self, z: NDArray[np.float64], start: int) -> None:
         where = simulate_free(z, self._sig, self._lag, self.coefficients, start)
         if where >= 0:
-            warnings.warn(
+            warn(
                 f"the free run of the NARX model diverges at sample {where} (t = "
                 f"{where * self.dt:.6g} s): its output leaves ±1e150, and the samples from "
                 "there on are NaN. The one-step predictor can be good while the simulation is "
                 "unstable; try a lower degree or fewer terms (max_terms, criterion = \"bic\")",
-                ServoidWarning, stacklevel=3)
+                ServoidWarning)
 
 
 def term_label(term: Term, output: str = "y", inputs: Sequence[str] = ("u",)) -> str:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Sequence
 from typing import Literal
 
@@ -11,6 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._errors import DataError, OptionTypeError, ServoidWarning, check_option
+from .._warn import warn
 from ._checks import (
     MAX_SAMPLES,
     RngLike,
@@ -153,19 +153,17 @@ def multisine(
         )
     n_lines = lines.size
     if f_min > 0 and lines[0] * f0 > f_min * (1 + 1e-9) and lines[0] * f0 > 1.5 * f_min:
-        warnings.warn(
+        warn(
             f"the lowest excited line is {lines[0] * f0:g} Hz, not f_min = {f_min:g} Hz: the "
             f"frequency grid of this period is {f0:g} Hz. A period of "
             f"{math.ceil(1 / (f_min * dt))} samples puts a line on {f_min:g} Hz",
             ServoidWarning,
-            stacklevel=2,
         )
     if n_lines < 3:
-        warnings.warn(
+        warn(
             f"only {n_lines} line(s) in [{f_min:g}, {f_max:g}] Hz on the {f0:g} Hz grid: "
             "that is a sine, not a broadband test; lengthen the period or widen the band",
             ServoidWarning,
-            stacklevel=2,
         )
     if phases == "schroeder":
         index = np.arange(1, n_lines + 1)

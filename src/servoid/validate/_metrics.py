@@ -11,7 +11,6 @@ scanned for the error message.
 
 from __future__ import annotations
 
-import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -19,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._checks import as_array
 from .._errors import DataError, ServoidWarning
+from .._warn import warn
 from ._kernels import MOMENTS, add_moments
 
 __all__ = ["fit_percent", "nrmse", "relative_error", "rmse", "vaf"]
@@ -80,11 +80,10 @@ def _shaped(x: NDArray[np.float64], like: NDArray[np.float64]) -> NDArray[np.flo
 
 def _warn_degenerate(spread: NDArray[np.float64], what: str) -> None:
     if np.any(~(np.asarray(spread) > 0)):
-        warnings.warn(
+        warn(
             f"{what} is undefined for a constant measured output (zero spread about its mean); "
             "the result is NaN or ±inf",
             ServoidWarning,
-            stacklevel=3,
         )
 
 
@@ -128,8 +127,8 @@ def relative_error(y: ArrayLike, y_hat: ArrayLike) -> float | NDArray[np.float64
     y, y_hat = _pair(y, y_hat)
     sums = _sums(y, y_hat)
     if np.any(~(sums.power > 0)):
-        warnings.warn("the relative error is undefined for an all-zero measured output",
-                      ServoidWarning, stacklevel=2)
+        warn("the relative error is undefined for an all-zero measured output",
+             ServoidWarning)
     with np.errstate(divide="ignore", invalid="ignore"):
         return _out(_shaped(100.0 * np.sqrt(sums.error2) / np.sqrt(sums.power), y))
 
@@ -149,8 +148,8 @@ def metric_set(y: ArrayLike, y_hat: ArrayLike,
     _warn_degenerate(spread, "the normalised error")
     _warn_degenerate(sums.spread2, "VAF")
     if np.any(~(sums.power > 0)):
-        warnings.warn("the relative error is undefined for an all-zero measured output",
-                      ServoidWarning, stacklevel=2)
+        warn("the relative error is undefined for an all-zero measured output",
+             ServoidWarning)
     with np.errstate(divide="ignore", invalid="ignore"):
         e = np.sqrt(sums.error2) / spread
         return {

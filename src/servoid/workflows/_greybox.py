@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Any
 
@@ -46,10 +47,12 @@ import numpy as np
 
 from .._checks import as_float, as_float_list, as_mapping, as_str, as_str_list, type_error
 from .._errors import DataError, OptionError
+from .._progress import stage
+from .._warn import warn
 from ..data import Experiment, ExperimentSpec
 from ..estimate import GreyboxParameter
 from ..estimate._diagnostics import MAX_STARTS
-from ..estimate._ode import make_system
+from ..estimate._ode import OdeSystem, make_system, simulation_seconds
 from ..estimate._ode_model import fit_ode
 from ..estimate._ode_user import executed_sha256, load_function, parse_ref
 from ..report import Page
@@ -62,6 +65,11 @@ from ._registry import Method, Option
 __all__ = ["GREYBOX", "GreyboxResult"]
 
 _WHERE = "[identify]"
+#: iterations of a fit, few to many; each simulates the record n_free + 1 times (the residuals
+#: and a finite-difference Jacobian). The tanks example (5 free parameters) took 11.
+_ITERATIONS = (5, 20)
+#: a bootstrap covariance refits 200 times (fit_greybox's n_bootstrap), each from the optimum
+_BOOTSTRAP = (200 * 2, 200 * 5)
 
 
 @dataclasses.dataclass(frozen=True, eq=False, repr=False)
@@ -146,12 +154,16 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         raise OptionError(f"{_WHERE} output_function = \"{options['output_function']}\" returns "
                           f"{system.n_outputs} outputs; it must return the one measured output "
                           f"({output})")
+    n_free = sum(not p.fixed for p in params) + len(estimate_initial)
+    fitting: Any = nullcontext()
+    if not system.compiled:  # before a fit that may take minutes: why, and how long
+        fitting = stage(_python_integrator(system, x0, u, theta0, estimation.dt, options, n_free))
     notes = [system.note] if system.note else []
     if spec.preprocess.detrend != "none":
         notes.append(f"[preprocess] detrend = \"{spec.preprocess.detrend}\": the physical model "
                      "sees signals with their operating point removed; use \"none\" unless the "
                      "model is written in deviations")
-    with warnings_as_notes() as fit_notes:  # lti_result warns each note again, from the run
+    with fitting, warnings_as_notes() as fit_notes:  # lti_result warns each note again
         estimate = fit_ode(estimation, system, params, states=states, output=output, x0=x0,
                            estimate_initial=estimate_initial, substeps=options["substeps"],
                            covariance=options["covariance"], multistart=options["multistart"],
@@ -165,6 +177,39 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                         truth=truth, records=estimation)
     return GreyboxResult(**{f.name: getattr(result, f.name)
                             for f in dataclasses.fields(IdentificationResult)})
+
+
+def _python_integrator(system: OdeSystem, x0: Any, u: Any, theta0: Any, dt: float,
+                       options: Mapping[str, Any], n_free: int) -> str:
+    """Time a few steps of the Python integrator; warn of a fall-back; the fit's stage label.
+
+    A model numba could not compile is announced now, with the reason and
+    the time to expect, not in the notes at the end of a run that may last
+    many minutes.
+    """
+    per = simulation_seconds(system, x0, u, theta0, dt, options["substeps"])
+    starts = 1 + options["multistart"]
+    lo, hi = ((n_free + 1) * i * starts for i in _ITERATIONS)
+    if options["covariance"] == "bootstrap":
+        lo, hi = lo + (n_free + 1) * _BOOTSTRAP[0], hi + (n_free + 1) * _BOOTSTRAP[1]
+    expect = f"{_duration(lo * per)} to {_duration(hi * per)}"
+    if options["compile"]:  # a fall-back, not the user's choice
+        runs = f", {starts} starts" if starts > 1 else ""
+        warn(f"{system.note}: one simulation of the {u.shape[0]} samples takes "
+             f"{_duration(per)} and the fit needs some {lo}–{hi} of them ({n_free} free "
+             f"parameters{runs}), so expect {expect}; a model numba compiles fits about 100 "
+             "times faster (docs/greybox-ode.md says what compiles)")
+    return f"fitting with the Python integrator (expect {expect})"
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 1.0:
+        return f"{seconds:.2g} s"
+    if seconds < 90.0:
+        return f"{seconds:.0f} s"
+    if seconds < 5400.0:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
 
 
 # -- option checks ----------------------------------------------------------------------------

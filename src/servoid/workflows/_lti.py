@@ -21,6 +21,7 @@ import numpy as np
 
 from .. import __version__
 from .._errors import ServoidError, ServoidWarning, SimulationDivergedError
+from .._warn import warn
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 from ..estimate import Estimate, frequency_band
 from ..report import (
@@ -519,7 +520,7 @@ def lti_result(
             all_notes += [f"{report.experiment or 'validation'}: {n}" for n in report.notes()]
     all_notes = list(dict.fromkeys(all_notes))
     for note in all_notes:
-        warnings.warn(note, ServoidWarning, stacklevel=4)  # lti_result ← run ← identify ← user
+        warn(note, ServoidWarning)  # lti_result ← run ← identify ← user
     if truth is None:
         truth = truth_from_spec(spec, [*estimate.names, *(r.name for r in characteristics)])
     data = estimation if estimation is not None else records

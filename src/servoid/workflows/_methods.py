@@ -1,32 +1,131 @@
-"""Every method ``[identify] method = …`` can name: one line each."""
+"""Every method ``[identify] method = …`` can name: one line each.
+
+A line gives the method's name, where its :class:`Method` is defined and
+its one-line summary.  The module is imported when the method is first
+asked for (``METHODS[name]``), so that listing the methods
+(``servoid methods``) imports none of them and a run imports only its own.
+The summary is repeated here for that listing; a test checks that every
+line agrees with its module's :class:`Method`.
+"""
 
 from __future__ import annotations
 
-from . import _arx, _closedloop, _closedloop_any, _frf, _inverse, _n4sid, _pem, _pneumatic, _tf
-from ._blocks import HAMMERSTEIN, HAMMERSTEIN_WIENER, WIENER
-from ._greybox import GREYBOX
-from ._narx import METHOD as NARX
-from ._registry import registry
+import importlib
+from collections.abc import Iterator, Mapping
 
-__all__ = ["METHODS"]
+from .._errors import check_option
+from ._registry import Method
 
-METHODS = registry((
-    _arx.METHOD,
-    _pem.OE,
-    _pem.ARMAX,
-    _pem.BJ,
-    _tf.TF,
-    _n4sid.N4SID,
-    _frf.FRF,
-    _closedloop_any.TWO_STAGE,
-    _closedloop_any.CLIV,
-    _closedloop_any.INDIRECT,
-    _closedloop.METHOD,
-    _inverse.METHOD,
-    _pneumatic.METHOD,
-    HAMMERSTEIN,
-    WIENER,
-    HAMMERSTEIN_WIENER,
-    NARX,
-    GREYBOX,
-))
+__all__ = ["METHODS", "get_method", "method_names"]
+
+#: name, "module:attribute" of its Method, summary — in the order ``servoid methods`` lists them
+_LISTED: tuple[tuple[str, str, str], ...] = (
+    ("arx", "_arx:METHOD",
+     "ARX model A y = B u + e by least squares, with covariance; orders given or searched "
+     "over a grid"),
+    ("oe", "_pem:OE",
+     "output-error model y = B/F u + e by prediction error (exact gradient), with "
+     "covariance; the best simulation model"),
+    ("armax", "_pem:ARMAX",
+     "ARMAX model A y = B u + C e by prediction error, with covariance; a noise model "
+     "sharing the plant's poles"),
+    ("bj", "_pem:BJ",
+     "Box–Jenkins model y = B/F u + C/D e by prediction error, with covariance; "
+     "independent plant and noise models (also the direct method on closed-loop data)"),
+    ("tf", "_tf:TF",
+     "continuous transfer function (poles, zeros, input delay) by refined instrumental "
+     "variables (SRIVC; CLSRIVC with the reference as instrument), with gain, ω_n, ζ ± σ"),
+    ("n4sid", "_n4sid:N4SID",
+     "state-space model by subspace projection (MOESP, CVA, N4SID), SISO or MIMO, order "
+     "from the singular values; optionally refined by output error"),
+    ("frf", "_frf:FRF",
+     "measured frequency response (Welch H1 with coherence, or averaged over excitation "
+     "periods with its variance), the spec numbers, and optionally a continuous transfer "
+     "function fitted to it"),
+    ("two-stage", "_closedloop_any:TWO_STAGE",
+     "plant from a closed-loop record with an unknown controller: a FIR r → u gives the "
+     "noise-free input, then OE (or BJ) from it to y"),
+    ("cliv", "_closedloop_any:CLIV",
+     "plant from a closed-loop record with an unknown controller by instrumental "
+     "variables built from the reference"),
+    ("indirect", "_closedloop_any:INDIRECT",
+     "plant of any order from a closed-loop record and the known controller ([loop] "
+     "controller, feedback): OE of r → y, then the plant"),
+    ("closedloop", "_closedloop:METHOD",
+     "physical parameters K, ω_hp, δ_hp of the reduced electro-hydraulic plant inside "
+     "its known loop ([loop] c, F): two-step indirect, one-step OE, direct"),
+    ("inverse-dynamics", "_inverse:METHOD",
+     "rigid axis with friction in its known cascade loop ([loop] kp, kv, gtau): IDIM-LS "
+     "of M, Fv, Fc, closed-loop OE refinement, hold-out check or cross-test "
+     "([validation] file)"),
+    ("pneumatic-multistep", "_pneumatic:METHOD",
+     "servopneumatic actuator, equation group by equation group (S0–S6) from a campaign "
+     "of experiment files, validated on pressures and mass flows"),
+    ("hammerstein", "_blocks:HAMMERSTEIN",
+     "Hammerstein model y = G(q)·f(u) + e: a static curve (dead zone, saturation, …) "
+     "before a linear block, jointly by output error"),
+    ("wiener", "_blocks:WIENER",
+     "Wiener model y = g(G(q)·u) + e: a linear block before a static curve (|x|, "
+     "saturation, …), jointly by output error"),
+    ("hammerstein-wiener", "_blocks:HAMMERSTEIN_WIENER",
+     "Hammerstein–Wiener model y = g(G(q)·f(u)) + e: static curves on both sides of a "
+     "linear block"),
+    ("narx", "_narx:METHOD",
+     "polynomial NARX y(t) = Σ θ·(products of lagged y and u) + e: terms chosen by "
+     "forward orthogonal least squares (ERR) and BIC/AIC, validated by free run"),
+    ("greybox", "_greybox:GREYBOX",
+     "a grey-box ODE written in Python (model = \"file.py:rhs\"), its parameters and "
+     "initial states fitted by simulation error with bounds, saturations, multistart and "
+     "identifiability checks; needs --allow-code"),
+)
+
+
+def method_names() -> tuple[str, ...]:
+    """Names ``[identify] method`` accepts, in registry order."""
+    return tuple(METHODS)
+
+
+def get_method(name: str) -> Method:
+    """Return the registered method called ``name``.
+
+    Raises
+    ------
+    OptionError
+        No such method; the message lists the registered ones.
+    """
+    check_option("[identify] method", name, METHODS)
+    return METHODS[name]
+
+
+class _Methods(Mapping[str, Method]):
+    """Read-only name → :class:`Method`, each imported on first use."""
+
+    def __init__(self, listed: tuple[tuple[str, str, str], ...]) -> None:
+        self._where = {name: where for name, where, _ in listed}
+        self._summary = {name: summary for name, _, summary in listed}
+        if len(self._where) != len(listed):
+            raise ValueError("a method is listed twice")
+        self._loaded: dict[str, Method] = {}
+
+    def __getitem__(self, name: str) -> Method:
+        if name not in self._loaded:
+            module, attribute = self._where[name].split(":")  # KeyError: not a method
+            method = getattr(importlib.import_module(f".{module}", __package__), attribute)
+            if not isinstance(method, Method) or method.name != name:
+                raise TypeError(f"{module}.{attribute} is not the Method {name!r}")
+            self._loaded[name] = method
+        return self._loaded[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._where)
+
+    def __len__(self) -> int:
+        return len(self._where)
+
+    def summary(self, name: str) -> str:
+        """The method's one line, without importing it."""
+        return self._summary[name]
+
+
+#: every method, in the order ``servoid methods`` lists them
+METHODS = _Methods(_LISTED)

@@ -18,7 +18,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -31,14 +30,14 @@ from .._errors import (
     OptionError,
     OutputExistsError,
     ServoidWarning,
-    check_option,
 )
 from .._lock import FolderLock, hold_folder
 from .._progress import stage
+from .._warn import warn
 from .._words import option
 from ..data import ExperimentSpec, load_experiment_spec
 from ._common import check_outputs, check_sizes, report_options, sha256, spec_inputs
-from ._methods import METHODS
+from ._methods import get_method, method_names
 from ._provenance import provenance
 from ._registry import Identification, Method
 from ._summary import verdict_section
@@ -53,23 +52,6 @@ MANIFEST = "manifest.json"
 _OPTIONAL_TABLES = ("validation",)
 # methods that fit every output channel when [identify] output is not set
 _MULTI_OUTPUT = ("n4sid",)
-
-
-def method_names() -> tuple[str, ...]:
-    """Names ``[identify] method`` accepts, in registry order."""
-    return tuple(METHODS)
-
-
-def get_method(name: str) -> Method:
-    """Return the registered method called ``name``.
-
-    Raises
-    ------
-    OptionError
-        No such method; the message lists the registered ones.
-    """
-    check_option("[identify] method", name, METHODS)
-    return METHODS[name]
 
 
 def identify(
@@ -222,9 +204,9 @@ def _write(result: Identification, folder: Path, overwrite: bool, lock: FolderLo
     replaced = _refuse_foreign([*targets.values(), manifest], list(result.inputs()), overwrite,
                                lock, own_run)
     if replaced and not overwrite and not own_run:
-        warnings.warn(f"{folder} holds an interrupted earlier run (its lock names "
-                      f"{', '.join(sorted(p.name for p in replaced))}); those files are "
-                      "replaced", ServoidWarning, stacklevel=4)
+        warn(f"{folder} holds an interrupted earlier run (its lock names "
+             f"{', '.join(sorted(p.name for p in replaced))}); those files are replaced",
+             ServoidWarning)
     lock.claim([*targets.values(), manifest])  # a run killed from here on left these half done
     if manifest.exists():
         manifest.unlink()  # from here on the folder is incomplete until the new manifest lands
