@@ -59,8 +59,6 @@ def add_fleet(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
                        help="replace files in the results folder that an earlier servoid "
                        "fleet did not write there (the inputs never)")
     fleet.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    fleet.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
-                       help="let Dask log (quiet by default)")
     json_flag(fleet)
     fleet.set_defaults(run=_run_fleet)
 
