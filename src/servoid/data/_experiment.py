@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import mmap
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import InitVar, dataclass, field, replace
@@ -111,9 +113,14 @@ class Experiment:
         dt = self.dt
         if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating, np.integer)):
             raise OptionTypeError(f"dt must be a number of seconds, got {type(dt).__name__}")
-        if not np.isfinite(dt) or dt <= 0:
+        try:
+            dt = float(dt)
+        except OverflowError:  # an integer past the largest float (10**400)
+            raise DataError("dt must be a finite number of seconds > 0, got an integer too "
+                            "large for a float") from None
+        if not math.isfinite(dt) or dt <= 0:
             raise DataError(f"dt must be > 0 s, got {dt}")
-        object.__setattr__(self, "dt", float(dt))
+        object.__setattr__(self, "dt", dt)
         object.__setattr__(self, "t0", as_float("t0", self.t0))
         if not isinstance(self.name, str):
             raise type_error("name", self.name, "a string")

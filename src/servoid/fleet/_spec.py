@@ -37,12 +37,16 @@ from pathlib import Path, PurePath
 from types import MappingProxyType
 from typing import Any
 
+from .._checks import file_name_problem
 from .._errors import DataError, FileFormatError, OptionError, OptionTypeError
 from ..data._toml import read_toml
 from ._files import REGULAR_ONLY, file_problem
 from ._limits import Limit, parse_limits
 
 __all__ = ["FleetRecord", "FleetSpec", "load_fleet_spec"]
+
+#: Folder levels a records glob may have (pathlib's walk recurses once per level).
+_MAX_PARTS = 32
 
 _TABLES = ("records", "identify", "limits", "trend", "report")
 _TREND_AXES = ("date", "serial", "order")
@@ -157,6 +161,10 @@ def _records(table: Mapping[str, Any], base: Path) -> list[FleetRecord]:
         manifest = table["manifest"]
         if not isinstance(manifest, str):
             raise OptionTypeError(f"[records] manifest must be a file name; got {manifest!r}")
+        problem = file_name_problem(manifest)
+        if problem is not None:
+            raise OptionError(f"[records] manifest = {_short(manifest)} {problem}; name the "
+                              "manifest CSV or Parquet file beside the fleet file")
         records = _manifest(base / manifest)
     _check_unique(records)
     return records
@@ -174,9 +182,18 @@ def _glob(pattern: Any, base: Path) -> list[Path]:
     """
     if not isinstance(pattern, str):
         raise OptionTypeError(f"[records] glob must be text; got {pattern!r}")
-    if not pattern.strip() or "\0" in pattern:
+    if not pattern.strip():
         raise OptionError(f"[records] glob = {pattern!r} is not a pattern; write one like "
                           "\"units/**/*.toml\", relative to the fleet file's folder")
+    problem = file_name_problem(pattern)
+    if problem is not None:
+        raise OptionError(f"[records] glob = {_short(pattern)} {problem}; write a pattern "
+                          "like \"units/**/*.toml\", relative to the fleet file's folder")
+    if len(PurePath(pattern).parts) > _MAX_PARTS:  # the walk recurses once per part
+        raise OptionError(f"[records] glob = {_short(pattern)} has "
+                          f"{len(PurePath(pattern).parts)} folder levels; a glob of records "
+                          f"goes at most {_MAX_PARTS} deep (\"units/**/*.toml\" reaches any "
+                          "depth)")
     relative = PurePath(pattern)
     if relative.is_absolute():
         inside = [relative.relative_to(b) for b in {base.absolute(), base.resolve()}
@@ -227,6 +244,12 @@ def _text(path: Path, what: str) -> str:
         line = data[:exc.start].count(b"\n") + 1
         raise FileFormatError(f"{what} {path} is not UTF-8 text (byte {data[exc.start]:#04x} on "
                               f"line {line}); save it as UTF-8") from None
+
+
+def _short(text: str) -> str:
+    """A value for a message: its repr, cut to 80 characters."""
+    shown = repr(text)
+    return shown if len(shown) <= 80 else f"{shown[:60]}… ({len(text)} characters)"
 
 
 def _listing(items: list[str]) -> str:

@@ -64,7 +64,11 @@ def as_float(
     """Return ``value`` as a finite float, optionally > 0 or >= 0."""
     if isinstance(value, bool) or not isinstance(value, Real):
         raise OptionTypeError(f"{name} must be a real number{unit}, got {type(value).__name__}")
-    out = float(value)
+    try:
+        out = float(value)
+    except OverflowError:  # an integer past the largest float (10**400)
+        raise DataError(f"{name} must be finite{unit} (within ±1.8e308), got an integer too "
+                        "large for a float") from None
     if not math.isfinite(out):
         raise DataError(f"{name} must be finite{unit}, got {out}")
     if positive and out <= 0:
