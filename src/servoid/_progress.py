@@ -16,9 +16,9 @@ its start-up (loading the numerical libraries) is covered too.
 On a terminal: one line redrawn in place each second; a stage opened inside
 a showing one takes the line over after half a second, and the outer one
 comes back when it ends.  On a pipe or a file (CI, ``| tee``): plain lines,
-no carriage returns — one when a stage is first shown, one now and then
-while it runs (every 10 s, then less often as it goes on: a fifth of its
-elapsed time) and one when it ends, if it ran 2 s or more.
+no carriage returns — one when a stage is first shown, one every 2 s while
+it runs (a log then shows that the run is alive, and where it is) and one
+when it ends, if it ran 2 s or more.
 
 One background thread draws while a stage is open; every write goes
 through one lock, so a stage line, a batch bar and a notice never tear one
@@ -40,11 +40,11 @@ __all__ = ["Progress", "configure", "is_verbose", "notice", "stage", "take_notic
 
 _WIDTH = 24
 _MIN_INTERVAL = 0.2  # s between redraws of a batch bar on a terminal
-_LINE_INTERVAL = 5.0  # s between plain lines of a batch
+_LINE_INTERVAL = 2.0  # s between plain lines of a batch
 _STAGE_DELAY = 2.0  # s of quiet output after which the running stage is shown
 _SWITCH = 0.5  # s an inner stage runs before it takes a showing terminal line over
 _REDRAW = 1.0  # s between redraws of a stage's terminal line
-_EVERY = 5.0  # s between plain lines of a running stage (at least; a fifth of its time)
+_EVERY = 2.0  # s between plain lines of a running stage
 _NOTICE_DELAY = 1.0  # s a notice waits (a run that ends at once prints it with its results)
 _TICK = 0.1  # s between looks of the background thread
 
@@ -330,15 +330,14 @@ def _tick(now: float) -> None:
             _write(None, text, now, final=True)
         # a batch that moves speaks for itself: of the stages, only one opened since it spoke
         held = isinstance(_S.line, Progress) and \
-            now - _S.quiet_since < (_STAGE_DELAY if _S.tty else 2 * _EVERY)
+            now - _S.quiet_since < _STAGE_DELAY
         target = _target(now, after=_S.quiet_since if held else None)
         if target is None:
             return
         if _S.tty:
             if _S.line is target and now - target.told < _REDRAW:
                 return
-        elif target.shown and now - max(target.told, _S.quiet_since) < \
-                max(_EVERY, 0.2 * (now - target.start)):
+        elif target.shown and now - max(target.told, _S.quiet_since) < _EVERY:
             return
         _write(target, f"servoid: {target.label} … {_clock(now - target.start)}", now,
                final=not _S.tty)
