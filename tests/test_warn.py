@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import json
 import sys
 import types
 import warnings
@@ -73,7 +74,10 @@ def test_writing_results_warns_at_the_callers_line(tmp_path):
                           tmp_path / "run.toml")
     result = identify(tmp_path / "run.toml", write=False)
     (tmp_path / "out").mkdir()
-    (tmp_path / "out" / "results.json").write_text("{}", encoding="utf-8")  # an interrupted run
+    (tmp_path / "out" / "results.json").write_text("{}", encoding="utf-8")
+    lock = {"servoid_lock": 1, "pid": 999999, "token": "0123456789abcdef", "folders": ["."],
+            "files": ["results.json"]}  # a run killed half way: its lock, no process holds it
+    (tmp_path / "out" / ".servoid.lock").write_text(json.dumps(lock), encoding="utf-8")
     line = sys._getframe().f_lineno + 1
     caught = _caught(lambda: write_results(result, tmp_path / "out"))
     assert [(w.filename, w.lineno) for w in caught if "interrupted" in str(w.message)] == \

@@ -1072,7 +1072,7 @@ def test_math_text_in_names_units_and_titles(method, bases, tmp_path, capsys, mo
 # -- the installed command, as a process --------------------------------------------------------
 
 PROCESS_CASES = [
-    (["identify", "{toml}", "--json"], 1, "not a valid TOML file", toml(JUNK)),
+    (["identify", "{toml}", "--json"], 1, "is not UTF-8 text", toml(JUNK)),
     (["bench", "ehsa", "--out", "{out}", "--fs", "-1", "--json"], 1, "--fs must be", None),
     (["excite", "prbs", "-n", "31", "--dt", "0.001", "--out", "{out}.csv", "--json"], 1,
      "raise --max-samples", None),
