@@ -1,4 +1,4 @@
-"""Every method ``[identify] method = …`` can name: one line each."""
+"""Every method ``[identify] method = …`` can name: one line each; a plant's come with it."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ from . import _arx, _closedloop, _closedloop_any, _frf, _inverse, _n4sid, _pem, 
 from ._blocks import HAMMERSTEIN, HAMMERSTEIN_WIENER, WIENER
 from ._greybox import GREYBOX
 from ._narx import METHOD as NARX
+from ..plants import PLANTS
 from ._registry import registry
 
 __all__ = ["METHODS"]
@@ -29,4 +30,5 @@ METHODS = registry((
     HAMMERSTEIN_WIENER,
     NARX,
     GREYBOX,
+    *(method for plant in PLANTS.values() for method in plant.load("methods")),
 ))

@@ -123,6 +123,9 @@ class EmaIdentification:
         The options used.
     notes : tuple of str
         What the reader should know (verdicts, reasons).
+    series : mapping
+        Per equation: (row times [s], filtered left-hand side, fitted
+        right-hand side), for the report's figure.
     """
 
     names: tuple[str, ...]
@@ -137,6 +140,8 @@ class EmaIdentification:
     kept: float
     settings: Mapping[str, Any] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    series: Mapping[str, tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]] = \
+        field(default_factory=dict, repr=False)
 
     @property
     def std(self) -> NDArray[np.float64]:
@@ -491,10 +496,12 @@ def fit_ema(
                 "min_speed": v_min, "hac_lags": lags, "max_relative_std": mrs,
                 "anti_alias": None if anti_alias is None else [aa_order, aa_cut],
                 "motor_constant": k_given, "load_mass": m_given}
+    times = exp.t0 + rows * dt
+    series = {r.name: (times, r.y, r.y - r.residuals) for r in regs}
     return EmaIdentification(
         names=names, values=values, covariance=cov_phys, identifiable=verdict, given=given,
         equations=equations, gear_ratio=n_ratio, lead=lead_m, n_rows=int(rows.size),
-        kept=float(keep.mean()), settings=settings, notes=tuple(notes))
+        kept=float(keep.mean()), settings=settings, notes=tuple(notes), series=series)
 
 
 def _blocks(regs: Sequence[Regression]) -> list[tuple[int, int]]:
