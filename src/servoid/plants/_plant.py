@@ -19,8 +19,7 @@ import importlib
 from dataclasses import dataclass
 from typing import Any
 
-from .._checks import as_str, type_error
-from .._errors import OptionError
+from .._errors import OptionError, OptionTypeError
 
 __all__ = ["PARTS", "Plant"]
 
@@ -60,10 +59,13 @@ class Plant:
     parts: dict[str, str]
 
     def __post_init__(self) -> None:
-        as_str("name", self.name)
-        as_str("title", self.title)
+        # plain checks, not servoid._checks (which loads numpy): the records are built when
+        # servoid.plants is imported, and the command line's parser lists them (servoid --help)
+        for name in ("name", "title"):
+            if not isinstance(getattr(self, name), str) or not getattr(self, name):
+                raise _type_error(name, getattr(self, name), "a non-empty string")
         if isinstance(self.methods, str) or not all(isinstance(m, str) for m in self.methods):
-            raise type_error("methods", self.methods, "a tuple of method names")
+            raise _type_error("methods", self.methods, "a tuple of method names")
         object.__setattr__(self, "methods", tuple(self.methods))
         missing = sorted(set(PARTS) - {"fleet"} - set(self.parts))
         unknown = sorted(set(self.parts) - set(PARTS))
@@ -72,7 +74,7 @@ class Plant:
                               f"a plant names {', '.join(PARTS)}")
         for part, ref in self.parts.items():
             if not isinstance(ref, str) or ref.count(":") != 1:
-                raise type_error(f"parts[{part!r}]", ref, '"module:attribute"')
+                raise _type_error(f"parts[{part!r}]", ref, '"module:attribute"')
 
     def load(self, part: str) -> Any:
         """Return one of the plant's parts, importing its module on first use.
@@ -87,3 +89,7 @@ class Plant:
             raise OptionError(f"plant {self.name!r} has no part {part!r}; it has {have}")
         module, _, attribute = self.parts[part].partition(":")
         return getattr(importlib.import_module(module), attribute)
+
+
+def _type_error(name: str, value: object, expected: str) -> OptionTypeError:
+    return OptionTypeError(f"{name} must be {expected}, got {value!r} ({type(value).__name__})")
