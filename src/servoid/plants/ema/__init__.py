@@ -10,13 +10,15 @@ subpackage holds all of it:
   :data:`TVC_CONTROLLER`;
 * :func:`simulate_ema`: the actuator in its cascade, stepped by
   :func:`servoid.integrate.rk4_step` between the controller's samples;
-* the virtual bench: :class:`EmaBench`, :func:`run_bench` and
-  :func:`write_bench` (rig file in volts and counts, experiment file,
-  ``truth.json``), :func:`write_fleet` (units with parameter scatter);
+* the virtual bench: :class:`EmaBench`, :func:`bench_reference`,
+  :func:`run_bench` and :func:`write_bench` / :func:`write_run` (rig file
+  in volts and counts, experiment file, ``truth.json``),
+  :func:`write_fleet` (units with parameter scatter);
 * physical identification from closed-loop records: :func:`fit_ema`
   (motor constant, resistance, inductance, inertias, frictions, screw
   stiffness, with intervals and identifiability verdicts) and the
-  ``[identify] method = "ema"`` workflow (:data:`METHOD`).
+  ``[identify] method = "ema"`` workflow (:data:`METHOD`, :class:`EmaResult`,
+  ``[loop]`` read by :func:`controller_from_loop`).
 
 The names load on first use (PEP 562): ``import servoid.plants`` reads
 only :data:`PLANT`.  See ``docs/ema.md``.
@@ -30,14 +32,15 @@ from typing import TYPE_CHECKING, Any
 from .._plant import Plant
 
 if TYPE_CHECKING:
-    from ._bench import EmaBench, EmaRun, run_bench
-    from ._bench_files import write_bench
+    from ._bench import EmaBench, EmaRun, bench_reference, run_bench, truth_parameters
+    from ._bench_files import write_bench, write_run
     from ._control import TVC_CONTROLLER, EmaController
-    from ._fleet import write_fleet
+    from ._fleet import EmaFleet, write_fleet
     from ._identify import EmaIdentification, fit_ema
     from ._params import PARAMETER_SETS, TVC_EMA, EmaParameters
     from ._sim import EmaResponse, simulate_ema
-    from ._workflow import METHOD
+    from ._workflow import METHOD, controller_from_loop
+    from ._workflow_run import EmaResult
 
 #: Exported name → the private module that defines it.
 _WHERE = {
@@ -47,15 +50,21 @@ _WHERE = {
     "TVC_EMA": "_params",
     "EmaBench": "_bench",
     "EmaController": "_control",
+    "EmaFleet": "_fleet",
     "EmaIdentification": "_identify",
     "EmaParameters": "_params",
     "EmaResponse": "_sim",
+    "EmaResult": "_workflow_run",
     "EmaRun": "_bench",
+    "bench_reference": "_bench",
+    "controller_from_loop": "_workflow",
     "fit_ema": "_identify",
     "run_bench": "_bench",
     "simulate_ema": "_sim",
+    "truth_parameters": "_bench",
     "write_bench": "_bench_files",
     "write_fleet": "_fleet",
+    "write_run": "_bench_files",
 }
 
 __all__ = [
@@ -66,15 +75,21 @@ __all__ = [
     "TVC_EMA",
     "EmaBench",
     "EmaController",
+    "EmaFleet",
     "EmaIdentification",
     "EmaParameters",
     "EmaResponse",
+    "EmaResult",
     "EmaRun",
+    "bench_reference",
+    "controller_from_loop",
     "fit_ema",
     "run_bench",
     "simulate_ema",
+    "truth_parameters",
     "write_bench",
     "write_fleet",
+    "write_run",
 ]
 
 _HERE = __name__

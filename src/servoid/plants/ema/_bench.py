@@ -179,7 +179,7 @@ class EmaBench:
 
 @dataclass(frozen=True, eq=False)
 class EmaRun:
-    """One run of the rig: the raw record, the truth and the simulation behind it.
+    """One run of the rig: its raw record and its simulation.
 
     Attributes
     ----------
@@ -211,7 +211,7 @@ class EmaRun:
 
 
 def truth_parameters(p: EmaParameters, f_ext: float = 0.0) -> dict[str, float]:
-    """The physical parameters :func:`~servoid.plants.ema.fit_ema` reports, from a set.
+    """The parameters that fit_ema reports, from a parameter set.
 
     Parameters
     ----------
@@ -220,6 +220,8 @@ def truth_parameters(p: EmaParameters, f_ext: float = 0.0) -> dict[str, float]:
     f_ext : float
         The constant external force [N].
     """
+    as_instance("p", p, EmaParameters, "EmaParameters")
+    f_ext = as_float("f_ext", f_ext, unit="N")
     n2 = p.transmission**2
     return {"K_m": p.K_m, "R": p.R, "L": p.L, "J_total": p.J_m + p.m_L / n2, "J_m": p.J_m,
             "m_L": p.m_L, "k_s": p.k_s, "c_s": p.c_s, "b_total": p.b_m + p.b_L / n2,
@@ -238,7 +240,7 @@ def bench_reference(
     f_max: float = 40.0,
     lines: int = 30,
 ) -> NDArray[np.float64]:
-    """The rig's identification test: a slow sweep with a multisine on top [m].
+    """The rig's test: a slow sweep with a multisine on top [m].
 
     ``sweep·sin(2π·sweep_hz·t)`` over most of the stroke, plus a random-phase
     multisine of about ``lines`` log-spaced lines in ``[f_min, f_max]``
@@ -270,6 +272,7 @@ def bench_reference(
     ndarray
         The reference per drive sample [m], starting at 0.
     """
+    as_instance("bench", bench, EmaBench, "an EmaBench")
     duration = as_float("duration", duration, positive=True, unit="s")
     for name, value in (("sweep", sweep), ("amplitude", amplitude)):
         as_float(name, value, nonneg=True, unit="m")
@@ -300,7 +303,7 @@ def bench_reference(
 
 def run_bench(bench: EmaBench, reference: ArrayLike, *, rng: np.random.Generator | int
               ) -> EmaRun:
-    """Play a position reference on the rig and record what the logger writes.
+    """Play a reference on the rig and record what the logger writes.
 
     Parameters
     ----------

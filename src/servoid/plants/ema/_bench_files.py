@@ -88,7 +88,7 @@ def write_bench(
 
 def write_run(run: EmaRun, folder: str | os.PathLike[str], *, format: RigFormat = "tdms",
               name: str = "ema", overwrite: bool = False) -> list[Path]:
-    """Write a bench run's rig file, experiment file and ``truth.json``.
+    """Write a bench run's rig file, experiment file and truth.
 
     Parameters
     ----------

@@ -95,7 +95,7 @@ def write_fleet(
     duration: float = 4.0,
     overwrite: bool = False,
 ) -> EmaFleet:
-    """Write bench records of many EMA units, their manifest, truth and fleet file.
+    """Write bench records of many EMA units and their fleet file.
 
     Parameters
     ----------

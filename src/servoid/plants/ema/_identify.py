@@ -94,7 +94,7 @@ _OFFSETS = ("F_0",)
 
 @dataclass(frozen=True, eq=False)
 class EmaIdentification:
-    """Physical parameters of an EMA from one record, with their covariance.
+    """An EMA's physical parameters from one record, with covariance.
 
     Attributes
     ----------
@@ -231,7 +231,7 @@ def fit_ema(
     min_speed: float | None = None,
     max_relative_std: float = 0.25,
 ) -> EmaIdentification:
-    """Identify an EMA's physical parameters from a closed-loop record.
+    """Identify an EMA's physical parameters from closed-loop data.
 
     See the module notes for the equations, the rows used and the
     covariance.

@@ -25,7 +25,7 @@ _STATE_NAMES = ("current", "angle", "speed", "position", "velocity")
 
 @dataclass(frozen=True, eq=False)
 class EmaResponse:
-    """The simulated actuator and drive, one value per controller sample.
+    """The simulated actuator and drive, per controller sample.
 
     Every array has one value per sample ``k`` at ``t_k = k·dt``, before
     the step that starts there (the drive's output ``voltage[k]`` is held
@@ -109,7 +109,7 @@ def simulate_ema(
     measurement_noise: Mapping[str, ArrayLike] | None = None,
     analog: bool = False,
 ) -> EmaResponse:
-    """Simulate the EMA in its sampled current, speed and position loops.
+    """Simulate the EMA in its sampled current, speed, position loops.
 
     Between samples the actuator's ODE (:mod:`._kernel`) is stepped by
     :func:`servoid.integrate.rk4_step` with the drive's voltage held; the
@@ -159,9 +159,9 @@ def simulate_ema(
     --------
     >>> import numpy as np
     >>> from servoid.plants.ema import TVC_EMA
-    >>> r = np.r_[0.0, np.full(2999, 1e-3)]  # a 1 mm step at a 10 kHz drive
+    >>> r = np.r_[0.0, np.full(2999, 1e-3)]  # a 1 mm step at a 10 kHz drive: at 50 ms, 0.3 s
     >>> out = simulate_ema(TVC_EMA, r, 1e-4)
-    >>> round(1e3 * out.position[500], 2), round(1e3 * out.position[-1], 3)  # at 50 ms, 0.3 s
+    >>> round(1e3 * float(out.position[500]), 2), round(1e3 * float(out.position[-1]), 3)
     (0.86, 1.0)
     """
     as_instance("params", params, EmaParameters, "EmaParameters (e.g. TVC_EMA)")

@@ -3,6 +3,12 @@
 Light on purpose: the registry imports this module to list the method and
 check its ``[identify]`` and ``[loop]`` keys; the run
 (:mod:`._workflow_run`) and everything it needs load when it runs.
+
+:data:`METHOD` is built on first access (PEP 562): building it needs
+:class:`servoid.workflows.Method`, and the workflows' registry reads this
+module's methods while it is itself being imported, so a top-level import
+of the workflows here would be circular whenever this module is imported
+first.
 """
 
 from __future__ import annotations
@@ -12,8 +18,6 @@ from typing import Any
 
 from ..._checks import as_float, as_int, as_mapping, as_str, type_error
 from ..._errors import OptionError
-from ...workflows._options import boolean, integer, number, optional, text
-from ...workflows._registry import Method, Option
 
 __all__ = ["LOOP_KEYS", "METHOD", "METHODS", "controller_from_loop"]
 
@@ -41,7 +45,7 @@ def _channel_or_false(value: Any, where: str, name: str) -> str | None:
 
 
 def controller_from_loop(table: Mapping[str, Any]) -> Any:
-    """The drive (:class:`EmaController`) an experiment file's ``[loop]`` describes.
+    """The drive an experiment file's ``[loop]`` describes.
 
     Parameters
     ----------
@@ -95,46 +99,59 @@ def _run(spec: Any, options: Mapping[str, Any], truth: Mapping[str, Any] | None)
     return run_ema(spec, options, truth)
 
 
-METHOD = Method(
-    name="ema",
-    summary="electromechanical actuator in its known drive ([loop] gains): motor constant, "
-            "resistance, inductance, inertias, viscous and Coulomb friction and screw "
-            "stiffness from a closed-loop record, with intervals; free-run validation",
-    options=(
-        Option("gear_ratio", None, optional(number(positive=True)),
-               "motor turns per screw turn (required)"),
-        Option("lead", None, optional(number(positive=True, unit="m")),
-               "screw lead [m] (required)"),
-        Option("current", "i_motor", text(), "motor current channel [A]"),
-        Option("voltage", "u_cmd", _channel_or_false,
-               "voltage command channel [V], or false when not logged"),
-        Option("angle", "theta_m", text(), "motor encoder channel [rad]"),
-        Option("position", "x_load", text(), "load position channel (LVDT) [m]"),
-        Option("reference", None, optional(text()),
-               "position reference channel (default: the r channel)"),
-        Option("motor_constant", None, optional(number(positive=True, unit="N·m/A")),
-               "known motor constant [N·m/A] (default: identified from the voltage)"),
-        Option("motor_constant_std", 0.0, number(nonneg=True),
-               "its standard deviation [N·m/A]"),
-        Option("load_mass", None, optional(number(positive=True, unit="kg")),
-               "known load mass [kg] (default: identified from the screw's deflection)"),
-        Option("bandwidth", 30.0, number(positive=True, unit="Hz"),
-               "state-variable filter of the mechanical equations [Hz]"),
-        Option("bandwidth_electrical", 150.0, number(positive=True, unit="Hz"),
-               "state-variable filter of the electrical equation [Hz]"),
-        Option("order", 4, integer(minimum=4, maximum=8), "filter order"),
-        Option("row_step", None, optional(integer(minimum=1)),
-               "rows every this many samples (default: 8 per period of bandwidth_electrical)"),
-        Option("min_speed", None, optional(number(positive=True, unit="m/s")),
-               "slower nut motion is left out [m/s] (default: 5 % of the rms speed)"),
-        Option("max_relative_std", 0.25, number(positive=True),
-               "larger relative std: not identifiable from this record"),
-        Option("validate", True, boolean(),
-               "simulate the identified actuator in its loop on held-back data (needs [loop])"),
-    ),
-    run=_run,
-    tables=("loop", "validation"),
-)
+def _build() -> Any:
+    from ...workflows._options import boolean, integer, number, optional, text
+    from ...workflows._registry import Method, Option
 
-#: The plant's methods, for its :class:`~servoid.plants.Plant` record.
-METHODS: tuple[Method, ...] = (METHOD,)
+    return Method(
+        name="ema",
+        summary="electromechanical actuator in its known drive ([loop] gains): motor constant, "
+                "resistance, inductance, inertias, viscous and Coulomb friction and screw "
+                "stiffness from a closed-loop record, with intervals; free-run validation",
+        options=(
+            Option("gear_ratio", None, optional(number(positive=True)),
+                   "motor turns per screw turn (required)"),
+            Option("lead", None, optional(number(positive=True, unit="m")),
+                   "screw lead [m] (required)"),
+            Option("current", "i_motor", text(), "motor current channel [A]"),
+            Option("voltage", "u_cmd", _channel_or_false,
+                   "voltage command channel [V], or false when not logged"),
+            Option("angle", "theta_m", text(), "motor encoder channel [rad]"),
+            Option("position", "x_load", text(), "load position channel (LVDT) [m]"),
+            Option("reference", None, optional(text()),
+                   "position reference channel; none: the r channel"),
+            Option("motor_constant", None, optional(number(positive=True, unit="N·m/A")),
+                   "known motor constant [N·m/A]; none: identified from the voltage"),
+            Option("motor_constant_std", 0.0, number(nonneg=True),
+                   "its standard deviation [N·m/A]"),
+            Option("load_mass", None, optional(number(positive=True, unit="kg")),
+                   "known load mass [kg]; none: identified from the screw's deflection"),
+            Option("bandwidth", 30.0, number(positive=True, unit="Hz"),
+                   "state-variable filter of the mechanical equations [Hz]"),
+            Option("bandwidth_electrical", 150.0, number(positive=True, unit="Hz"),
+                   "state-variable filter of the electrical equation [Hz]"),
+            Option("order", 4, integer(minimum=4, maximum=8), "filter order"),
+            Option("row_step", None, optional(integer(minimum=1)),
+                   "rows every this many samples; none: 8 per period of bandwidth_electrical"),
+            Option("min_speed", None, optional(number(positive=True, unit="m/s")),
+                   "slower nut motion is left out [m/s]; none: 5 % of the rms speed"),
+            Option("max_relative_std", 0.25, number(positive=True),
+                   "larger relative std: not identifiable from this record"),
+            Option("validate", True, boolean(),
+                   "simulate the identified actuator in its loop on held-back data (needs [loop])"),
+        ),
+        run=_run,
+        tables=("loop", "validation"),
+    )
+
+
+def __getattr__(name: str) -> Any:
+    # METHOD: the method; METHODS: the plant's methods, for its Plant record
+    if name not in ("METHOD", "METHODS"):
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    if "METHOD" not in globals():
+        method = _build()
+        # building imports the workflows, whose registry may have built it meanwhile
+        globals().setdefault("METHOD", method)
+        globals()["METHODS"] = (globals()["METHOD"],)
+    return globals()[name]
