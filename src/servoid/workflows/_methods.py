@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
+from ..plants import PLANTS
 from . import _arx, _closedloop, _closedloop_any, _frf, _inverse, _n4sid, _pem, _pneumatic, _tf
 from ._blocks import HAMMERSTEIN, HAMMERSTEIN_WIENER, WIENER
 from ._greybox import GREYBOX
 from ._narx import METHOD as NARX
-from ..plants import PLANTS
 from ._registry import registry
 
 __all__ = ["METHODS"]

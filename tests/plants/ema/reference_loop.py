@@ -91,7 +91,7 @@ class Drive:
 
     def step(self, r, state, transmission):
         c = self.c
-        i, th, om, x, v = state
+        i, th, _, x, _ = state
         th_m = self.enc(th)
         x_m = x if c.feedback == "load" else th_m / transmission
         if self.k % c.outer_every == 0:

@@ -13,9 +13,8 @@ import warnings
 import numpy as np
 import pytest
 
-import servoid.plants.ema as ema
 from servoid import ServoidError
-from servoid.plants import PARTS, PLANTS
+from servoid.plants import PARTS, PLANTS, ema
 
 MODULES = sorted(m.name for m in pkgutil.iter_modules(ema.__path__))
 

@@ -280,7 +280,7 @@ def bench_reference(
     f_min = as_float("f_min", f_min, positive=True, unit="Hz")
     f_max = as_float("f_max", f_max, positive=True, unit="Hz")
     lines = as_int("lines", lines, minimum=1)
-    n = int(round(duration * bench.f_ctrl))
+    n = round(duration * bench.f_ctrl)
     if not f_min < f_max < 0.25 * bench.f_ctrl:
         raise DataError(f"need f_min < f_max < f_ctrl/4, got {f_min:g} and {f_max:g} Hz")
     if n * bench.oversample > _MAX_ANALOG:

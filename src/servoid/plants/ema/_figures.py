@@ -19,7 +19,7 @@ def plot_validation_run(time: Any, measured: Mapping[str, Any], simulated: Mappi
 
     fig = new_figure((9, 8))
     axes = fig.subplots(3, 1, sharex=True)
-    lo, hi = span
+    lo = span[0]
     x, xs = np.asarray(measured["position"]), np.asarray(simulated["position"])
     i, isim = np.asarray(measured["current"]), np.asarray(simulated["current"])
     axes[0].plot(time, 1e3 * x, color="0.2", lw=1.0, label="measured (LVDT)")

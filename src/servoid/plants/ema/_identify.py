@@ -196,8 +196,8 @@ class EmaIdentification:
                 "notes": list(self.notes)}
 
     def __str__(self) -> str:
-        lines = [f"EMA identification: {self.n_rows} rows per equation, "
-                 f"{100 * self.kept:.0f} % of the record usable"]
+        lines = [(f"EMA identification: {self.n_rows} rows per equation, "
+                  f"{100 * self.kept:.0f} % of the record usable")]
         for row in self.rows():
             if row["given"]:
                 text = "given"
@@ -339,7 +339,7 @@ def fit_ema(
     i_m, x_l = signals["current"], signals["position"]
 
     # velocities for the signs and the row mask: zero-phase (Savitzky–Golay) derivatives
-    win = max(7, 2 * int(round(1e-3 / dt)) + 1)
+    win = max(7, 2 * round(1e-3 / dt) + 1)
     if n < 4 * win:
         raise DataError(f"the record has {n} samples; the identification needs at least "
                         f"{4 * win} (a few ms), and in practice seconds")
@@ -364,8 +364,8 @@ def fit_ema(
             e_u, e_i, e_th = svf(u_f, w_e, 2, u_hold), svf(i_m, w_e, 2), svf(th_f, w_e, 2)
     except DataError as exc:
         raise DataError(f"the record is too short for the filters ({exc})") from None
-    memory = int(math.ceil((order + 5) / w_f / dt))
-    first = int(math.ceil((order + 8) / w_f / dt))
+    memory = math.ceil((order + 5) / w_f / dt)
+    first = math.ceil((order + 8) / w_f / dt)
     if first >= n:
         raise DataError(f"the record ({n * dt:.3g} s) is shorter than the filter's start-up "
                         f"({first * dt:.3g} s); raise bandwidth or record longer")
@@ -412,7 +412,7 @@ def fit_ema(
                   np.column_stack([xl[2], xl[1], sl, ones, -dl[1]]), dl[0],
                   np.column_stack([xm[2], xm[1], sl, ones, xm[3]]))
     regs += [reg_a, reg_b]
-    lags = int(math.ceil((order + 2) / (w_f * dt * step)))  # the filter's memory in rows
+    lags = math.ceil((order + 2) / (w_f * dt * step))  # the filter's memory in rows
     cov_raw = joint_covariance(regs, lags)
     theta = np.concatenate([r.theta for r in regs])
     # the force balance used K̂_m: its error moves θ_a by g·(K̂_m − K_m)

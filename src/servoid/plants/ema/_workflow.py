@@ -19,7 +19,7 @@ from typing import Any
 from ..._checks import as_float, as_int, as_mapping, as_str, type_error
 from ..._errors import OptionError
 
-__all__ = ["LOOP_KEYS", "METHOD", "METHODS", "controller_from_loop"]
+__all__ = ["LOOP_KEYS", "METHOD", "METHODS", "controller_from_loop"]  # noqa: F822 - PEP 562
 
 #: ``[loop]`` keys: the drive's gains (required) and its limits and sensors (optional).
 LOOP_KEYS = {

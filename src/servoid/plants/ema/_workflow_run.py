@@ -192,7 +192,7 @@ def run_ema(spec: Any, options: Mapping[str, Any],
         estimation, start = record, None
     else:
         estimation, held = spec.split_data(record)
-        start = int(round((held.t0 - record.t0) / record.dt))
+        start = round((held.t0 - record.t0) / record.dt)
     ident = fit_ema(
         estimation, gear_ratio=options["gear_ratio"], lead=options["lead"], **channels,
         anti_alias=anti_alias, motor_constant=options["motor_constant"],
@@ -251,7 +251,7 @@ def _validate(record: Experiment, start: int, ident: EmaIdentification,
         i_sim = anti_alias_replica(i_sim, dt, anti_alias[0], anti_alias[1], "cubic")
         x_sim = anti_alias_replica(x_sim, dt, anti_alias[0], anti_alias[1], "cubic")
     span = slice(start, None)
-    step = max(1, int(round(1.0 / (_TEST_RATE * dt))))
+    step = max(1, round(1.0 / (_TEST_RATE * dt)))
     err = (i_meas - i_sim)[span][::step]
     test = residual_analysis(err, ref[span][::step], causal=True)
     return {
@@ -316,7 +316,7 @@ def _page(result: EmaResult, files: Mapping[str, Path]) -> Page:
                 f"Regressions on the state-variable-filtered record; "
                 f"{100 * ident.kept:.0f} % of it usable (reversals and slow motion left out)")
     st = ident.settings
-    method = Section("Method", paragraphs=(
+    method = Section("Method", paragraphs=((
         "Three linear equations in the measured signals, each passed through a state-variable "
         f"filter (order {st['order']}, {st['bandwidth']:g} Hz for the mechanics, "
         f"{st['bandwidth_electrical']:g} Hz for the electrical equation), after the drive's "
@@ -326,9 +326,9 @@ def _page(result: EmaResult, files: Mapping[str, Path]) -> Page:
         "by instrumental variables with encoder-only instruments; and the screw's deflection "
         "δ = (m_L ẍ_L + b_L ẋ_L + F_cL sgn ẋ_L + F_0 − c_s δ̇)/k_s (instrumental variables). "
         "Covariance: the three equations' joint sandwich, prewhitened Newey–West over the "
-        "filter's memory.",
+        "filter's memory."), (
         f"Transmission n_t = 2π·{ident.gear_ratio:g}/{ident.lead:g} m = "
-        f"{2 * math.pi * ident.gear_ratio / ident.lead:.6g} rad/m."), tables=(params, eqs))
+        f"{2 * math.pi * ident.gear_ratio / ident.lead:.6g} rad/m.")), tables=(params, eqs))
     sections = [
         Section("Experiment", paragraphs=tuple(
             f"{what} file {path.name} (sha256 {sha256(path)[:16]}…)."
@@ -348,15 +348,15 @@ def _page(result: EmaResult, files: Mapping[str, Path]) -> Page:
                    "reference, scored on data not used for fitting")
         ctrl = result.controller
         assert ctrl is not None
-        sections.append(Section("Validation", paragraphs=(
+        sections.append(Section("Validation", paragraphs=((
             f"Drive ([loop]): kp_i = {ctrl.kp_i:g} V/A, ki_i = {ctrl.ki_i:g}, kp_w = "
             f"{ctrl.kp_w:g} A·s/rad, ki_w = {ctrl.ki_w:g}, kp_x = {ctrl.kp_x:g} (rad/s)/m, "
             f"ki_x = {ctrl.ki_x:g}; limits {ctrl.u_max:g} V, {ctrl.i_max:g} A, "
-            f"{ctrl.w_max:g} rad/s; {ctrl.feedback} position feedback.",
+            f"{ctrl.w_max:g} rad/s; {ctrl.feedback} position feedback."), (
             "A closed-loop free run leaves the loop's response to the sensors' noise out of the "
             "simulation, so its error is coloured whatever the model: its whiteness is not "
             "tested. What a wrong model leaves is an error that follows the reference, "
-            "which the independence test looks for."), tables=(vt,)))
+            "which the independence test looks for.")), tables=(vt,)))
         for k, v in enumerate(result.validations):
             figs.append(Figure.from_file(files[f"validation_{k + 1}.png"],
                                          f"Validation on {v['experiment']}: measured vs "
