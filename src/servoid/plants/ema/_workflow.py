@@ -137,6 +137,9 @@ def _build() -> Any:
                    "slower nut motion is left out [m/s]; none: 5 % of the rms speed"),
             Option("max_relative_std", 0.25, number(positive=True),
                    "larger relative std: not identifiable from this record"),
+            Option("min_deflection_fit", 85.0, number(unit="%"),
+                   "least fit [%] of the deflection equation for the load side, the split "
+                   "and k_s"),
             Option("validate", True, boolean(),
                    "simulate the identified actuator in its loop on held-back data (needs [loop])"),
         ),

@@ -199,7 +199,8 @@ def run_ema(spec: Any, options: Mapping[str, Any],
         motor_constant_std=options["motor_constant_std"], load_mass=options["load_mass"],
         bandwidth=options["bandwidth"], bandwidth_electrical=options["bandwidth_electrical"],
         order=options["order"], row_step=options["row_step"], min_speed=options["min_speed"],
-        max_relative_std=options["max_relative_std"])
+        max_relative_std=options["max_relative_std"],
+        min_deflection_fit=options["min_deflection_fit"])
     notes += ident.notes
     validations: list[dict[str, Any]] = []
     if options["validate"] and controller is None:
