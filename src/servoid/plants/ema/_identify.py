@@ -511,7 +511,8 @@ def fit_ema(
         notes.append("k_s is not identifiable from this record: its deflection (δ = m_L·ẍ/k_s) "
                      "is lost in the LVDT's noise — the screw looks rigid at these "
                      "frequencies; use a finer LVDT or faster motion")
-    weak = [p for p in names if not verdict[p] and p != "k_s"]
+    weak = [p for p in names if not verdict[p] and p != "k_s"
+            and not (lost and p in on_deflection)]
     if weak:
         notes.append(f"not identifiable from this record (relative std above "
                      f"{max_relative_std:g}): {', '.join(weak)}")
