@@ -32,7 +32,8 @@ def test_identify_writes_a_report_whose_results_read_back(bench_folder, tmp_path
     assert back.summary.names() == ident.names
     for row, value in zip(back.summary.parameters, ident.values, strict=True):
         assert row.value == value  # the floats of the file, bit for bit
-    assert back.summary.fit_percent > 99.0  # the load follows the reference in the free run
+    assert back.summary.fit_percent > 90.0  # the current; the rest is the loop's noise response
+    assert doc_fit(tmp_path) > 99.9  # the load position follows the reference
     assert back.summary.independent is True
     doc = json.loads((tmp_path / "out" / "results.json").read_text(encoding="utf-8"))
     rows = {r["name"]: r for r in doc["estimate"]["parameters"]}
@@ -41,6 +42,11 @@ def test_identify_writes_a_report_whose_results_read_back(bench_folder, tmp_path
     html = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
     assert "Validation fit" in html and "not identifiable from this record" in html
     assert "EMA identification" in str(result)
+
+
+def doc_fit(tmp_path):
+    doc = json.loads((tmp_path / "out" / "results.json").read_text(encoding="utf-8"))
+    return doc["validation"]["position_fit_percent"]
 
 
 def test_identify_from_the_command_line(bench_folder, tmp_path, capsys):

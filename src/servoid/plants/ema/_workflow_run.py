@@ -91,9 +91,11 @@ class EmaResult(Displayed):
         first = self.validations[0] if self.validations else None
         validation = None
         if first is not None:
+            # the current's fit: the load's position follows the reference whatever the model
             validation = {
-                "fit_percent": first["position_fit"],
-                "current_fit_percent": first["current_fit"],
+                "fit_percent": first["current_fit"],
+                "fitted": "motor current (free run in the known drive)",
+                "position_fit_percent": first["position_fit"],
                 "residuals": {"is_white": None, "is_independent": first["independent"],
                               "independence_pvalue": first["independence_pvalue"],
                               "tested": "simulated current error against the reference "
