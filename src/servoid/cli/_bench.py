@@ -1,4 +1,4 @@
-"""``servoid bench ehsa|pneumatic|fleet``: rehearse tests on a virtual rig or a fleet."""
+"""``servoid bench ehsa|pneumatic|fleet|ema|ema-fleet``: rehearse tests on a virtual rig or a fleet."""
 
 from __future__ import annotations
 
@@ -97,6 +97,9 @@ def add_bench(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
     json_flag(ehsa)
     ehsa.set_defaults(run=_run_ehsa)
     _add_pneumatic(rigs, json_flag)
+    from ..plants.ema._cli import add_cli as add_ema  # argparse only: --help stays light
+
+    add_ema(rigs, json_flag)
 
 
 def _run_ehsa(args: argparse.Namespace) -> tuple[dict[str, Any], str]:

@@ -5,7 +5,10 @@ its one-line summary.  The module is imported when the method is first
 asked for (``METHODS[name]``), so that listing the methods
 (``servoid methods``) imports none of them and a run imports only its own.
 The summary is repeated here for that listing; a test checks that every
-line agrees with its module's :class:`Method`.
+line agrees with its module's :class:`Method`.  A plant's methods come
+with its record (:data:`servoid.plants.PLANTS`: each method's name and
+summary, and where its ``Method`` objects are): registering a plant
+registers them.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import importlib
 from collections.abc import Iterator, Mapping
 
 from .._errors import check_option
+from ..plants import PLANTS
 from ._registry import Method
 
 __all__ = ["METHODS", "get_method", "method_names"]
@@ -103,16 +107,24 @@ class _Methods(Mapping[str, Method]):
     def __init__(self, listed: tuple[tuple[str, str, str], ...]) -> None:
         self._where = {name: where for name, where, _ in listed}
         self._summary = {name: summary for name, _, summary in listed}
-        if len(self._where) != len(listed):
+        for plant in PLANTS.values():  # "plant:<name>": one of the plant's methods
+            for name, summary in plant.methods.items():
+                self._where.setdefault(name, f"plant:{plant.name}")
+                self._summary.setdefault(name, summary)
+        if len(self._where) != len(listed) + sum(len(p.methods) for p in PLANTS.values()):
             raise ValueError("a method is listed twice")
         self._loaded: dict[str, Method] = {}
 
     def __getitem__(self, name: str) -> Method:
         if name not in self._loaded:
             module, attribute = self._where[name].split(":")  # KeyError: not a method
-            method = getattr(importlib.import_module(f".{module}", __package__), attribute)
+            if module == "plant":
+                method = next((m for m in PLANTS[attribute].load("methods") if m.name == name),
+                              None)
+            else:
+                method = getattr(importlib.import_module(f".{module}", __package__), attribute)
             if not isinstance(method, Method) or method.name != name:
-                raise TypeError(f"{module}.{attribute} is not the Method {name!r}")
+                raise TypeError(f"{module}:{attribute} has no Method {name!r}")
             self._loaded[name] = method
         return self._loaded[name]
 
