@@ -22,7 +22,7 @@ def test_each_listed_line_agrees_with_its_method():
 
 
 def test_an_unknown_name_lists_the_methods():
-    with pytest.raises(OptionError, match=r"method must be one of 'arx', 'oe'.*'greybox'; got 'ox'"):
+    with pytest.raises(OptionError, match=r"method must be one of 'arx', 'oe'.*'greybox', 'ema'; got 'ox'"):
         get_method("ox")
     with pytest.raises(KeyError):
         METHODS["ox"]

@@ -40,7 +40,7 @@ def test_identify_writes_a_report_whose_results_read_back(bench_folder, tmp_path
     assert rows["c_s"]["identifiable"] is False and rows["c_s"]["ci_low"] is None
     assert abs(rows["k_s"]["error_in_std"]) < 4  # against truth.json
     html = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
-    assert "Validation fit" in html and "not identifiable from this record" in html
+    assert "simulation fit" in html and "not identifiable from this record" in html
     assert "EMA identification" in str(result)
 
 

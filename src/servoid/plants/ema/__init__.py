@@ -98,9 +98,10 @@ _HERE = __name__
 PLANT = Plant(
     name="ema",
     title="electromechanical servo actuator (motor, gearbox, ball screw, cascaded drive)",
-    methods={"ema": "electromechanical actuator in its known cascaded drive ([loop]): motor "
-                    "constant, resistance, inductance, inertias, frictions and screw stiffness "
-                    "with intervals, validated by simulation in the drive"},
+    methods={"ema": "electromechanical actuator in its known drive ([loop] gains): motor "
+                    "constant, resistance, inductance, inertias, viscous and Coulomb friction "
+                    "and screw stiffness from a closed-loop record, with intervals; free-run "
+                    "validation"},
     parts={
         "parameters": f"{_HERE}._params:PARAMETER_SETS",
         "rhs": f"{_HERE}._kernel:rates",
