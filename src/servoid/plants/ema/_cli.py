@@ -61,7 +61,7 @@ def add_cli(rigs: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> 
     fleet = rigs.add_parser(
         "ema-fleet", help="a virtual fleet of EMA units (for servoid fleet)",
         description="Write bench records of many EMA units with manufacturing scatter (motor "
-        "constant 1.5 %%, screw stiffness 4 %%, frictions 8-10 %%, ..., 1 sigma truncated at "
+        "constant 1.5 %, screw stiffness 4 %, frictions 8-10 %, ..., 1 sigma truncated at "
         "2.5 sigma), every --bad-every-th unit out of tolerance (worn screw, tight gear or "
         "weak magnets in turn), an optional wear drift of the motor friction and --corrupt "
         "damaged files; plus units.csv, truth.csv and fleet.toml with acceptance limits. "
