@@ -11,10 +11,10 @@ ehsa-set-B
 Methods
 -------
 fit_one_step
-    ``servoid.closedloop.fit_one_step(exp, loop, theta0=(2000, 100, 0.5))``:
+    ``servoid.plants.ehsa.fit_one_step(exp, loop, theta0=(2000, 100, 0.5))``:
     Levenberg–Marquardt on the parameterised closed loop (target ≤ 100 ms).
 fit_indirect
-    ``servoid.closedloop.fit_indirect(exp, loop)``: ARX(3, 4, 0) on (r, y),
+    ``servoid.plants.ehsa.fit_indirect(exp, loop)``: ARX(3, 4, 0) on (r, y),
     G0 = B/(cA − FB), Tustin d2c, factorisation and the delta-method
     covariance (biased at this SNR, as spec §3.4 warns: timing only).
 identify_closed_loop one-step, default start
@@ -38,8 +38,8 @@ START = (2000.0, 100.0, 0.5)
 
 
 def _record():  # type: ignore[no-untyped-def]
-    from servoid.closedloop import FeedbackLoop, simulate_closed_loop
     from servoid.data import Experiment
+    from servoid.plants.ehsa import FeedbackLoop, simulate_closed_loop
     from servoid.signals import prbs
 
     loop = FeedbackLoop(0.01, 0.01)
@@ -52,7 +52,7 @@ def _record():  # type: ignore[no-untyped-def]
 
 def run(quick: bool = False) -> list[Result]:
     """Run the closed-loop suite; ``quick`` uses fewer repeats."""
-    from servoid.closedloop import fit_indirect, fit_one_step, identify_closed_loop
+    from servoid.plants.ehsa import fit_indirect, fit_one_step, identify_closed_loop
 
     exp, loop = _record()
     repeats = 5 if quick else 21

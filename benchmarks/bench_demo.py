@@ -1,6 +1,6 @@
 """The study-1 demo end to end: virtual bench → rig files → identify → report.
 
-``servoid.workflows.run_demo(out)`` simulates the Set-B EHSA on the virtual
+``servoid.plants.ehsa.run_demo(out)`` simulates the Set-B EHSA on the virtual
 bench (PRBS n = 11, 10 samples/bit, ±1 mm, 20 470 samples at 1 kHz, 30 dB
 SNR, acquisition at 5 kHz), writes the TDMS file, the experiment TOML and
 ``truth.json``, then runs the closed-loop workflow on those files: loads and
@@ -55,7 +55,7 @@ TARGET_S = 10.0
 _CHILD = """
 import json, os, sys, time
 t0 = time.perf_counter()
-from servoid.workflows import run_demo
+from servoid.plants.ehsa import run_demo
 t1 = time.perf_counter()
 run_demo(out=sys.argv[1])
 t2 = time.perf_counter()
@@ -165,7 +165,7 @@ def _subprocess_rows(tmp: Path, runs: int, full: bool) -> list[Result]:
 
 
 def _breakdown_rows(tmp: Path, repeats: int) -> list[Result]:
-    from servoid.bench import EhsaBench, run, write_bench_files
+    from servoid.plants.ehsa import EhsaBench, run, write_bench_files
     from servoid.signals import prbs
     from servoid.workflows import identify
 
@@ -192,7 +192,7 @@ def _breakdown_rows(tmp: Path, repeats: int) -> list[Result]:
 
 def run(quick: bool = False) -> list[Result]:
     """Run the demo suite; ``quick``: one timed run and one fresh subprocess."""
-    from servoid.workflows import run_demo
+    from servoid.plants.ehsa import run_demo
 
     repeats = 1 if quick else 5
     rows: list[Result] = []

@@ -39,8 +39,8 @@ import numpy as np
 from _harness import Result, time_call
 from scipy.integrate import solve_ivp
 
-from servoid.actuators import SET_B, SET_C, default_dt_int, simulate_ehsa
-from servoid.actuators import _ehsa_kernel as kernel
+from servoid.plants.ehsa import SET_B, SET_C, default_dt_int, simulate_ehsa
+from servoid.plants.ehsa import _kernel as kernel
 
 SUITE = "ehsa"
 DT = 1e-3

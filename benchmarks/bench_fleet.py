@@ -2,7 +2,7 @@
 
 Case
 ----
-``records`` experiment files of virtual EHSA units (``servoid.bench._fleet``
+``records`` experiment files of virtual EHSA units (``servoid.plants.ehsa._fleet``
 scatter around Set B, reduced fidelity, 35 dB), each a PRBS test at 1 kHz:
 register 11, clock 10 → 20 470 samples (``--quick``: 8 records, register 9,
 5 110 samples). ``distinct`` units are simulated and copied to make up the
@@ -42,9 +42,9 @@ from pathlib import Path
 
 from _harness import Result
 
-from servoid.bench._fleet import write_virtual_fleet
 from servoid.fleet import run_fleet
 from servoid.fleet._task import identify_record
+from servoid.plants.ehsa._fleet import write_virtual_fleet
 
 BACK_TO_BACK = 20
 

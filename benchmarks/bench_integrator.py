@@ -71,18 +71,14 @@ def run(quick: bool = False) -> list[Result]:
 
 
 def _cases(scale: int) -> list[tuple[str, int, Callable[[], np.ndarray]]]:
-    from servoid.actuators import (
+    from servoid.plants.ehsa import SET_B, default_dt_int, simulate_ehsa
+    from servoid.plants.pneumatic import (
         PNEUMATIC_NOMINAL,
-        SET_B,
-        CascadeController,
         PositionController,
-        RigidAxis,
-        default_dt_int,
         pneumatic_dt_int,
-        simulate_ehsa,
         simulate_pneumatic,
-        simulate_rigid_loop,
     )
+    from servoid.plants.rigid import CascadeController, RigidAxis, simulate_rigid_loop
 
     rng = np.random.default_rng(20261128)
     dt = 1e-3

@@ -8,7 +8,7 @@ Case
     ``tests/multistep/pneumatic_records.py``) serves as the thermo, flow and
     friction tests (100 000 samples each); the valve test is a 0.4 s ±5 V,
     25 Hz rectangle at 20 kHz and the validation record a 10 s, 2 Hz, 50 mm
-    closed-loop sine.  Timed: :func:`servoid.multistep.identify_multistep`
+    closed-loop sine.  Timed: :func:`servoid.plants.pneumatic.identify_multistep`
     (S0 p_krit separable search, S0 ẋ_krit map, S1–S5, and the S6 closed-loop
     simulation of the 10 s validation record), once per derivative source,
     after a warm-up call (numba compilation and caches excluded).  The
@@ -25,14 +25,16 @@ import warnings
 import numpy as np
 from _harness import Result, time_call
 
-from servoid.actuators import (
+from servoid.data import Experiment
+from servoid.plants.pneumatic import (
     PNEUMATIC_NOMINAL,
+    REFINABLE,
+    KnownConstants,
     PneumaticResponse,
     PositionController,
+    identify_multistep,
     simulate_pneumatic,
 )
-from servoid.data import Experiment
-from servoid.multistep import REFINABLE, KnownConstants, identify_multistep
 
 SUITE = "multistep"
 DT = 1e-4

@@ -45,15 +45,15 @@ import numpy as np
 from _harness import Result, time_call
 from scipy.integrate import solve_ivp
 
-from servoid.actuators import (
+from servoid.plants import _friction as friction_mod
+from servoid.plants.pneumatic import (
     PNEUMATIC_NOMINAL,
     PneumaticResponse,
     PositionController,
     simulate_pneumatic,
 )
-from servoid.actuators import _flow as flow_mod
-from servoid.actuators import _friction as friction_mod
-from servoid.actuators import _pneumatic_kernel as kernel
+from servoid.plants.pneumatic import _flow as flow_mod
+from servoid.plants.pneumatic import _kernel as kernel
 
 SUITE = "pneumatic"
 DT = 1e-4

@@ -48,7 +48,7 @@ Experiment copy / Experiment no-copy
     ``Experiment.from_arrays(dt, u=u, y=y)`` with the default ``copy=True``
     and with ``copy=False`` (read-only views of the caller's arrays).
 fit_one_step
-    ``servoid.closedloop.fit_one_step(exp, loop, theta0=(2000, 100, 0.5))``
+    ``servoid.plants.ehsa.fit_one_step(exp, loop, theta0=(2000, 100, 0.5))``
     on a closed-loop record of N samples: the Set-B servo (K = 3451.7 1/s,
     ω_hp = 163.3 rad/s, δ_hp = 0.249, c = F = 0.01) driven by the PRBS of the
     closed-loop suite repeated to N samples, 30 dB output noise.
@@ -578,8 +578,8 @@ def _child(spec: dict[str, object]) -> dict[str, object]:
 
 def _closed_loop_record(n: int):  # type: ignore[no-untyped-def]
     """The closed-loop suite's Set-B record, its PRBS repeated to n samples."""
-    from servoid.closedloop import FeedbackLoop, simulate_closed_loop
     from servoid.data import Experiment
+    from servoid.plants.ehsa import FeedbackLoop, simulate_closed_loop
     from servoid.signals import prbs
 
     loop = FeedbackLoop(0.01, 0.01)
@@ -625,7 +625,7 @@ def _call_for(method, n, files, est, val, read_experiment, extra):  # type: igno
     if method == "servoid identify":
         return _identify_command(files["csv"], extra)
     if method == "fit_one_step":
-        from servoid.closedloop import fit_one_step
+        from servoid.plants.ehsa import fit_one_step
 
         exp, loop = _closed_loop_record(n)
         return lambda: fit_one_step(exp, loop, theta0=(2000.0, 100.0, 0.5))

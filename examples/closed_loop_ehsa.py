@@ -6,8 +6,7 @@ Run: python examples/closed_loop_ehsa.py
 import warnings
 
 from servoid import ServoidWarning
-from servoid.bench import EhsaBench, run
-from servoid.closedloop import FeedbackLoop, identify_closed_loop
+from servoid.plants.ehsa import EhsaBench, FeedbackLoop, identify_closed_loop, run
 from servoid.signals import prbs
 
 bench = EhsaBench(snr_db=30.0)                       # Set B, reduced loop, 30 dB

@@ -9,8 +9,9 @@ import pytest
 
 PACKAGES = ["servoid", "servoid.data", "servoid.signals", "servoid.models", "servoid.estimate",
             "servoid.validate", "servoid.report", "servoid.workflows", "servoid.cli",
-            "servoid.actuators", "servoid.closedloop", "servoid.bench", "servoid.datasets",
-            "servoid.multistep", "servoid.nonlinear", "servoid.integrate"]
+            "servoid.closedloop", "servoid.bench", "servoid.datasets",
+            "servoid.nonlinear", "servoid.integrate", "servoid.plants", "servoid.plants.ehsa",
+            "servoid.plants.pneumatic", "servoid.plants.rigid", "servoid.plants.ema"]
 
 
 def _isort_key(name: str) -> tuple[int, str]:

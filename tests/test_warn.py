@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import re
 import json
+import re
 import sys
 import types
 import warnings
@@ -41,10 +41,15 @@ def test_a_public_function_warns_at_the_callers_line(call):
 
 def test_a_closed_loop_fit_warns_at_the_callers_line(tmp_path):
     """fit_one_step → fit_tf_greybox → the identifiability checks: three servoid frames deep."""
-    from servoid.actuators import SET_C
-    from servoid.bench import EhsaBench, run, write_bench_files
-    from servoid.closedloop import FeedbackLoop, fit_one_step
     from servoid.data import load_experiment_spec
+    from servoid.plants.ehsa import (
+        SET_C,
+        EhsaBench,
+        FeedbackLoop,
+        fit_one_step,
+        run,
+        write_bench_files,
+    )
 
     # Set C at 1 kHz: its resonance is out of reach, K and ω_hp are not separately identifiable
     with warnings.catch_warnings():

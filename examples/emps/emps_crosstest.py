@@ -13,9 +13,13 @@ of EMPS*, 2019.
 
 import numpy as np
 
-from servoid.actuators import CascadeController, simulate_rigid_loop
 from servoid.datasets import load_emps
-from servoid.estimate import fit_inverse_dynamics, inverse_dynamics_regression
+from servoid.plants.rigid import (
+    CascadeController,
+    fit_inverse_dynamics,
+    inverse_dynamics_regression,
+    simulate_rigid_loop,
+)
 from servoid.validate import relative_error
 
 RECORDS = {"DATA_EMPS": load_emps(), "DATA_EMPS_PULSES": load_emps("validation")}

@@ -22,9 +22,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from servoid.actuators import CascadeController, simulate_rigid_loop
 from servoid.datasets import load_emps
-from servoid.estimate import fit_closed_loop_oe, fit_inverse_dynamics
+from servoid.plants.rigid import (
+    CascadeController,
+    fit_closed_loop_oe,
+    fit_inverse_dynamics,
+    simulate_rigid_loop,
+)
 from servoid.report import write_json
 from servoid.validate import relative_error
 

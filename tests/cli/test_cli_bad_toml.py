@@ -236,7 +236,7 @@ PNEUMATIC_CASES = [
 
 @pytest.fixture(scope="module")
 def pneumatic_campaign(tmp_path_factory):
-    from servoid.bench import write_pneumatic_campaign
+    from servoid.plants.pneumatic import write_pneumatic_campaign
 
     folder = tmp_path_factory.mktemp("pn")
     write_pneumatic_campaign(folder, duration=0.5)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from servoid import DataError
-from servoid.bench import EhsaBench, run
 from servoid.data import IntersampleCheck, decimate, detect_intersample
+from servoid.plants.ehsa import EhsaBench, run
 from servoid.signals import prbs
 
 

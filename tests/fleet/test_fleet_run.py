@@ -18,9 +18,9 @@ import pytest
 
 import servoid.fleet._run as fleet_run
 from servoid import DataError, OptionError, OutputExistsError
-from servoid.actuators import SET_B
-from servoid.bench._fleet import write_virtual_fleet
 from servoid.fleet import load_fleet_spec, run_fleet
+from servoid.plants.ehsa import SET_B
+from servoid.plants.ehsa._fleet import write_virtual_fleet
 
 
 @pytest.fixture(scope="module")

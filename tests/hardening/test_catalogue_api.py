@@ -57,11 +57,13 @@ from servoid import (
     estimate,
     models,
     multistep,
+    plants,
     signals,
     validate,
 )
-from servoid import actuators as act
 from servoid import workflows as wf
+from servoid.plants import ehsa, rigid
+from servoid.plants import pneumatic as pneu
 
 CORRUPT = Path(__file__).resolve().parents[1] / "data" / "corrupt"
 
@@ -106,9 +108,9 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore")
     EST = estimate.fit_arx(EXP, 2, 2)
 SOS = sps.butter(2, 0.2, output="sos")
-PARAMS_EHSA = act.EhsaParameters()
-AXIS = act.RigidAxis(mass=2.0, viscous=10.0, coulomb=1.0)
-CTRL = act.CascadeController(kp=10.0, kv=1.0, gtau=1.0)
+PARAMS_EHSA = ehsa.EhsaParameters()
+AXIS = rigid.RigidAxis(mass=2.0, viscous=10.0, coulomb=1.0)
+CTRL = rigid.CascadeController(kp=10.0, kv=1.0, gtau=1.0)
 EXC = signals.prbs(5, dt=1e-3, amplitude=1e-3)
 MIXED = np.array([1.0, np.nan, 3.0, 4.0])
 
@@ -960,56 +962,56 @@ CASES = [
     case("ehsa-bench-params", bench.EhsaBench, params=None,
          error=OptionTypeError, match=r"params must be EhsaParameters"),
     # actuators --------------------------------------------------------------------------------
-    case("ehsa-params-negative-mass", act.EhsaParameters, M_t=-1.0,
+    case("ehsa-params-negative-mass", ehsa.EhsaParameters, M_t=-1.0,
          error=ModelError, match=r"EhsaParameters\.M_t must be > 0, got -1"),
-    case("ehsa-params-str", act.EhsaParameters, P_s="21 MPa",
+    case("ehsa-params-str", ehsa.EhsaParameters, P_s="21 MPa",
          error=OptionTypeError, match=r"EhsaParameters\.P_s must be a real number"),
-    case("simulate-ehsa-beta-1e300", act.simulate_ehsa, act.EhsaParameters(beta_e=1e300),
+    case("simulate-ehsa-beta-1e300", ehsa.simulate_ehsa, ehsa.EhsaParameters(beta_e=1e300),
          np.zeros(10), 1e-3,
          error=ModelError, match=r"integration steps of .*over the budget.*check them"),
-    case("simulate-ehsa-mass-1e-30", act.simulate_ehsa, act.EhsaParameters(M_t=1e-30),
+    case("simulate-ehsa-mass-1e-30", ehsa.simulate_ehsa, ehsa.EhsaParameters(M_t=1e-30),
          np.zeros(10), 1e-3, error=ModelError,
          match=r"simulate_ehsa would take 4e\+32 integration steps .*over the budget"),
-    case("simulate-pneumatic-volume-tiny", act.simulate_pneumatic,
-         act.PneumaticParameters(omega_v=1e200), np.zeros(10), 1e-3,
+    case("simulate-pneumatic-volume-tiny", pneu.simulate_pneumatic,
+         pneu.PneumaticParameters(omega_v=1e200), np.zeros(10), 1e-3,
          error=ModelError, match=r"simulate_pneumatic would take .*over the budget.*check them"),
-    case("simulate-ehsa-dt-zero", act.simulate_ehsa, PARAMS_EHSA, np.zeros(10), 0.0,
+    case("simulate-ehsa-dt-zero", ehsa.simulate_ehsa, PARAMS_EHSA, np.zeros(10), 0.0,
          error=DataError, match=r"dt must be > 0 s"),
-    case("simulate-ehsa-nan", act.simulate_ehsa, PARAMS_EHSA, MIXED, 1e-3,
+    case("simulate-ehsa-nan", ehsa.simulate_ehsa, PARAMS_EHSA, MIXED, 1e-3,
          error=DataError, match=r"y_r must be finite, got nan at sample 1"),
-    case("simulate-ehsa-params", act.simulate_ehsa, None, np.zeros(10), 1e-3,
+    case("simulate-ehsa-params", ehsa.simulate_ehsa, None, np.zeros(10), 1e-3,
          error=OptionTypeError, match=r"params must be EhsaParameters"),
-    case("simulate-ehsa-x0-text", act.simulate_ehsa, PARAMS_EHSA, np.zeros(10), 1e-3,
+    case("simulate-ehsa-x0-text", ehsa.simulate_ehsa, PARAMS_EHSA, np.zeros(10), 1e-3,
          x0="rest", error=OptionTypeError, match=r"x0 must be an array of real numbers"),
-    case("simulate-rigid-r-text", act.simulate_rigid_loop, AXIS, CTRL, "ramp", DT,
+    case("simulate-rigid-r-text", rigid.simulate_rigid_loop, AXIS, CTRL, "ramp", DT,
          error=OptionTypeError, match=r"r must be an array of real numbers"),
-    case("simulate-rigid-v0-none", act.simulate_rigid_loop, AXIS, CTRL, U, DT, v0=None,
+    case("simulate-rigid-v0-none", rigid.simulate_rigid_loop, AXIS, CTRL, U, DT, v0=None,
          error=OptionTypeError, match=r"v0 must be a number"),
-    case("karnopp-shapes", act.karnopp_friction, U, U[:3], 1.0, 2.0, 1e-3,
+    case("karnopp-shapes", plants.karnopp_friction, U, U[:3], 1.0, 2.0, 1e-3,
          error=DataError, match=r"v and F must have the same shape \(or one be a scalar\)"),
-    case("rigid-axis-mass-zero", act.RigidAxis, 0.0, 1.0, 1.0,
+    case("rigid-axis-mass-zero", rigid.RigidAxis, 0.0, 1.0, 1.0,
          error=ModelError, match=r"mass must be > 0 kg, got 0"),
-    case("rigid-axis-mass-none", act.RigidAxis, None, 1.0, 1.0,
+    case("rigid-axis-mass-none", rigid.RigidAxis, None, 1.0, 1.0,
          error=OptionTypeError, match=r"mass must be a number, got NoneType"),
-    case("rigid-axis-viscous-negative", act.RigidAxis, 1.0, -1.0, 1.0,
+    case("rigid-axis-viscous-negative", rigid.RigidAxis, 1.0, -1.0, 1.0,
          error=ModelError, match=r"viscous must be >= 0 \(friction dissipates\)"),
-    case("simulate-rigid-loop-axis", act.simulate_rigid_loop, None, CTRL, U, DT,
+    case("simulate-rigid-loop-axis", rigid.simulate_rigid_loop, None, CTRL, U, DT,
          error=OptionTypeError, match=r"axis must be a RigidAxis"),
-    case("karnopp-eps-zero", act.karnopp_friction, U, U, 1.0, 2.0, 0.0,
+    case("karnopp-eps-zero", plants.karnopp_friction, U, U, 1.0, 2.0, 0.0,
          error=ModelError, match=r"eps must be > 0, got 0"),
-    case("psi-ellipse-b-one", act.psi_ellipse, [0.5], 1.0,
+    case("psi-ellipse-b-one", pneu.psi_ellipse, [0.5], 1.0,
          error=ModelError, match=r"b \(critical pressure ratio\) must be in \[0, 1\)"),
-    case("psi-ratio-negative", act.psi_saint_venant, [-0.5],
+    case("psi-ratio-negative", pneu.psi_saint_venant, [-0.5],
          error=ModelError, match=r"pressure ratio pi must be finite and >= 0"),
-    case("orifice-text", act.orifice_mass_flow, "a", 6e5, 1e5,
+    case("orifice-text", pneu.orifice_mass_flow, "a", 6e5, 1e5,
          error=OptionTypeError, match=r"area must be an array of real numbers"),
-    case("chamber-volume-zero", act.chamber_pressure_rate, 1e5, 0.0, 0.0, 0.0,
+    case("chamber-volume-zero", pneu.chamber_pressure_rate, 1e5, 0.0, 0.0, 0.0,
          error=ModelError, match=r"V must be > 0 m³, got min 0"),
-    case("critical-ratio-kappa", act.critical_pressure_ratio, 0.9,
+    case("critical-ratio-kappa", pneu.critical_pressure_ratio, 0.9,
          error=ModelError, match=r"kappa must be > 1, got 0\.9"),
-    case("pneumatic-params-str", act.PneumaticParameters, k_v="x",
+    case("pneumatic-params-str", pneu.PneumaticParameters, k_v="x",
          error=OptionTypeError, match=r"PneumaticParameters\.k_v must be a real number"),
-    case("reduced-ehsa-str", act.ReducedEhsa, "K", 1.0, 0.5,
+    case("reduced-ehsa-str", ehsa.ReducedEhsa, "K", 1.0, 0.5,
          error=OptionTypeError, match=r"ReducedEhsa\.K must be a real number"),
     # datasets ---------------------------------------------------------------------------------
     case("daisy-unknown", datasets.load_daisy, "robot",
@@ -1035,7 +1037,7 @@ CASES = [
          error=OptionError, match=r"\[identify\] method must be one of 'arx', .*got 'magic'"),
     case("workflows-identify-missing", wf.identify, Tmp("nothing.toml"),
          error=MissingFileError, match=r"nothing\.toml: no such file"),
-    case("workflows-loop-not-table", wf.loop_from_table, None,
+    case("workflows-loop-not-table", ehsa.loop_from_table, None,
          error=OptionTypeError, match=r"table must be a table"),
 ]
 
@@ -1113,8 +1115,9 @@ def test_fixture_arrays_untouched():
 # -- the walk over the whole public surface ---------------------------------------------------
 
 WALKED = ["servoid", "servoid.data", "servoid.estimate", "servoid.models", "servoid.signals",
-          "servoid.validate", "servoid.bench", "servoid.actuators", "servoid.closedloop",
-          "servoid.multistep", "servoid.workflows", "servoid.datasets", "servoid.nonlinear"]
+          "servoid.validate", "servoid.bench", "servoid.closedloop", "servoid.workflows",
+          "servoid.datasets", "servoid.nonlinear", "servoid.plants", "servoid.plants.ehsa",
+          "servoid.plants.pneumatic", "servoid.plants.rigid", "servoid.plants.ema"]
 GENERIC_BAD: dict[str, Any] = {"None": None, "text": "abc", "empty": np.array([]),
                                "list-of-text": ["a", "b"], "nan": math.nan}
 
@@ -1126,7 +1129,9 @@ WALK_XFAIL: dict[str, str] = {
 
 #: Callables whose required argument is an output folder: text is a valid value there (they
 #: would run a whole simulation campaign into it), so the walk does not pass them text.
-TEXT_IS_VALID = {"servoid.bench.write_pneumatic_campaign", "servoid.bench.write_virtual_fleet"}
+TEXT_IS_VALID = {"servoid.plants.pneumatic.write_pneumatic_campaign",
+                 "servoid.plants.ehsa.write_virtual_fleet", "servoid.plants.ehsa.write_bench",
+                 "servoid.plants.ema.write_bench", "servoid.plants.ema.write_fleet"}
 
 
 def _walk_targets() -> list[Any]:

@@ -113,7 +113,7 @@ def bases(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Working experiment folders, made once: name → folder."""
     import scipy.io
 
-    from servoid.bench import write_pneumatic_campaign
+    from servoid.plants.pneumatic import write_pneumatic_campaign
 
     root = tmp_path_factory.mktemp("bases")
     out: dict[str, Path] = {}

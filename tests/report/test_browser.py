@@ -149,8 +149,8 @@ def labels(tmp_path_factory: pytest.TempPathFactory):
 
 @pytest.fixture(scope="module")
 def reports(tmp_path_factory: pytest.TempPathFactory, labels) -> dict[str, Path]:
-    from servoid.bench._fleet import write_virtual_fleet
     from servoid.fleet import run_fleet
+    from servoid.plants.ehsa._fleet import write_virtual_fleet
 
     root = tmp_path_factory.mktemp("reports")
     assert main(["demo", "--out", str(root / "demo")]) == 0

@@ -39,6 +39,6 @@ def test_asking_for_one_method_imports_only_its_module():
                           timeout=120, check=True)
     loaded = set(eval(done.stdout.strip().splitlines()[-1]))  # noqa: S307 — printed above
     assert "servoid.workflows._pem" in loaded
-    assert not loaded & {"servoid.workflows._closedloop", "servoid.workflows._pneumatic",
+    assert not loaded & {"servoid.plants.ehsa._workflow", "servoid.plants.pneumatic._workflow",
                          "servoid.workflows._narx", "servoid.workflows._greybox",
-                         "servoid.workflows._demo"}
+                         "servoid.plants.ehsa._demo"}

@@ -14,7 +14,7 @@ from ._flags import at_least, finite, folder_out, in_flags, out_path, positive
 
 __all__ = ["BENCH_FIDELITIES", "PNEUMATIC_TEST_NAMES", "add_bench"]
 
-#: servoid.bench.FIDELITIES and the names of servoid.bench.PNEUMATIC_TESTS (a test pins them)
+#: servoid.plants.ehsa.FIDELITIES and the names of servoid.plants.pneumatic.PNEUMATIC_TESTS (a test pins them)
 BENCH_FIDELITIES = ("reduced", "full", "nonlinear")
 PNEUMATIC_TEST_NAMES = ("valve", "thermo", "flow", "friction", "validation")
 
@@ -106,8 +106,7 @@ def _run_ehsa(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     import warnings
 
     from .._errors import DataError, check_option
-    from ..actuators import SET_B, SET_C
-    from ..bench import FIDELITIES, EhsaBench, run, write_bench_files
+    from ..plants.ehsa import FIDELITIES, SET_B, SET_C, EhsaBench, run, write_bench_files
     from ..signals import prbs
 
     check_option("--fidelity", args.fidelity, FIDELITIES)
@@ -225,7 +224,7 @@ def _run_pneumatic(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     import warnings
 
     from .._errors import DataError
-    from ..bench import write_pneumatic_campaign
+    from ..plants.pneumatic import write_pneumatic_campaign
 
     if not math.isfinite(args.snr):
         raise DataError(f"--snr must be a finite number of dB, got {args.snr}")

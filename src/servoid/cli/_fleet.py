@@ -126,7 +126,7 @@ def add_bench_fleet(rigs: Any, json_flag: Callable[[argparse.ArgumentParser], No
 
 
 def _run_bench_fleet(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
-    from ..bench import write_virtual_fleet
+    from ..plants.ehsa import write_virtual_fleet
 
     at_least("--units", args.units, 3)
     at_least("--bad-every", args.bad_every, 0)

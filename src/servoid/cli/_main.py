@@ -278,7 +278,7 @@ def _json_flag(parser: argparse.ArgumentParser) -> None:
 
 
 def _run_demo(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
-    from ..workflows import run_demo
+    from ..plants.ehsa import run_demo
     from ._flags import at_least, folder_out
 
     at_least("--seed", args.seed, 0)

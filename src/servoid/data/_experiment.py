@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-
 import mmap
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import InitVar, dataclass, field, replace

@@ -369,7 +369,7 @@ _MAX_BATCH = 8
 
 def _warm_up() -> None:
     """Import the identification and load its compiled kernels on a worker."""
-    from ..closedloop import _kernels
+    from ..plants.ehsa import _kernels
     from ..workflows import identify  # noqa: F401 - the import is the warm-up
 
     _kernels.warm_up()

@@ -1,65 +1,37 @@
-"""Multi-step identification of the servopneumatic actuator (S0–S6).
+"""Former home of the servopneumatic S0–S6 scheme, now :mod:`servoid.plants.pneumatic`.
 
-The scheme of Hahn & Piepenbrink (IFAC SYSID 1994, [S2] Fig. 17;
-models-spec §3.9) identifies the physical model equation group by
-equation group, each from the test that excites it, inserting earlier
-estimates into later equations, and validates the assembled model by
-simulation:
-
-* steps usable alone, each returning a :class:`StepResult`:
-  :func:`identify_critical_pressure` and :func:`identify_critical_velocity`
-  (S0), :func:`identify_valve` (S1), :func:`identify_thermodynamics` (S2),
-  :func:`identify_flow` (S3), :func:`identify_sliding_friction` (S4),
-  :func:`identify_low_speed_friction` (S5), :func:`compare_record` (S6);
-* the pipeline :func:`identify_multistep` → :class:`MultistepResult`;
-* grey-box refinement of the full model with the compiled simulator,
-  :func:`refine_parameters` → :class:`RefinementResult`.
-
-The known constants (geometry, mass, supply) are a :class:`KnownConstants`.
+A name imported from here still works for one release, with a
+:class:`DeprecationWarning` naming its new path.
 """
 
-from ._common import DERIVATIVES, MDOT_LIMIT, KnownConstants, StepResult
-from ._flow import EDGES, identify_critical_pressure, identify_flow
-from ._friction import (
-    identify_critical_velocity,
-    identify_low_speed_friction,
-    identify_sliding_friction,
-)
-from ._pipeline import RECORDS, MultistepResult, identify_multistep
-from ._refine import (
-    REFINABLE,
-    RecordComparison,
-    RefinementResult,
-    compare_record,
-    estimate_controller,
-    refine_parameters,
-    simulate_record,
-)
-from ._thermo import identify_thermodynamics, zero_phase_derivatives
-from ._valve import identify_valve
+from .._moved import moved_names
 
-__all__ = [
-    "DERIVATIVES",
-    "EDGES",
-    "MDOT_LIMIT",
-    "RECORDS",
-    "REFINABLE",
-    "KnownConstants",
-    "MultistepResult",
-    "RecordComparison",
-    "RefinementResult",
-    "StepResult",
-    "compare_record",
-    "estimate_controller",
-    "identify_critical_pressure",
-    "identify_critical_velocity",
-    "identify_flow",
-    "identify_low_speed_friction",
-    "identify_multistep",
-    "identify_sliding_friction",
-    "identify_thermodynamics",
-    "identify_valve",
-    "refine_parameters",
-    "simulate_record",
-    "zero_phase_derivatives",
-]
+__all__: list[str] = []
+
+#: Names that moved into servoid.plants: found there, with a warning, for one release.
+_MOVED = {
+    "DERIVATIVES": "servoid.plants.pneumatic",
+    "EDGES": "servoid.plants.pneumatic",
+    "KnownConstants": "servoid.plants.pneumatic",
+    "MDOT_LIMIT": "servoid.plants.pneumatic",
+    "MultistepResult": "servoid.plants.pneumatic",
+    "RECORDS": "servoid.plants.pneumatic",
+    "REFINABLE": "servoid.plants.pneumatic",
+    "RecordComparison": "servoid.plants.pneumatic",
+    "RefinementResult": "servoid.plants.pneumatic",
+    "StepResult": "servoid.plants.pneumatic",
+    "compare_record": "servoid.plants.pneumatic",
+    "estimate_controller": "servoid.plants.pneumatic",
+    "identify_critical_pressure": "servoid.plants.pneumatic",
+    "identify_critical_velocity": "servoid.plants.pneumatic",
+    "identify_flow": "servoid.plants.pneumatic",
+    "identify_low_speed_friction": "servoid.plants.pneumatic",
+    "identify_multistep": "servoid.plants.pneumatic",
+    "identify_sliding_friction": "servoid.plants.pneumatic",
+    "identify_thermodynamics": "servoid.plants.pneumatic",
+    "identify_valve": "servoid.plants.pneumatic",
+    "refine_parameters": "servoid.plants.pneumatic",
+    "simulate_record": "servoid.plants.pneumatic",
+    "zero_phase_derivatives": "servoid.plants.pneumatic",
+}
+__getattr__ = moved_names(__name__, _MOVED)

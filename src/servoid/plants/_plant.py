@@ -35,6 +35,10 @@ PARTS: dict[str, str] = {
 }
 
 
+#: Parts a plant may leave out.
+_OPTIONAL = frozenset({"bench", "fleet"})
+
+
 @dataclass(frozen=True)
 class Plant:
     """One actuator: physics, right-hand side, loop, bench and identification.
@@ -50,7 +54,8 @@ class Plant:
         The ``[identify] method`` names it registers, each with its one-line
         summary (listed by ``servoid methods`` without importing the plant).
     parts : mapping
-        :data:`PARTS` name → ``"module:attribute"``; ``fleet`` may be absent.
+        :data:`PARTS` name → ``"module:attribute"``; ``bench`` and ``fleet``
+        may be absent (an actuator known from real records only).
     """
 
     name: str
@@ -67,7 +72,7 @@ class Plant:
         if not isinstance(self.methods, dict) or not all(
                 isinstance(k, str) and isinstance(v, str) for k, v in self.methods.items()):
             raise _type_error("methods", self.methods, "a dict of method name → summary")
-        missing = sorted(set(PARTS) - {"fleet"} - set(self.parts))
+        missing = sorted(set(PARTS) - _OPTIONAL - set(self.parts))
         unknown = sorted(set(self.parts) - set(PARTS))
         if missing or unknown:
             raise OptionError(f"plant {self.name!r}: parts missing {missing}, unknown {unknown}; "

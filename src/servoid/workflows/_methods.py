@@ -55,16 +55,6 @@ _LISTED: tuple[tuple[str, str, str], ...] = (
     ("indirect", "_closedloop_any:INDIRECT",
      "plant of any order from a closed-loop record and the known controller ([loop] "
      "controller, feedback): OE of r → y, then the plant"),
-    ("closedloop", "_closedloop:METHOD",
-     "physical parameters K, ω_hp, δ_hp of the reduced electro-hydraulic plant inside "
-     "its known loop ([loop] c, F): two-step indirect, one-step OE, direct"),
-    ("inverse-dynamics", "_inverse:METHOD",
-     "rigid axis with friction in its known cascade loop ([loop] kp, kv, gtau): IDIM-LS "
-     "of M, Fv, Fc, closed-loop OE refinement, hold-out check or cross-test "
-     "([validation] file)"),
-    ("pneumatic-multistep", "_pneumatic:METHOD",
-     "servopneumatic actuator, equation group by equation group (S0–S6) from a campaign "
-     "of experiment files, validated on pressures and mass flows"),
     ("hammerstein", "_blocks:HAMMERSTEIN",
      "Hammerstein model y = G(q)·f(u) + e: a static curve (dead zone, saturation, …) "
      "before a linear block, jointly by output error"),

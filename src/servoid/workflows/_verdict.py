@@ -252,7 +252,7 @@ def count_check(name: str, items: Sequence[str], meaning: str, outcome: str = "i
 def loop_verdict(ident: Any) -> Verdict:
     """The rigid-axis verdict: closed-loop simulation of data the fit did not use.
 
-    ``ident`` is an :class:`~servoid.workflows.InverseDynamicsIdentification`:
+    ``ident`` is an :class:`~servoid.plants.rigid.InverseDynamicsIdentification`:
     each estimate simulated in the known loop on the held-back part
     (``[split]``) or on each other record (``[validation] file``); a
     relative error of 100 % or more (no better than predicting zero) fails.
