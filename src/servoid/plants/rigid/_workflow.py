@@ -46,14 +46,7 @@ from ..._errors import (
     check_option,
 )
 from ...data import Experiment, ExperimentSpec
-from ...estimate import (
-    FRICTION_MODELS,
-    Estimate,
-    fit_arx,
-    fit_closed_loop_oe,
-    fit_inverse_dynamics,
-    inverse_dynamics_regression,
-)
+from ...estimate import Estimate, fit_arx
 from ...report import (
     Conditions,
     Figure,
@@ -73,7 +66,13 @@ from ...workflows._registry import FigureWriter, Method, Option
 from ...workflows._summary import Displayed
 from ...workflows._verdict import loop_verdict, record_conditions
 from ._axis import CascadeController, RigidAxis, simulate_rigid_loop
-from ._inverse import INVERSE_PIPELINES
+from ._inverse import (
+    FRICTION_MODELS,
+    INVERSE_PIPELINES,
+    fit_closed_loop_oe,
+    fit_inverse_dynamics,
+    inverse_dynamics_regression,
+)
 
 __all__ = ["METHOD", "METHODS", "InverseDynamicsIdentification", "controller_from_table"]
 
