@@ -22,7 +22,8 @@ def test_each_listed_line_agrees_with_its_method():
 
 
 def test_an_unknown_name_lists_the_methods():
-    with pytest.raises(OptionError, match=r"method must be one of 'arx', 'oe'.*'greybox', 'ema'; got 'ox'"):
+    with pytest.raises(OptionError, match=r"method must be one of 'arx', 'oe'.*'greybox', 'closedloop', "
+                       r"'pneumatic-multistep', 'inverse-dynamics', 'ema'; got 'ox'"):
         get_method("ox")
     with pytest.raises(KeyError):
         METHODS["ox"]

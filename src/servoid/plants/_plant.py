@@ -41,7 +41,7 @@ _OPTIONAL = frozenset({"bench", "fleet"})
 
 @dataclass(frozen=True)
 class Plant:
-    """One actuator: physics, right-hand side, loop, bench and identification.
+    """One actuator: physics, right-hand side, loop, bench, identify.
 
     Attributes
     ----------

@@ -14,7 +14,7 @@ from servoid.data import ExperimentSpec, load_experiment_spec
 from servoid.plants.rigid import controller_from_table
 from servoid.workflows import identify
 
-EXAMPLE = Path(__file__).parents[2] / "examples" / "emps"
+EXAMPLE = Path(__file__).parents[3] / "examples" / "emps"
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +30,7 @@ def written(spec, tmp_path_factory):
 
 def test_the_example_file_points_inside_the_repository(spec):
     assert spec.data_path.resolve() == (
-        Path(__file__).parents[2] / "src/servoid/datasets/emps/DATA_EMPS.mat").resolve()
+        Path(__file__).parents[3] / "src/servoid/datasets/emps/DATA_EMPS.mat").resolve()
 
 
 def test_writes_report_json_and_figures(written):

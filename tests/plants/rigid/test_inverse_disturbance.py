@@ -27,7 +27,7 @@ from servoid.workflows import identify
 DT = 1e-3
 CTRL = CascadeController(kp=160.18, kv=243.45, gtau=35.15, saturation=10.0)
 AXIS = RigidAxis(95.0, 200.0, 20.0, -3.0)
-EXAMPLE = Path(__file__).parents[2] / "examples" / "emps"
+EXAMPLE = Path(__file__).parents[3] / "examples" / "emps"
 
 
 def _reference_loop(axis, ctrl, r, d, at_drive, offset, q0):

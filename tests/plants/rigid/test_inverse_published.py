@@ -30,7 +30,7 @@ from servoid.plants.rigid import (
 from servoid.plants.rigid._workflow import METHOD
 from servoid.workflows import identify
 
-EXAMPLE = Path(__file__).parents[2] / "examples" / "emps"
+EXAMPLE = Path(__file__).parents[3] / "examples" / "emps"
 
 # Janot, Gautier, Brunot (2019): parameters, their standard deviations, relative error [%]
 PUBLISHED = {
