@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 
 from .._atomic import atomic_path
 from .._checks import as_bool, as_int, as_path, as_str, type_error
+from .._files import check_input_file, describe_encoding, open_input
 from .._errors import (
     ChannelError,
     DataError,
@@ -55,12 +56,14 @@ from .._errors import (
 from ._columns import (
     DEFAULT_MAX_BYTES,
     TIME_TOLERANCE,
+    TIME_UNITS,
     RolesArg,
     build_experiment,
     check_file_size,
     check_max_bytes,
     check_reader_options,
     existing_file,
+    time_in_seconds,
 )
 from ._experiment import Experiment, check_experiment
 
@@ -77,8 +80,13 @@ _NUMBER_SHAPE = re.compile(
 #: fewer than 5 say too little about a format to call a value short.
 _FORMAT_MIN, _FORMAT_WINDOW = 5, 1000
 _DECIMAL_COMMA = re.compile(r"[-+]?\d+,\d+")
-_TIME_UNITS = {"": 1.0, "s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
 _LINE_END = re.compile(r"\r\n|\r|\n")
+#: Longest line read while looking for the header [characters]: a header or data row is a
+#: few kilobytes; a file without line ends (binary data, one huge line) is refused at it.
+_LINE_LIMIT = 1 << 24
+#: Characters that cannot separate fields: they are part of numbers, quotes or line ends.
+_BAD_DELIMITERS = set("0123456789.+-eE\"#\r\n\0")
+_BOM = "\ufeff"
 
 
 def read_csv(
@@ -160,16 +168,14 @@ def read_csv(
     """
     path = existing_file(path)
     dt = check_reader_options(dt=dt, roles=roles, names={"time": time})
-    as_str("delimiter", delimiter)
-    if len(delimiter) != 1:
-        raise DataError(f"delimiter must be one character (',' or ';' or '\\t'), got {delimiter!r}")
+    _check_delimiter(delimiter)
     if decimal not in (".", ","):
         raise DataError(f"decimal must be '.' or ',', got {decimal!r}")
     if decimal == "," and delimiter == ",":
         raise DataError("a decimal comma needs another field separator: pass delimiter=';' "
                         "(or a tab) with decimal=','")
-    if time_unit is not None and time_unit not in _TIME_UNITS:
-        raise DataError(f"time_unit must be one of {', '.join(repr(u) for u in _TIME_UNITS if u)}"
+    if time_unit is not None and time_unit not in TIME_UNITS:
+        raise DataError(f"time_unit must be one of {', '.join(repr(u) for u in TIME_UNITS)}"
                         f", got {time_unit!r}")
     wanted = _column_list("columns", columns)
     skipped = _column_list("skip_columns", skip_columns)
@@ -177,8 +183,9 @@ def read_csv(
         raise OptionError("give columns= (what to read) or skip_columns= (what not to read), "
                           "not both")
     skip_rows = as_int("skip_rows", skip_rows, minimum=0)
-    check_file_size(path, check_max_bytes(max_bytes))
-    lines, header_at = _read_head(path, skip_rows)
+    max_bytes = check_max_bytes(max_bytes)
+    check_file_size(path, max_bytes)
+    lines, header_at = _read_head(path, skip_rows, max_bytes)
     _check_preamble(path, lines, header_at, delimiter)
     _check_separator(path, lines, header_at, delimiter, decimal)
     cells, units_of = _parse_header(path, lines[header_at], header_at + 1, delimiter)
@@ -193,20 +200,22 @@ def read_csv(
     names = [cells[k] for k in keep]
     _check_names(path, cells, keep, header_at + 1)
     units = {cells[k]: units_of[k] for k in keep}
-    rows = _Rows(path, header_at + 1, delimiter, decimal, count=keep != list(range(width)))
+    rows = _Rows(path, header_at + 1, delimiter, decimal, count=keep != list(range(width)),
+                 max_bytes=max_bytes)
     data = _parse_rows(path, rows, keep, width, cells)
     columns_read = {n: data[:, j] for j, n in enumerate(names)}
     stamps = None
     if time is not None and time in columns_read:
-        unit = units.get(time, "") or (time_unit or "")
-        scale = _TIME_UNITS.get(unit)
-        if scale is None:
+        unit = units.get(time, "") or time_unit
+        if unit is not None and unit not in TIME_UNITS:
             raise FileFormatError(
                 f"{path}: time column {time!r} has unit {units[time]!r}; expected one of "
-                f"{', '.join(repr(u) for u in _TIME_UNITS)}"
+                f"{', '.join(repr(u) for u in TIME_UNITS)}"
             )
-        stamps = columns_read.pop(time) * scale
-        _check_time_unit(path, stamps, time, bool(units.get(time)) or time_unit is not None)
+        stamps = time_in_seconds(
+            path, columns_read.pop(time), time, unit,
+            f"time_unit='ms' (or 'us', or 's' if they are seconds; [data] time_unit = \"ms\" in "
+            f"an experiment file) or a header '{time} [ms]'")
     elif dt is None:
         hint = f"it has no column {time!r}; " if time is not None else ""
         raise DataError(
@@ -236,10 +245,24 @@ def header_names(path: Path, *, delimiter: str = ",", skip_rows: int = 0) -> lis
         (:func:`read_csv` then says why).
     """
     try:
-        lines, header_at = _read_head(path, skip_rows)
+        _check_delimiter(delimiter)
+        check_input_file(path, "file")
+        lines, header_at = _read_head(path, skip_rows, None)
         return _parse_header(path, lines[header_at], header_at + 1, delimiter)[0]
     except (ServoidError, OSError):
         return None
+
+
+def _check_delimiter(delimiter: object) -> None:
+    """Refuse a field separator that is not one character that can separate numbers."""
+    as_str("delimiter", delimiter)
+    assert isinstance(delimiter, str)
+    if len(delimiter) != 1:
+        raise DataError(f"delimiter must be one character (',' or ';' or '\\t'), got "
+                        f"{delimiter!r}")
+    if delimiter in _BAD_DELIMITERS:
+        raise DataError(f"delimiter {delimiter!r} cannot separate fields: it is part of numbers, "
+                        "quotes, comments or line ends; use ',' or ';' or '\\t' (a tab)")
 
 
 def _column_list(key: str, value: ColumnsArg) -> list[str | int] | None:
@@ -416,18 +439,6 @@ def _check_separator(path: Path, lines: list[str], header_at: int, delimiter: st
                               "decimal=','")
 
 
-def _check_time_unit(path: Path, stamps: NDArray[np.float64], name: str, stated: bool) -> None:
-    """Warn when time stamps without a stated unit step like milliseconds read as seconds."""
-    if stated or stamps.size < 200:
-        return
-    step = float(np.median(np.diff(stamps[:1000])))
-    if step >= 0.1:
-        warnings.warn(
-            f"{path}: time column {name!r} has no unit and steps by {step:g} s, a slow rate for "
-            f"a servo test ({1 / step:g} Hz); if it is in milliseconds, say so: time_unit='ms' "
-            f"([data] time_unit = \"ms\" in an experiment file) or a header '{name} [ms]'", ServoidWarning, stacklevel=4)
-
-
 def write_csv(
     exp: Experiment,
     path: str | os.PathLike[str],
@@ -537,7 +548,22 @@ def _parse_header(
     path: Path, line: str, lineno: int, delimiter: str
 ) -> tuple[list[str], list[str]]:
     """Names and units of the header cells; an unnamed cell is ``""``."""
-    cells = next(csv.reader([line], delimiter=delimiter))
+    if _BOM in line:
+        raise FileFormatError(
+            f"{path}, line {lineno}: the header row holds a byte-order mark (U+FEFF) at "
+            f"character {line.index(_BOM) + 1}, the mark a text editor writes at the start of "
+            "a file: two files were probably joined here; delete the mark (and any lines of "
+            "the other file)"
+        )
+    try:
+        cells = next(csv.reader([line], delimiter=delimiter))
+    except csv.Error as exc:
+        longest = max(len(c) for c in line.split(delimiter))
+        raise FileFormatError(
+            f"{path}, line {lineno}: the header row cannot be split into cells ({exc}; its "
+            f"longest cell has {longest:,} characters): a header names the channels, such as "
+            "'time [s],u [V],y [m]'; if the header is further down, pass skip_rows="
+        ) from None
     names: list[str] = []
     units: list[str] = []
     for cell in cells:
@@ -558,19 +584,29 @@ def _parse_header(
     return names, units
 
 
-def _read_head(path: Path, skip_rows: int) -> tuple[list[str], int]:
+def _read_head(path: Path, skip_rows: int, max_bytes: int | None) -> tuple[list[str], int]:
     """The lines up to the header and a window after it; the header's index.
 
     The window reaches the first data line and at least
     :data:`_PREAMBLE_WINDOW` lines past the header (or the end of the file):
     enough to check the separator, the header and a preamble without
-    reading the data, which are streamed later.
+    reading the data, which are streamed later. No line longer than
+    :data:`_LINE_LIMIT` is read whole.
     """
     lines: list[str] = []
     header_at = first_row = None
     try:
-        with path.open(encoding="utf-8-sig", newline=None) as f:
-            for line in f:
+        with _open_text(path, max_bytes) as f:
+            found = describe_encoding(f.buffer.peek(4096)[:4096])
+            if found:
+                raise _not_utf8(path, found)
+            while line := f.readline(_LINE_LIMIT):
+                if len(line) >= _LINE_LIMIT and not line.endswith(("\n", "\r")):
+                    raise FileFormatError(
+                        f"{path}, line {len(lines) + 1}: more than {_LINE_LIMIT:,} characters "
+                        "without a line end: not a CSV file of text lines (a binary file, or "
+                        "one whose line ends were lost)"
+                    )
                 lines.append(line.rstrip("\r\n"))
                 k = len(lines) - 1
                 text = lines[-1]
@@ -594,11 +630,26 @@ def _read_head(path: Path, skip_rows: int) -> tuple[list[str], int]:
     return lines, header_at
 
 
-def _not_utf8(path: Path) -> FileFormatError:
-    """The error for a file that is not UTF-8 text, with the first bad byte."""
+def _open_text(path: Path, max_bytes: int | None) -> io.TextIOWrapper:
+    """The file as UTF-8 text (a leading BOM dropped), checked and bounded."""
+    return io.TextIOWrapper(open_input(path, "file", max_bytes=max_bytes),
+                            encoding="utf-8-sig", newline=None)
+
+
+def _not_utf8(path: Path, found: str | None = None) -> FileFormatError:
+    """The error for a file that is not UTF-8 text: its encoding, or the first bad byte."""
+    if found is None:
+        with open_input(path, "file") as f:
+            found = describe_encoding(f.read(4096))
+    if found:
+        return FileFormatError(
+            f"{path}: not a text CSV file in UTF-8: it is {found}. servoid reads CSV files "
+            "in UTF-8: save it as 'CSV UTF-8' (a spreadsheet's 'Unicode text' is UTF-16), or "
+            "convert it, e.g. iconv -f UTF-16 -t UTF-8 in.csv > out.csv"
+        )
     decoder = codecs.getincrementaldecoder("utf-8")()
     done = 0
-    with path.open("rb") as f:
+    with open_input(path, "file") as f:
         while chunk := f.read(1 << 20):
             try:
                 decoder.decode(chunk)
@@ -618,8 +669,9 @@ class _Rows:
     """
 
     def __init__(self, path: Path, start: int, delimiter: str, decimal: str,
-                 count: bool) -> None:
+                 count: bool, max_bytes: int | None = None) -> None:
         self.path, self.start, self.delimiter = path, start, delimiter
+        self.max_bytes = max_bytes
         self.comma, self.count = decimal == ",", count
         self.n = self.lines = 0
         self.fewest = self.most = -1
@@ -640,9 +692,9 @@ class _Rows:
 
     def numbered(self) -> Iterator[tuple[int, str]]:
         """(line number, text) of each data line."""
-        with self.path.open(encoding="utf-8-sig", newline=None) as f:
+        with _open_text(self.path, self.max_bytes) as f:
             for _ in range(self.start):
-                f.readline()
+                f.readline(_LINE_LIMIT)
             lineno = self.start
             for line in f:
                 lineno += 1
@@ -654,11 +706,10 @@ class _Rows:
 
     def tail(self, n: int) -> list[tuple[int, str]]:
         """The last ``n`` data lines (numbered), read from the end of the file."""
-        size = self.path.stat().st_size
         step = 1 << 16
         while True:
-            begin = max(0, size - step)
-            with self.path.open("rb") as f:
+            with open_input(self.path, "file", max_bytes=self.max_bytes) as f:
+                begin = max(0, f.size - step)
                 f.seek(begin)
                 chunk = f.read().decode("utf-8", errors="replace").lstrip("\ufeff")
             lines = _LINE_END.split(chunk)  # as the text-mode reader splits, not splitlines
@@ -693,7 +744,7 @@ def _parse_rows(
         data = None
     if data is not None and data.shape == (rows.n, len(keep)) and (
             every or rows.fewest == rows.most == width - 1):
-        if _unterminated(path):
+        if _unterminated(path, rows.max_bytes):
             _check_last_line(path, rows, cells)
         return data
     return _diagnose(path, rows, keep, width, cells)
@@ -702,7 +753,7 @@ def _parse_rows(
 def _diagnose(path: Path, rows: _Rows, keep: list[int], width: int,
               cells: list[str]) -> NDArray[np.float64]:
     """The fast parser failed: walk the rows to say where and what."""
-    cut = _unterminated(path)
+    cut = _unterminated(path, rows.max_bytes)
     lines = rows.numbered()
     try:
         ahead = next(lines, None)
@@ -713,7 +764,9 @@ def _diagnose(path: Path, rows: _Rows, keep: list[int], width: int,
             _check_row(path, lineno, line, rows.delimiter, keep, width, cells, last)
     except UnicodeDecodeError:
         raise _not_utf8(path) from None
-    raise FileFormatError(f"{path}: unreadable numeric data")  # pragma: no cover
+    raise FileFormatError(  # pragma: no cover - every cell loadtxt refuses is named above
+        f"{path}: unreadable numeric data (no single line or cell could be named: please "
+        "report the file)")
 
 
 def _check_row(path: Path, lineno: int, line: str, delimiter: str, keep: list[int], width: int,
@@ -729,22 +782,44 @@ def _check_row(path: Path, lineno: int, line: str, delimiter: str, keep: list[in
         )
     for k in keep:
         cell = fields[k]
-        try:
-            float(cell.strip().strip('"'))
-        except ValueError:
-            hint = "" if len(keep) == 1 or not cells[k] else (
-                f" (column {cells[k]!r}; if it holds text, leave it out with "
-                f"skip_columns=[{k}] or choose the columns to read with columns=[...])")
-            raise FileFormatError(
-                f"{path}, line {lineno}, column {k + 1}: {cell.strip()!r} is not a number"
-                + hint
-            ) from None
+        problem = _cell_problem(cell.strip().strip('"'))
+        if problem is None:
+            continue
+        where = f"{path}, line {lineno}, column {k + 1}"
+        if problem:
+            raise FileFormatError(f"{where}: {cell.strip()!r} {problem}")
+        hint = "" if len(keep) == 1 or not cells[k] else (
+            f" (column {cells[k]!r}; if it holds text, leave it out with "
+            f"skip_columns=[{k}] or choose the columns to read with columns=[...])")
+        raise FileFormatError(f"{where}: {cell.strip()!r} is not a number" + hint)
 
 
-def _unterminated(path: Path) -> bool:
+def _cell_problem(text: str) -> str | None:
+    """Why a data cell is not a number servoid reads: None (it is one), "" (it is text), or why.
+
+    ``float()`` accepts more than the CSV parser does (``1_000``, digits of
+    other scripts), so a cell it reads is checked for those spellings too.
+    """
+    try:
+        float(text)
+    except ValueError:
+        if _BOM in text:
+            return ("holds a byte-order mark (U+FEFF), the mark a text editor writes at the "
+                    "start of a file: two files were probably joined here; delete the mark")
+        return ""
+    if "_" in text:
+        return ("groups its digits with '_' (as in 1_000), which a CSV number may not: write "
+                "the number without grouping (1000)")
+    if not text.isascii():
+        return ("is written with digits other than 0-9 (of another script, or full-width): "
+                "write the number with the digits 0-9")
+    return None
+
+
+def _unterminated(path: Path, max_bytes: int | None) -> bool:
     """Whether the file's last line has no line end (it may be cut short)."""
-    with path.open("rb") as f:
-        f.seek(-1, os.SEEK_END)
+    with open_input(path, "file", max_bytes=max_bytes) as f:
+        f.seek(max(0, f.size - 1))
         return f.read(1) not in (b"\n", b"\r")
 
 

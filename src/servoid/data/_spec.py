@@ -76,6 +76,7 @@ loaded.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import tomllib
 from collections.abc import Mapping
@@ -89,6 +90,7 @@ import numpy as np
 from .._atomic import atomic_path
 from .._checks import as_bool, as_path, type_error
 from .._errors import ChannelError, FileFormatError, OptionError, ServoidError, check_option
+from .._files import describe_encoding, read_input_bytes
 from ._columns import MissingChannel, existing_file
 from ._csv import header_names
 from ._experiment import Channel, Experiment, ExperimentSet
@@ -683,6 +685,7 @@ class ExperimentSpec:
         validations = tuple(self.load(p, detrend=False) for p in self.validation_paths)
         for v in validations:
             _check_like(parts[0], v)
+        _check_distinct(self._origin, self.data_paths, parts, self.validation_paths, validations)
         est_parts, validations = self._detrended(parts, validations)
         est = est_parts[0] if len(est_parts) == 1 else ExperimentSet(est_parts)
         return est, validations
@@ -731,6 +734,59 @@ class ExperimentSpec:
         return options
 
 
+def _check_distinct(origin: str, paths: tuple[Path, ...], parts: tuple[Experiment, ...],
+                    val_paths: tuple[Path, ...], validations: tuple[Experiment, ...]) -> None:
+    """Refuse a record listed twice, or a validation record that is estimation data.
+
+    Records are compared by content (the samples read, calibrated and
+    preprocessed), not by path: a copy under another name, or the same
+    file by another path, is the same record.
+    """
+    seen: dict[str, Path] = {}
+    for path, exp in zip(paths, parts, strict=True):
+        key = record_fingerprint(exp)
+        if key in seen:
+            raise FileFormatError(
+                f"{origin}: [data] file lists the same record twice: {seen[key]} and {path} "
+                "hold the same samples. Fitted twice, one record counts as two independent "
+                "ones and the intervals shrink by √2 without any new information: list each "
+                "record once"
+            )
+        seen[key] = path
+    checked: dict[str, Path] = {}
+    for path, exp in zip(val_paths, validations, strict=True):
+        key = record_fingerprint(exp)
+        if key in seen:
+            raise FileFormatError(
+                f"{origin}: [validation] file {path} holds the same samples as the estimation "
+                f"record {seen[key]}: a validation on the data the model was fitted to says "
+                "nothing about new data, yet the report would call it data not used for "
+                "fitting. Name a record that was not used for fitting, or remove "
+                "[validation] to split the estimation record into two parts"
+            )
+        if key in checked:
+            raise FileFormatError(
+                f"{origin}: [validation] file lists the same record twice: {checked[key]} "
+                f"and {path} hold the same samples: list each record once"
+            )
+        checked[key] = path
+
+
+def record_fingerprint(exp: Experiment) -> str:
+    """A digest of a record's samples and sampling (BLAKE2b of the raw values).
+
+    Two records with the same digest hold the same samples at the same
+    period, whatever their names or files.
+    """
+    digest = hashlib.blake2b(digest_size=20)
+    digest.update(np.float64(exp.dt).tobytes())
+    digest.update(np.int64(exp.n_samples).tobytes())
+    for ch in sorted(exp.channels, key=lambda c: c.name):
+        digest.update(ch.name.encode() + b"\0")
+        digest.update(np.ascontiguousarray(ch.values, dtype=float))
+    return digest.hexdigest()
+
+
 def load_experiment_spec(path: str | os.PathLike[str]) -> ExperimentSpec:
     """Read and validate a TOML experiment file.
 
@@ -751,11 +807,14 @@ def load_experiment_spec(path: str | os.PathLike[str]) -> ExperimentSpec:
     OptionError
         An unknown key or option value.
     """
-    path = existing_file(path)
+    path = existing_file(path, "experiment file")
+    data = read_input_bytes(path, "experiment file")  # checked, within a budget, once
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        doc = tomllib.loads(data.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise FileFormatError(f"{path}: not a valid TOML file ({exc})") from None
+        found = describe_encoding(data[:4096])
+        fix = f"; it is {found}: save it as UTF-8" if found else ""
+        raise FileFormatError(f"{path}: not a valid TOML file ({exc}){fix}") from None
     return ExperimentSpec.from_dict(doc, base_dir=path.parent, source=path)
 
 
