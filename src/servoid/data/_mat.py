@@ -27,6 +27,7 @@ it counts: read as seconds it would make every result wrong by that factor.
 
 from __future__ import annotations
 
+import io
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -235,13 +236,65 @@ def _load_v4_v5(
                 "a damaged header"
             )
         entries = check_mat(path, version, wanted, max_bytes, f)
-        load = [e.name for e in entries.values() if e.loadable]
-        f.seek(0)
-        loaded = loadmat(f, appendmat=False, variable_names=load, squeeze_me=False,
+        load = [e for e in entries.values() if e.loadable and e.span is not None]
+        # scipy is shown the checked elements alone: it parses nothing else (it inflated a
+        # compressed variable it was not asked for, to check its stream was consumed)
+        spans = [(0, 128)] * (version == 1) + [e.span for e in load if e.span is not None]
+        loaded = loadmat(_Spliced(f, spans), appendmat=False,
+                         variable_names=[e.name for e in load], squeeze_me=False,
                          chars_as_strings=True) if load else {}
     raw = {k: v for k, v in loaded.items() if not k.startswith("__")}
     raw.update({n: e.value for n, e in entries.items() if e.value is not None})
     return raw, {n: e for n, e in entries.items() if n not in raw}
+
+
+class _Spliced(io.RawIOBase):
+    """A read-only file made of byte ranges of another, in order.
+
+    Parameters
+    ----------
+    f : binary file
+        The file, seekable.
+    spans : list of (start, stop)
+        The ranges shown, in bytes of ``f``.
+    """
+
+    def __init__(self, f: BoundedFile, spans: list[tuple[int, int]]) -> None:
+        super().__init__()
+        self.f = f
+        self.spans = spans
+        self.starts = np.cumsum([0] + [b - a for a, b in spans]).tolist()
+        self.pos = 0
+
+    def readable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return True
+
+    def tell(self) -> int:
+        return self.pos
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        base = (0, self.pos, self.starts[-1])[whence]
+        self.pos = max(0, base + offset)
+        return self.pos
+
+    def readinto(self, b: Any) -> int:
+        view = memoryview(b).cast("B")
+        done = 0
+        while done < len(view) and self.pos < self.starts[-1]:
+            k = int(np.searchsorted(self.starts, self.pos, side="right")) - 1
+            a, stop = self.spans[k]
+            at = a + self.pos - self.starts[k]
+            n = min(len(view) - done, stop - at)
+            self.f.seek(at)
+            got = self.f.readinto(view[done:done + n])
+            if not got:
+                break
+            done += got
+            self.pos += got
+        return done
 
 
 def _vector_names(vectors: dict[str, Any], listed: dict[str, MatEntry]) -> list[str]:

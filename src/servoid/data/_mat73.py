@@ -98,9 +98,9 @@ class _Reader:
                 if name.startswith("#"):
                     continue  # what references point to
                 asked = wanted is None or name in wanted
-                obj = self._follow(f, name, name, asked)
-                if obj is None:
-                    listed[name] = MatEntry(name, "unknown", (1, 1))
+                obj = self._follow(f, name, name, wanted is not None and name in wanted)
+                if obj is None:  # a link out of the file, not named: never opened
+                    listed[name] = MatEntry(name, "external", (1, 1))
                     continue
                 if not isinstance(obj, h5py.Dataset):
                     if isinstance(obj, h5py.Group):  # a struct: its fields are named with dots

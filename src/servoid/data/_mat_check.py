@@ -53,7 +53,7 @@ import struct
 import zlib
 from collections.abc import Collection
 from contextlib import nullcontext
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, BinaryIO, Literal
 
@@ -71,7 +71,7 @@ MAX_NOTE_CHARS = 65536
 
 Kind = Literal[
     "numeric", "char", "complex", "sparse", "cell", "struct", "object", "function",
-    "opaque", "unknown",
+    "opaque", "external", "unknown",
 ]
 
 # v5 data-type codes (miINT8 ...) with their item sizes, as in scipy's table.
@@ -113,6 +113,9 @@ class MatEntry:
     value : numpy.ndarray or None
         A struct field's values, decoded by the walker (scipy does not
         read fields); None for a top-level variable.
+    span : tuple of int or None
+        Where a loadable variable's element lies in the file: ``(start,
+        stop)`` bytes; scipy is shown these elements alone.
     """
 
     name: str
@@ -120,6 +123,7 @@ class MatEntry:
     shape: tuple[int, ...]
     loadable: bool = False
     value: Any = field(default=None, compare=False, repr=False)
+    span: tuple[int, int] | None = field(default=None, compare=False, repr=False)
 
     @property
     def is_note(self) -> bool:
@@ -202,6 +206,7 @@ class _V4:
         data, size, pos = self.data, len(self.data), 0
         entries: dict[str, MatEntry] = {}
         while pos < size:
+            start = pos
             where = f"{self.path}: variable {len(entries) + 1} (header at byte {pos})"
             if size - pos < _V4_HEADER:
                 raise FileFormatError(
@@ -232,9 +237,9 @@ class _V4:
             pos += nbytes
             kind: Kind = ("complex" if is_complex else "numeric", "char", "sparse")[cls]
             if name_text not in entries:
-                entries[name_text] = MatEntry(
-                    name_text, kind, (rows, cols), loadable=kind in ("numeric", "char")
-                )
+                loadable = kind in ("numeric", "char")
+                entries[name_text] = MatEntry(name_text, kind, (rows, cols), loadable=loadable,
+                                              span=(start, pos) if loadable else None)
         return entries
 
     @staticmethod
@@ -343,7 +348,8 @@ class _V5:
             else:
                 entry = self._matrix(body, where, wanted, entries)
             if entry.name not in entries:
-                entries[entry.name] = entry
+                entries[entry.name] = replace(entry, span=(start, pos)) if entry.loadable \
+                    else entry
         entries.update(self.fields)
         return entries
 
@@ -616,7 +622,7 @@ _KIND_WORDS = {
     "numeric": "a numeric array", "char": "text", "complex": "a complex array",
     "sparse": "a sparse matrix", "cell": "a cell array", "struct": "a struct",
     "object": "an object", "function": "a function handle", "opaque": "an opaque object",
-    "unknown": "of an unknown class",
+    "external": "an external link to another file", "unknown": "of an unknown class",
 }
 
 
