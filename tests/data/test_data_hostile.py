@@ -40,11 +40,15 @@ from servoid.data._csv import header_names
 N = 300
 
 
+class Blocked(Exception):
+    """A read blocked (not an OSError, which a reader may catch)."""
+
+
 @pytest.fixture
 def deadline() -> Iterator[None]:
     """Fail, rather than hang, a test whose read blocks (a FIFO's open is interruptible)."""
     def expired(signum: int, frame: object) -> None:
-        raise TimeoutError("the read blocked: it should have been refused before opening")
+        raise Blocked("the read blocked: it should have been refused before opening")
 
     old = signal.signal(signal.SIGALRM, expired)
     signal.alarm(20)
