@@ -177,9 +177,10 @@ def _read_exactly(fd: int, n: int, pid: int, path: Path, what: str) -> bytearray
     out = bytearray(n)
     view = memoryview(out)
     got = 0
+    poller = select.poll()  # not select(): a descriptor above 1023 is refused there
+    poller.register(fd, select.POLLIN | select.POLLHUP | select.POLLERR)
     while got < n:
-        ready, _, _ = select.select([fd], [], [], STALL_SECONDS)
-        if not ready:
+        if not poller.poll(int(STALL_SECONDS * 1000)):
             _kill(pid)
             raise FileFormatError(
                 f"{path}: reading it as {what} made no progress for {STALL_SECONDS:g} s, so it "
