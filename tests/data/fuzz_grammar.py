@@ -393,7 +393,7 @@ def _fields(body: bytes, order: str, base: int, out: list[tuple[int, int, str]])
 _FIELD_VALUES = {
     "type": (0, 1, 2, 5, 6, 7, 9, 11, 12, 13, 14, 15, 16, 17, 18, 19, 255, 0xFFFF),
     "count": (0, 1, 4, 7, 8, 9, 16, 4096, 2**31 - 1, 2**31, 2**32 - 1),
-    "class": tuple(range(0, 20)),
+    "class": tuple(range(20)),
     "flags": (0, 1 << 1, 1 << 2, 1 << 3, 0xFF),
     "dim": (0, 1, 2, 3, 30, 2**31 - 1, 2**32 - 1, 2**32 - 2, 100_000),
     "small-tag": (0, 0x00010001, 0x00040005, 0x00050009, 0x00080005, 0xFFFF0001),

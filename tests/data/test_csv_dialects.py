@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from servoid import FileFormatError, ServoidWarning
+from servoid import FileFormatError
 from servoid.data import load_experiment_spec, read_csv
 
 N = 400

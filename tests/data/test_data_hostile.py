@@ -27,6 +27,8 @@ from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
 from servoid import DataError, Experiment, FileFormatError, MissingFileError
 from servoid._files import open_input, read_input_text
 from servoid.data import (
+    _child,
+    _mat73,
     load_experiment_spec,
     read_csv,
     read_experiment,
@@ -34,7 +36,6 @@ from servoid.data import (
     read_tdms,
     write_csv,
 )
-from servoid.data import _child, _mat73
 from servoid.data._csv import header_names
 
 N = 300
@@ -465,6 +466,6 @@ def test_a_validation_record_equal_to_the_estimation_record_is_refused(tmp_path)
                        r"samples as the estimation record .*a\.csv.*remove \[validation\]"):
         spec.records()
     write_csv(_record(2 * N), tmp_path / "b.csv")
-    estimation, (validation,) = load_experiment_spec(
+    _, (validation,) = load_experiment_spec(
         _toml(tmp_path, '"a.csv"', '"b.csv"')).records()
     assert validation.n_samples == 2 * N

@@ -13,7 +13,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import as_float, as_mapping, as_path, as_str, type_error
-from .._files import check_input_file
 from .._errors import (
     ChannelError,
     DataError,
@@ -23,6 +22,7 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
+from .._files import check_input_file
 from ._experiment import ROLES, Channel, Experiment, _check_time
 
 __all__ = ["DEFAULT_MAX_BYTES", "TIME_UNITS", "MissingChannel", "RolesArg", "build_experiment",

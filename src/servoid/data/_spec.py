@@ -76,7 +76,6 @@ loaded.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import tomllib
 from collections.abc import Mapping
@@ -93,6 +92,7 @@ from .._errors import ChannelError, FileFormatError, OptionError, ServoidError, 
 from .._files import describe_encoding, read_input_bytes
 from ._columns import MissingChannel, existing_file
 from ._csv import header_names
+from ._distinct import check_distinct
 from ._experiment import Channel, Experiment, ExperimentSet
 from ._io import FORMATS, Format, format_of, read_experiment
 from ._preprocess import decimate, lowpass, split
@@ -685,7 +685,8 @@ class ExperimentSpec:
         validations = tuple(self.load(p, detrend=False) for p in self.validation_paths)
         for v in validations:
             _check_like(parts[0], v)
-        _check_distinct(self._origin, self.data_paths, parts, self.validation_paths, validations)
+        check_distinct(self._origin, self.data_paths, parts, self.validation_paths,
+                       validations)
         est_parts, validations = self._detrended(parts, validations)
         est = est_parts[0] if len(est_parts) == 1 else ExperimentSet(est_parts)
         return est, validations
@@ -732,59 +733,6 @@ class ExperimentSpec:
         if self.jitter is not None:
             options["jitter"] = self.jitter
         return options
-
-
-def _check_distinct(origin: str, paths: tuple[Path, ...], parts: tuple[Experiment, ...],
-                    val_paths: tuple[Path, ...], validations: tuple[Experiment, ...]) -> None:
-    """Refuse a record listed twice, or a validation record that is estimation data.
-
-    Records are compared by content (the samples read, calibrated and
-    preprocessed), not by path: a copy under another name, or the same
-    file by another path, is the same record.
-    """
-    seen: dict[str, Path] = {}
-    for path, exp in zip(paths, parts, strict=True):
-        key = record_fingerprint(exp)
-        if key in seen:
-            raise FileFormatError(
-                f"{origin}: [data] file lists the same record twice: {seen[key]} and {path} "
-                "hold the same samples. Fitted twice, one record counts as two independent "
-                "ones and the intervals shrink by √2 without any new information: list each "
-                "record once"
-            )
-        seen[key] = path
-    checked: dict[str, Path] = {}
-    for path, exp in zip(val_paths, validations, strict=True):
-        key = record_fingerprint(exp)
-        if key in seen:
-            raise FileFormatError(
-                f"{origin}: [validation] file {path} holds the same samples as the estimation "
-                f"record {seen[key]}: a validation on the data the model was fitted to says "
-                "nothing about new data, yet the report would call it data not used for "
-                "fitting. Name a record that was not used for fitting, or remove "
-                "[validation] to split the estimation record into two parts"
-            )
-        if key in checked:
-            raise FileFormatError(
-                f"{origin}: [validation] file lists the same record twice: {checked[key]} "
-                f"and {path} hold the same samples: list each record once"
-            )
-        checked[key] = path
-
-
-def record_fingerprint(exp: Experiment) -> str:
-    """A digest of a record's samples and sampling (BLAKE2b of the raw values).
-
-    Two records with the same digest hold the same samples at the same
-    period, whatever their names or files.
-    """
-    digest = hashlib.blake2b(digest_size=20)
-    digest.update(np.float64(exp.dt).tobytes())
-    digest.update(np.int64(exp.n_samples).tobytes())
-    for ch in sorted(exp.channels, key=lambda c: c.name):
-        digest.update(ch.name.encode() + b"\0")
-        digest.update(np.ascontiguousarray(ch.values, dtype=float))
-    return digest.hexdigest()
 
 
 def load_experiment_spec(path: str | os.PathLike[str]) -> ExperimentSpec:

@@ -32,8 +32,8 @@ import numpy as np
 
 from .._atomic import atomic_path
 from .._checks import as_bool, as_path, as_str, as_str_list
-from .._files import open_input
 from .._errors import ChannelError, DataError, FileFormatError, OptionError
+from .._files import open_input
 from ._columns import (
     DEFAULT_MAX_BYTES,
     TIME_TOLERANCE,
