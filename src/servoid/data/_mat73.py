@@ -97,17 +97,24 @@ class _Reader:
                 self.beat()
                 if name.startswith("#"):
                     continue  # what references point to
-                asked = wanted is None or name in wanted
-                obj = self._follow(f, name, name, wanted is not None and name in wanted)
-                if obj is None:  # a link out of the file, not named: never opened
-                    listed[name] = MatEntry(name, "external", (1, 1))
+                named = wanted is not None and name in wanted
+                asked = wanted is None or named
+                try:
+                    obj = self._follow(f, name, name, named)
+                    if obj is None:  # a link out of the file, not named: never opened
+                        listed[name] = MatEntry(name, "external", (1, 1))
+                        continue
+                    if not isinstance(obj, h5py.Dataset):
+                        if isinstance(obj, h5py.Group):  # a struct: fields are named with dots
+                            listed[name] = MatEntry(name, "struct", (1, 1))
+                        continue
+                    shape = tuple(int(d) for d in reversed(obj.shape))  # MATLAB's order
+                    kind: Any = _kind(obj)
+                except Exception:
+                    if named:
+                        raise
+                    listed[name] = MatEntry(name, "unknown", (1, 1))  # damaged, not named: left
                     continue
-                if not isinstance(obj, h5py.Dataset):
-                    if isinstance(obj, h5py.Group):  # a struct: its fields are named with dots
-                        listed[name] = MatEntry(name, "struct", (1, 1))
-                    continue
-                shape = tuple(int(d) for d in reversed(obj.shape))  # MATLAB's order
-                kind: Any = _kind(obj)
                 entry = MatEntry(name, kind, shape)
                 note = entry.is_note and kind in ("numeric", "char")
                 if not asked and not note:
@@ -269,7 +276,7 @@ def _small_attr(node: Any, key: str) -> Any:
                 attr.dtype.kind not in "SUiub":
             return None
         value = np.asarray(node.attrs[key]).ravel()
-    except (KeyError, OSError, TypeError, ValueError):
+    except Exception:  # noqa: BLE001 - a damaged attribute is no class at all
         return None
     if value.size != 1:
         return None
