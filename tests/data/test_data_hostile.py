@@ -178,6 +178,8 @@ def test_text_inputs_name_their_encoding(tmp_path):
         read_input_text(path, "experiment file")
     with pytest.raises(FileFormatError, match=r"not a valid TOML file .*it is UTF-16"):
         load_experiment_spec(path)
+    path.write_bytes("\ufeff[data]\nfile = 'a.csv'\n[channels.u]\nrole = 'u'\n".encode())
+    assert load_experiment_spec(path).files == ("a.csv",)  # a UTF-8 mark (Notepad): dropped
 
 
 # -- CSV messages ----------------------------------------------------------------------------------

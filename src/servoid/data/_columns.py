@@ -201,7 +201,7 @@ def time_in_seconds(path: Path, stamps: NDArray[Any], name: str, unit: str | Non
         warnings.warn(
             f"{path}: {what} {name!r} has no unit and steps by {step:g} s, a slow rate for a "
             f"servo test ({1 / step:g} Hz); if it is in another unit, say so: {fix}",
-            ServoidWarning, stacklevel=5)
+            ServoidWarning, stacklevel=3)
     return values
 
 

@@ -758,7 +758,7 @@ def load_experiment_spec(path: str | os.PathLike[str]) -> ExperimentSpec:
     path = existing_file(path, "experiment file")
     data = read_input_bytes(path, "experiment file")  # checked, within a budget, once
     try:
-        doc = tomllib.loads(data.decode("utf-8"))
+        doc = tomllib.loads(data.decode("utf-8-sig"))  # a byte-order mark (Notepad) dropped
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         found = describe_encoding(data[:4096])
         fix = f"; it is {found}: save it as UTF-8" if found else ""
