@@ -92,7 +92,7 @@ def test_a_fifo_in_an_experiment_file_is_refused_without_blocking(tmp_path, dead
     with pytest.raises(FileFormatError, match=r"data\.csv is a named pipe \(FIFO\)"):
         spec.load()
     os.mkfifo(tmp_path / "fifo.toml")
-    with pytest.raises(FileFormatError, match=r"experiment file .*fifo\.toml is a named pipe"):
+    with pytest.raises(FileFormatError, match=r"fifo\.toml is a named pipe \(FIFO\)"):
         load_experiment_spec(tmp_path / "fifo.toml")
 
 
@@ -133,10 +133,6 @@ def test_link_loops_dangling_links_and_nul_bytes(tmp_path):
         read_csv(dangling)
     with pytest.raises(DataError, match=r"holds a NUL byte"):
         read_csv(str(tmp_path / "a\0b.csv"))
-    toml = _toml(tmp_path, '"da\\u0000ta.csv"')
-    with pytest.raises(FileFormatError, match=r"\[data\] file = 'da\\x00ta\.csv' holds a NUL "
-                       "byte"):
-        load_experiment_spec(toml)
 
 
 def test_a_folder_is_named_a_folder(tmp_path):
@@ -176,10 +172,10 @@ def test_text_inputs_name_their_encoding(tmp_path):
     with pytest.raises(FileFormatError, match=r"UTF-16 \(little-endian\) text, with a byte-order "
                        r"mark \(FF FE\); servoid reads UTF-8 text: save it as UTF-8"):
         read_input_text(path, "experiment file")
-    with pytest.raises(FileFormatError, match=r"not a valid TOML file .*it is UTF-16"):
-        load_experiment_spec(path)
-    path.write_bytes("\ufeff[data]\nfile = 'a.csv'\n[channels.u]\nrole = 'u'\n".encode())
-    assert load_experiment_spec(path).files == ("a.csv",)  # a UTF-8 mark (Notepad): dropped
+    path.write_bytes("\ufeff[data]\n".encode())  # a UTF-8 mark (Notepad): dropped
+    assert read_input_text(path, "experiment file") == "[data]\n"
+    with pytest.raises(DataError, match=r"over the budget of 4 bytes"):
+        read_input_text(path, "experiment file", max_bytes=4)
 
 
 # -- CSV messages ----------------------------------------------------------------------------------

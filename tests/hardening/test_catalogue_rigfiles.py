@@ -11,7 +11,7 @@ unchanged with no stray file. The edit helpers and the runner's pieces are
 those of ``test_catalogue_cli``; only the working folders are new.
 
 Issue 21 adds what a path can name besides a regular file (a FIFO, a link to
-a device, a dangling link, a NUL byte), CSV files that are not what they
+a device, a dangling link), CSV files that are not what they
 seem (UTF-16, digit grouping, a byte-order mark inside, a header cell over
 the CSV limit, a delimiter that is not one), time stamps in ticks, a record
 listed twice or validated on itself, and HDF5 links and unwritten datasets.
@@ -385,8 +385,6 @@ HOSTILE_CASES = [
                                                                                "data.csv"),
              xfail="workflows/_common.py check_outputs: Path.resolve() raises RuntimeError on a "
              "link loop before any reader runs; check inputs with servoid._files"),
-    csv_case("data-file-nul", "[data] file = 'da\\x00ta.csv' holds a NUL byte",
-             set_("data", "file", '"da\\u0000ta.csv"')),
     csv_case("csv-utf16", "it is UTF-16 (little-endian) text, with a byte-order mark (FF FE)",
              utf16("data.csv")),
     csv_case("csv-digit-grouping", "line 9, column 2: '1_000' groups its digits with '_'",

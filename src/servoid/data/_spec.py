@@ -89,7 +89,6 @@ import numpy as np
 from .._atomic import atomic_path
 from .._checks import as_bool, as_path, type_error
 from .._errors import ChannelError, FileFormatError, OptionError, ServoidError, check_option
-from .._files import describe_encoding, read_input_bytes
 from ._columns import MissingChannel, existing_file
 from ._csv import header_names
 from ._distinct import check_distinct
@@ -755,14 +754,11 @@ def load_experiment_spec(path: str | os.PathLike[str]) -> ExperimentSpec:
     OptionError
         An unknown key or option value.
     """
-    path = existing_file(path, "experiment file")
-    data = read_input_bytes(path, "experiment file")  # checked, within a budget, once
+    path = existing_file(path)
     try:
-        doc = tomllib.loads(data.decode("utf-8-sig"))  # a byte-order mark (Notepad) dropped
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        found = describe_encoding(data[:4096])
-        fix = f"; it is {found}: save it as UTF-8" if found else ""
-        raise FileFormatError(f"{path}: not a valid TOML file ({exc}){fix}") from None
+        raise FileFormatError(f"{path}: not a valid TOML file ({exc})") from None
     return ExperimentSpec.from_dict(doc, base_dir=path.parent, source=path)
 
 

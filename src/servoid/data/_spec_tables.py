@@ -291,14 +291,8 @@ def _file_list(where: str, key: str, value: Any) -> tuple[str, ...]:
     if isinstance(value, (list, tuple)):
         if not value:
             raise FileFormatError(f"{where} {key} must name at least one file, got []")
-        names = tuple(_string(where, key, v) for v in value)
-    else:
-        names = (_string(where, key, value),)
-    for name in names:  # no file name holds one; os calls would raise ValueError on it
-        if "\0" in name:
-            raise FileFormatError(f"{where} {key} = {name!r} holds a NUL byte (\\u0000), which "
-                                  "no file name can contain: remove it")
-    return names
+        return tuple(_string(where, key, v) for v in value)
+    return (_string(where, key, value),)
 
 
 def _validation(origin: str, table: Any, fmt: str) -> ValidationSpec:
