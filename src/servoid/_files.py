@@ -16,10 +16,13 @@ or one that is still growing. So an input is
   size the check saw, so a file that grows (a logger still writing, a
   ``/proc`` file) costs no more than it did when it was checked.
 
-:func:`check_input_file` only checks; :func:`open_input` checks and opens;
+:func:`check_input_file` only checks (for a path a library opens by name);
+:func:`open_input` checks and opens (to stream a large file);
 :func:`read_input_bytes` and :func:`read_input_text` read a whole small
-file (an experiment, results or model file) within a budget, the text
-decoded as UTF-8 with a message naming any other encoding it finds.
+file (an experiment, results, model or fleet file) within a budget, the
+text decoded as UTF-8 with a message naming any other encoding it finds.
+Code that hashes a file and then uses it should hash and use the same
+bytes, from one :func:`read_input_bytes`.
 """
 
 from __future__ import annotations
