@@ -390,7 +390,7 @@ def _stat_error(path: Path, what: str, exc: OSError) -> Exception:
     if code == errno.ENOENT:
         link = _link_words(path)
         if link:
-            return MissingFileError(f"{what} {path}{link}: the link points to nothing; fix "
+            return MissingFileError(f"{what} {path}{link}: no such file at the link's end; fix "
                                     "the link or pass the file itself")
         return MissingFileError(f"{path}: no such file; check the path (relative paths are "
                                 f"taken from {Path.cwd()})")
