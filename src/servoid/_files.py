@@ -32,6 +32,7 @@ import io
 import os
 import stat
 from pathlib import Path
+from typing import Any
 
 from ._errors import DataError, FileFormatError, MissingFileError, OptionTypeError
 
@@ -304,10 +305,12 @@ def _looks_like_text(data: bytes, codec: str) -> bool:
 class BoundedFile(io.BufferedReader):
     """A buffered binary file that never reads past ``size`` bytes.
 
-    ``read(n)`` asks for no more than is left of the size checked at open,
-    so a declared length read from the file allocates at most the file's
-    size, and a file that grows while it is read ends where it ended when
-    it was checked.
+    Its raw file ends at the size checked at open (a file that grows while
+    it is read ends where it ended when it was checked), and ``read(n)``
+    asks for no more than is left, so a declared length read from the file
+    allocates at most the file's size (``BufferedReader.read(n)`` allocates
+    ``n`` bytes before reading). The other methods are the buffered
+    reader's own, in C.
 
     Parameters
     ----------
@@ -320,38 +323,51 @@ class BoundedFile(io.BufferedReader):
     """
 
     def __init__(self, raw: io.FileIO, size: int, name: str = "") -> None:
-        super().__init__(raw, buffer_size=1 << 16)
+        super().__init__(_BoundedRaw(raw, size), buffer_size=1 << 16)
         self.size = size
         self.path = name
 
-    def _left(self, n: int | None) -> int:
-        left = max(0, self.size - self.tell())
-        return left if n is None or n < 0 else min(n, left)
-
     def read(self, n: int | None = -1) -> bytes:
-        return super().read(self._left(n))
+        if n is not None and n > 0:
+            n = min(n, max(0, self.size - self.tell()))
+            if n == 0:
+                return b""
+        return super().read(n)
 
-    def read1(self, n: int = -1) -> bytes:
-        return super().read1(self._left(n))
+    def fileno(self) -> int:
+        return self.raw.fileno()
 
-    def readinto(self, b: object) -> int:
-        view = memoryview(b).cast("B")  # type: ignore[arg-type]
-        return super().readinto(view[: self._left(len(view))])
 
-    def readline(self, limit: int | None = -1) -> bytes:
-        return super().readline(self._left(limit))
+class _BoundedRaw(io.RawIOBase):
+    """A raw file that reports the end of the file at ``size`` bytes."""
 
-    def peek(self, n: int = 0) -> bytes:
-        return super().peek(n)[: self._left(None)]
+    def __init__(self, raw: io.FileIO, size: int) -> None:
+        super().__init__()
+        self._raw, self._size = raw, size
 
-    def __iter__(self) -> BoundedFile:
-        return self
+    def readable(self) -> bool:
+        return True
 
-    def __next__(self) -> bytes:
-        line = self.readline()
-        if not line:
-            raise StopIteration
-        return line
+    def seekable(self) -> bool:
+        return True
+
+    def fileno(self) -> int:
+        return self._raw.fileno()
+
+    def tell(self) -> int:
+        return self._raw.tell()
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        return self._raw.seek(offset, whence)
+
+    def readinto(self, b: Any) -> int:
+        view = memoryview(b).cast("B")
+        left = max(0, self._size - self._raw.tell())
+        return self._raw.readinto(view[:left]) if left else 0
+
+    def close(self) -> None:
+        self._raw.close()
+        super().close()
 
 
 def _check_status(path: Path, what: str, st: os.stat_result, max_bytes: int | None) -> None:

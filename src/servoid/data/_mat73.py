@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ChannelError, FileFormatError
+from . import _child
 from ._child import run_watched
 from ._columns import library_errors
 from ._mat_check import _KIND_WORDS, MatEntry, format_bytes
@@ -204,7 +205,7 @@ class _Reader:
             value = np.asarray(obj[()])
             self.beat()
             return value
-        out = np.empty(obj.shape, dtype=obj.dtype)
+        out = _child.empty(obj.shape, obj.dtype)  # shared with the parent: no copy back
         axis = int(np.argmax(obj.shape))
         per = max(1, obj.size // obj.shape[axis]) * obj.dtype.itemsize
         step = max(1, _PIECE_BYTES // per)
