@@ -12,9 +12,9 @@ library takes only the child).
 Arrays come back out of band (pickle protocol 5). One of 1 MiB or more is
 copied once into an anonymous shared-memory file (``memfd``) whose
 descriptor is passed over the socket; this process maps it and the array
-is rebuilt on the mapping, without another copy (a 32 MB result costs a
-few milliseconds instead of 60 through the socket). Smaller ones travel
-through the socket. Forking needs ``os.fork``: on other platforms, and
+is rebuilt on the mapping, without another copy (a reader that allocates
+its arrays with :func:`empty` writes them there in the first place).
+Smaller ones travel through the socket. Forking needs ``os.fork``: on other platforms, and
 when :data:`ENABLED` is False, the reader runs in the calling process with
 no time limit.
 """
