@@ -376,6 +376,15 @@ def test_v73_external_links_are_refused_unless_allowed(tmp_path):
     assert read_mat(path, dt=1e-3).names == ("x", "y")  # not asked for: never opened
     exp = read_mat(path, variables=["far"], dt=1e-3, allow_external=True)
     np.testing.assert_array_equal(exp["far"], read_mat(other, dt=1e-3)["x"])
+    with h5py.File(path, "a") as f:  # a soft link whose path runs through the external one
+        f["group"] = h5py.ExternalLink(str(other), "/")
+        f["near"] = h5py.SoftLink("/group/y")
+        f["loop"] = h5py.SoftLink("/loop")
+    with pytest.raises(FileFormatError, match=r"variable 'near' is an external link"):
+        read_mat(path, variables=["near"], dt=1e-3)
+    with pytest.raises(FileFormatError, match=r"variable 'loop' goes through more than 16 soft "
+                       "links"):
+        read_mat(path, variables=["loop"], dt=1e-3)
 
 
 def test_v73_external_and_virtual_storage_are_refused(tmp_path):

@@ -40,6 +40,8 @@ _PIECE_BYTES = 4 * 2**20
 #: 1032:1; n-bit and scale-offset packing can add up to 64:1 before it.
 _DEFLATE_RATIO, _PACKING_RATIO = 1100, 64
 _PACKING_FILTERS = (5, 6)  # H5Z_FILTER_NBIT, H5Z_FILTER_SCALEOFFSET
+#: Soft links followed in a row before the path is taken for a loop.
+_MAX_HOPS = 16
 #: Longest attribute servoid reads (MATLAB_class is a word, MATLAB_empty a flag) [bytes].
 _ATTR_BYTES = 256
 
@@ -135,8 +137,12 @@ class _Reader:
                 self._field(f, name, out, listed)
         return out, listed
 
-    def _follow(self, group: Any, part: str, name: str, asked: bool) -> Any:
-        """``group[part]``, refusing a link out of the file unless allowed; None: skipped."""
+    def _follow(self, group: Any, part: str, name: str, asked: bool, hops: int = 0) -> Any:
+        """``group[part]``, refusing a link out of the file unless allowed; None: skipped.
+
+        A soft link is followed here, component by component, so that one
+        whose path runs through an external link is refused too.
+        """
         import h5py
 
         link = group.get(part, getlink=True)
@@ -148,7 +154,24 @@ class _Reader:
                 f"({link.path}): reading it would open another file, which you did not name; "
                 "copy the data into this file, or pass allow_external=True if you trust it"
             )
-        return group[part]
+        if not isinstance(link, h5py.SoftLink) or self.allow_external:
+            return group[part]
+        if hops >= _MAX_HOPS:
+            raise FileFormatError(
+                f"{self.path}: variable {name!r} goes through more than {_MAX_HOPS} soft links "
+                "(a loop of links?): a damaged file"
+            )
+        node = group.file if link.path.startswith("/") else group
+        for step in (s for s in link.path.split("/") if s and s != "."):
+            if not isinstance(node, h5py.Group) or step not in node:
+                raise FileFormatError(
+                    f"{self.path}: variable {name!r} is a soft link to {link.path!r}, which is "
+                    "not in the file: a damaged file"
+                )
+            node = self._follow(node, step, name, asked, hops + 1)
+            if node is None:
+                return None
+        return node
 
     def _dataset(self, obj: Any, name: str, shape: tuple[int, ...], *,
                  strict: bool) -> Any:
