@@ -408,15 +408,15 @@ def _stat_error(path: Path, what: str, exc: OSError) -> Exception:
         if link:
             return MissingFileError(f"{what} {path}{link}: no such file at the link's end; fix "
                                     "the link or pass the file itself")
-        return MissingFileError(f"{path}: no such file; check the path (relative paths are "
-                                f"taken from {Path.cwd()})")
+        return MissingFileError(f"{what} {path}: no such file; check the path (relative paths "
+                                f"are taken from {Path.cwd()})")
     if code == errno.ELOOP:
         return FileFormatError(f"{what} {path} is a symbolic link that loops (it leads back to "
                                "itself through one or more links): fix the link or pass the "
                                "file itself")
     if code == errno.ENOTDIR:
-        return MissingFileError(f"{path}: no such file: a part of the path before the file "
-                                "name is a file, not a folder; check the path")
+        return MissingFileError(f"{what} {path}: no such file: a part of the path before the "
+                                "file name is a file, not a folder; check the path")
     if code == errno.ENAMETOOLONG:
         return FileFormatError(f"the {what} path is too long for the file system "
                                f"({len(os.fspath(path))} characters, {path!s:.80}…): check "

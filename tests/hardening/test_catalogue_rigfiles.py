@@ -381,9 +381,7 @@ HOSTILE_CASES = [
          base="rigcsv"),
     csv_case("data-dangling-link", "no such file", link("data.csv", "gone.csv")),
     csv_case("data-link-loop", "data.csv is a symbolic link that loops", link("data.csv",
-                                                                               "data.csv"),
-             xfail="workflows/_common.py check_outputs: Path.resolve() raises RuntimeError on a "
-             "link loop before any reader runs; check inputs with servoid._files"),
+                                                                               "data.csv")),
     csv_case("csv-utf16", "it is UTF-16 (little-endian) text, with a byte-order mark (FF FE)",
              utf16("data.csv")),
     csv_case("csv-digit-grouping", "line 9, column 2: '1_000' groups its digits with '_'",
