@@ -3,8 +3,8 @@
 Case
 ----
 One row per format (``csv``, ``toml``, ``tdms``, ``mat4``, ``mat5``,
-``mat5z`` = v5 with compressed elements, ``mat73``) and a total: 55 000
-mutated files in all. Each input is a valid seed file of the format
+``mat5z`` = v5 with compressed elements, ``mat73``): 55 000 mutated files
+in all. Each input is a valid seed file of the format
 (``tests/data/fuzz_inputs.py``, the same seeds and mutations as the
 suite's Hypothesis fuzzers) with one to three mutations drawn from
 ``random.Random(f"{SEED}:{format}:{index}")``, so any input can be rebuilt
@@ -13,6 +13,16 @@ from its index. Readers: ``read_csv``, ``load_experiment_spec``,
 named variables/channels or a given ``dt``; the rig-file options: CSV
 ``skip_rows`` and ``skip_columns``, TDMS ``"group/channel"`` names, MAT
 struct fields ``run.sig.y``).
+
+Then one row per grammar (``grammar-csv``, ``grammar-tdms``,
+``grammar-mat5``, ``grammar-mat73``): 17 000 files built field by field
+from each format's grammar (``tests/data/fuzz_grammar.py``: CSV dialects
+and encodings, TDMS segments written by hand, MAT v5 element fields set
+inside the compressed stream, HDF5 attributes, datasets, links and
+addresses), about half with one planted fault, each read with the keywords
+that fit its dialect; input ``index`` is built from
+``random.Random(f"{SEED}:grammar:{format}:{index}")``. A total row closes
+the table.
 
 Method
 ------
@@ -71,9 +81,13 @@ from _harness import Result
 SUITE = "fuzz"
 ROOT = Path(__file__).resolve().parent.parent
 SEED = 20240611
-#: Inputs per format: 55 000 in all; compressed MAT v5 most, where the found crash was.
+#: Inputs per format: 55 000 mutated (compressed MAT v5 most, where the found crash was) and
+#: 17 000 built from the grammars.
 COUNTS = {"csv": 10_000, "toml": 6_000, "tdms": 9_000, "mat4": 5_000, "mat5": 10_000,
-          "mat5z": 12_000, "mat73": 3_000}
+          "mat5z": 12_000, "mat73": 3_000,
+          "grammar-csv": 5_000, "grammar-tdms": 5_000, "grammar-mat5": 5_000,
+          "grammar-mat73": 2_000}
+GRAMMAR = "grammar-"
 BATCH = 500
 MEMORY_LIMIT = 4 * 2**30  # [bytes] address space of a child
 TIMEOUT_S = 20  # per input, by SIGALRM in the child
@@ -89,13 +103,35 @@ def _fuzz_inputs() -> Any:
     return fuzz_inputs
 
 
-def make_input(fmt: str, index: int) -> tuple[bytes, int]:
-    """The mutated file and the call mode of input ``index`` of ``fmt``."""
+def make_input(fmt: str, index: int) -> tuple[bytes, Any]:
+    """The file of input ``index`` of ``fmt`` and its call (a mode, or reader keywords)."""
+    if fmt.startswith(GRAMMAR):
+        import fuzz_grammar
+
+        _fuzz_inputs()  # puts tests/data on the path
+        name = fmt[len(GRAMMAR):]
+        return fuzz_grammar.grammar_input(name, random.Random(f"{SEED}:grammar:{name}:{index}"))
     fi = _fuzz_inputs()
     rng = random.Random(f"{SEED}:{fmt}:{index}")
     seeds = fi.seeds(fmt)
     seed = seeds[rng.randrange(len(seeds))]
     return fi.mutate(fmt, seed, fi.random_ops(rng)), rng.randrange(fi.N_MODES)
+
+
+def read(fmt: str, data: bytes, call: Any, folder: Path) -> str:
+    """Read one input: ``"ok"`` or ``"error:<class>"``; anything else propagates."""
+    if fmt.startswith(GRAMMAR):
+        import fuzz_grammar
+
+        return fuzz_grammar.read_grammar(fmt[len(GRAMMAR):], data, call, folder)
+    return _fuzz_inputs().read_input(fmt, data, call, folder)
+
+
+def suffix(fmt: str) -> str:
+    if fmt.startswith(GRAMMAR):
+        name = fmt[len(GRAMMAR):]
+        return ".csv" if name == "csv" else ".tdms" if name == "tdms" else ".mat"
+    return _fuzz_inputs().SUFFIX[fmt]
 
 
 class _Timeout(BaseException):
@@ -128,13 +164,12 @@ def _child(fmt: str, start: int, stop: int, wfd: int, folder: Path) -> None:  # 
         raise _Timeout
 
     signal.signal(signal.SIGALRM, on_alarm)
-    fi = _fuzz_inputs()
     for index in range(start, stop):
         os.write(wfd, f"S {index}\n".encode())
-        data, mode = make_input(fmt, index)
+        data, call = make_input(fmt, index)
         signal.alarm(TIMEOUT_S)
         try:
-            outcome = fi.read_input(fmt, data, mode, folder)
+            outcome = read(fmt, data, call, folder)
         except _Timeout:
             outcome = "timeout"
         except BaseException as exc:  # noqa: BLE001 - every escape is the finding
@@ -191,7 +226,8 @@ def _run_batch(fmt: str, start: int, stop: int, outcomes: dict[int, str], folder
 
 def fuzz_format(fmt: str, count: int) -> tuple[dict[str, Any], float]:
     """Fuzz one format; return the counts and the wall time [s]."""
-    _fuzz_inputs().seeds(fmt)  # build the seeds once, before forking
+    if not fmt.startswith(GRAMMAR):
+        _fuzz_inputs().seeds(fmt)  # build the seeds once, before forking
     outcomes: dict[int, str] = {}
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="servoid-fuzz-") as scratch:
@@ -204,7 +240,7 @@ def fuzz_format(fmt: str, count: int) -> tuple[dict[str, Any], float]:
     ok = timeouts = 0
     crashes = []
     folder = Path(os.environ.get("SERVOID_FUZZ_CRASHES", "/tmp/servoid-fuzz-crashes"))
-    suffix = _fuzz_inputs().SUFFIX[fmt]
+    ext = suffix(fmt)
     for index, outcome in sorted(outcomes.items()):
         kind, _, detail = outcome.partition(":")
         if kind == "ok":
@@ -219,9 +255,9 @@ def fuzz_format(fmt: str, count: int) -> tuple[dict[str, Any], float]:
             signals[detail or kind] += 1
         if kind not in ("ok", "error"):
             folder.mkdir(parents=True, exist_ok=True)
-            path = folder / f"{fmt}-{index}{suffix}"
+            path = folder / f"{fmt}-{index}{ext}"
             path.write_bytes(make_input(fmt, index)[0])
-            crashes.append(f"{path} ({outcome}, mode {make_input(fmt, index)[1]})")
+            crashes.append(f"{path} ({outcome}, call {make_input(fmt, index)[1]!r})")
     counts = {
         "inputs": len(outcomes), "ok": ok, "errors": dict(errors.most_common()),
         "unhandled": dict(unhandled.most_common()), "signals": dict(signals),
@@ -254,12 +290,14 @@ def run(quick: bool = False) -> list[Result]:
                 f"{sum(counts['signals'].values())} signal deaths, {counts['timeouts']} timeouts")
         print(f"# fuzz {fmt}: {counts['inputs']} inputs in {elapsed:.1f} s: {note}",
               file=sys.stderr)
-        rows.append(Result(SUITE, fmt, counts["inputs"], "mutation fuzz, forked batches",
-                           per_ms, per_ms, 1, note=note, extra=counts))
+        method = "grammar fuzz, forked batches" if fmt.startswith(GRAMMAR) else \
+            "mutation fuzz, forked batches"
+        rows.append(Result(SUITE, fmt, counts["inputs"], method, per_ms, per_ms, 1, note=note,
+                           extra=counts))
     per_ms = 1e3 * wall / max(total["inputs"], 1)
     note = (f"{total['ok']} ok, {total['errors']} servoid errors, {total['unhandled']} "
             f"unhandled, {total['signals']} signal deaths, {total['timeouts']} timeouts")
-    rows.append(Result(SUITE, "all formats", total["inputs"], "mutation fuzz, forked batches",
+    rows.append(Result(SUITE, "all formats", total["inputs"], "mutation and grammar fuzz",
                        per_ms, per_ms, 1, note=note, extra=total))
     rows.extend(run_loaders(scale))  # the document loaders: grammar-aware inputs
     return rows

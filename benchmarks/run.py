@@ -40,7 +40,8 @@ SUITES: dict[str, str] = {
     "pem": "bench_pem",
     "subspace": "bench_subspace",
     "studies": "bench_studies",  # slow pytest studies; skipped under --quick
-    "fuzz": "bench_fuzz",  # long reader fuzz run (55 000 inputs); skipped under --quick
+    "fuzz": "bench_fuzz",  # long reader fuzz run (72 000 inputs); skipped under --quick
+    "readers": "bench_readers",  # read_csv and v7.3 read_mat of 1e6 rows (~1 min)
     "scaling": "bench_scaling",  # fresh process per (method, N), N = 1e4…1e6 (~2 min)
     "fleet": "bench_fleet",  # 1000 bench records on 1 and 2 workers (8 under --quick)
     "greybox-ode": "bench_greybox_ode",  # two-state ODE, 1e4 samples; Python path ~1 min

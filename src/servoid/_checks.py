@@ -364,22 +364,11 @@ def read_text(path: Path, what: str, kind: str = "text") -> str:
     bytes that are not UTF-8 (with the line of the first bad byte) raise
     :class:`~servoid.FileFormatError`.
     """
-    try:
-        is_file = path.is_file()
-        exists = is_file or path.exists()
-    except OSError as exc:  # a name too long, a loop of links, no permission
-        raise FileFormatError(f"{what} {path} cannot be read ({exc.strerror or exc}); check "
-                              "the path") from None
-    if not exists:
-        if path.is_symlink():
-            raise MissingFileError(f"{what} {path}: no such file (a symbolic link to a missing "
-                                   "file, or a loop of links); point the link at the file")
-        raise MissingFileError(f"{what} {path}: no such file")
-    if not is_file:
-        raise FileFormatError(f"{what} {path} is not a regular file (a folder, pipe or device); "
-                              f"give the path of a {kind} file")
-    try:
-        raw = path.read_bytes()
+    from ._files import check_input_file, read_input_bytes
+
+    check_input_file(path, what)  # a folder, pipe, device or loop of links named, not opened
+    try:  # opened without waiting, re-checked, bounded
+        raw = read_input_bytes(path, what)
     except OSError as exc:
         raise FileFormatError(f"{what} {path} cannot be read ({exc.strerror or exc}); check "
                               "the file's permissions") from None

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from servoid import FileFormatError, ServoidWarning
+from servoid import FileFormatError
 from servoid.data import load_experiment_spec, read_csv
 
 N = 400
@@ -24,8 +24,7 @@ def test_semicolon_file_names_the_delimiter(tmp_path):
     path = _write(tmp_path / "a.csv", sep=";")
     with pytest.raises(FileFormatError, match="separated by ';': pass delimiter=';'"):
         read_csv(path)
-    with pytest.warns(ServoidWarning):
-        assert read_csv(path, delimiter=";").n_samples == N
+    assert read_csv(path, delimiter=";", time_unit="ms").n_samples == N
 
 
 def test_decimal_comma_is_detected_and_read(tmp_path):
@@ -38,11 +37,14 @@ def test_decimal_comma_is_detected_and_read(tmp_path):
         read_csv(path, decimal=",")
 
 
-def test_millisecond_time_column_warns_and_time_unit_fixes_it(tmp_path):
+def test_millisecond_time_column_stops_and_time_unit_fixes_it(tmp_path):
+    """Whole-number stamps without a unit stop the read (issue 20): 1000× off otherwise."""
     path = _write(tmp_path / "a.csv")
-    with pytest.warns(ServoidWarning, match="time_unit='ms'"):
-        assert read_csv(path).dt == 1.0
+    with pytest.raises(FileFormatError, match=r"has no unit and holds whole numbers stepping by "
+                       r"1: likely milliseconds .*give the unit: time_unit='ms'"):
+        read_csv(path)
     assert read_csv(path, time_unit="ms").dt == pytest.approx(1e-3)
+    assert read_csv(path, time_unit="s").dt == 1.0  # said to be seconds: taken as said
     labelled = _write(tmp_path / "b.csv", header="time [ms]")
     assert read_csv(labelled).dt == pytest.approx(1e-3)  # the header says it; no warning
 

@@ -52,6 +52,32 @@ SIGNATURES: list[tuple[str, dict[str, Any], str | tuple[str, ...]]] = [
     ("csv_truncated_last_number.csv", {},
      (r"line 8: the last line has no line end and its last value '0.78' \('y'\) is written "
      r"shorter .*end the file with a newline")),
+    # issue 21: checked before read, bounded while read, no silent wrong result
+    ("mat5_compressed_note_40mib.mat", {"variables": ["x"], "dt": 0.1}, ("x",)),  # k left out
+    ("mat5_compressed_note_40mib.mat", {"dt": 0.1},
+     r"variable 'k' .*declares 40 MiB inflated, but its header and data take 64 bytes"),
+    ("mat5_int64_ns_time.mat", {"time": "t"},
+     (r"time vector 't' has no unit and holds integers \(int64\) stepping by 1e\+07: clock "
+     r"ticks .*time_unit='ns'")),
+    ("mat73_fill_value.mat", {"dt": 0.1},
+     r"variable 'big' declares shape \(1, 268435456\) \(2 GiB\) but stores only 0 bytes"),
+    ("mat73_fill_value.mat", {"variables": ["x"], "dt": 0.1}, ("x",)),
+    ("mat73_external_link.mat", {"variables": ["far"], "dt": 0.1},
+     (r"variable 'far' is an external link to '\.\./\.\./outside/secret\.mat'.*"
+     r"allow_external=True")),
+    ("mat73_external_link.mat", {"dt": 0.1}, ("x",)),  # not asked for: never opened
+    ("tdms_wf_start_offset_1e308.tdms", {},
+     r"wf_start_offset = 1e\+308 s is too large for wf_increment = 0\.001 s"),
+    ("tdms_wf_increment_5e-324.tdms", {}, r"wf_increment = 4\.94066e-324 s is outside"),
+    ("csv_utf16.csv", {},
+     (r"not a text CSV file in UTF-8: it is UTF-16 \(little-endian\) text, with a byte-order "
+     r"mark \(FF FE\)\. .*iconv")),
+    ("csv_digit_grouping.csv", {},
+     r"line 5, column 2: '1_000' groups its digits with '_'.*write the number without"),
+    ("csv_bom_inside.csv", {}, r"line 10, column 1: .* holds a byte-order mark \(U\+FEFF\)"),
+    ("csv_integer_ms_time.csv", {},
+     (r"time column 'time' has no unit and holds whole numbers stepping by 1: likely "
+     r"milliseconds .*time_unit='ms'")),
 ]
 
 

@@ -902,7 +902,7 @@ CLOSED_LOOP_CASES = [
          base="ehsa"),
     case("truth-not-json", CL, "is not valid JSON", write("truth.json", "{bad"), base="ehsa"),
     case("truth-binary", CL, "is not UTF-8 text", write("truth.json", JUNK), base="ehsa"),
-    case("truth-folder", CL, "name the JSON file", set_("report", "truth", '"."'), base="ehsa"),
+    case("truth-folder", CL, "is a folder, not a regular file; pass the path of a file", set_("report", "truth", '"."'), base="ehsa"),
     case("truth-is-rig-file", CL, "is not valid JSON", set_("report", "truth", '"ehsa.csv"'),
          base="ehsa"),
     case("truth-is-output", "identify {toml} --out {in} --overwrite",

@@ -448,15 +448,14 @@ CASES = [
          FileFormatError, r"has format version \{'v': 1\}; this servoid reads version 1"),
     # not a regular UTF-8 file, a damaged manifest --------------------------------------------
     case("model-folder", lambda folder: load_model(folder), FileFormatError,
-         r"model file .* is not a regular file \(a folder, pipe or device\); give the path of a "
-         r"JSON file"),
+         r"model file .* is a folder, not a regular file; pass the path of a file"),
     case("results-folder", lambda folder: load_results(folder), FileFormatError,
-         r"results file .* is not a regular file"),
+         r"results file .* is a folder, not a regular file"),
     case("model-link-loop", lambda folder: (
         (folder / "a.json").symlink_to(folder / "b.json"),
         (folder / "b.json").symlink_to(folder / "a.json"), load_model(folder / "a.json")),
-         MissingFileError, r"a\.json: no such file \(a symbolic link to a missing file, or a loop "
-         r"of links\); point the link at the file; check the path"),
+         FileFormatError, r"a\.json is a symbolic link that loops \(it leads back to itself "
+         r"through one or more links\): fix the link or pass the file itself"),
     case("model-utf16", model_call("tf-continuous", lambda d: json.dumps(d).encode("utf-16")),
          FileFormatError, r"model\.json is UTF-16 text \(its byte-order mark says so\); servoid "
          r"reads JSON files in UTF-8: save it as UTF-8"),
@@ -469,8 +468,8 @@ CASES = [
          FileFormatError, r"exp\.toml is not UTF-8 text: invalid continuation byte at byte \d+ "
          r"\(line 8\); save it as UTF-8"),
     case("manifest-missing", results_call("arx", lambda d: d, lambda m: m, "rerender-no-manifest"),
-         FileFormatError, r"manifest .*manifest\.json: no such file; so the inputs of this run "
-         r"cannot be checked"),
+         FileFormatError, r"manifest .*manifest\.json: no such file; check the path .*; so the "
+         r"inputs of this run cannot be checked"),
     case("manifest-list", results_call("arx", lambda d: d, lambda m: [m], "rerender"),
          FileFormatError, r"manifest .*manifest\.json must be a JSON object, got an array"),
     case("manifest-inputs-object", results_call("arx", lambda d: d, put("inputs", {}), "rerender"),

@@ -1,4 +1,4 @@
-"""The bad-input catalogue of rig files as they come (issue 13, item 4).
+"""The bad-input catalogue of rig files as they come (issues 13 and 21).
 
 The new ``[data]`` keys and channel names of the rig-file readers, through
 ``servoid identify`` in process: CSV ``skip_rows``, ``columns`` and
@@ -9,17 +9,27 @@ case copies a working experiment folder, breaks one thing and checks what
 key and the fix, the same under ``--json``, no traceback, and every input
 unchanged with no stray file. The edit helpers and the runner's pieces are
 those of ``test_catalogue_cli``; only the working folders are new.
+
+Issue 21 adds what a path can name besides a regular file (a FIFO, a link to
+a device, a dangling link), CSV files that are not what they
+seem (UTF-16, digit grouping, a byte-order mark inside, a header cell over
+the CSV limit, a delimiter that is not one), time stamps in ticks, a record
+listed twice or validated on itself, and HDF5 links and unwritten datasets.
+Their folders hold special files, so the tree is compared without reading
+them (a FIFO would block, ``/dev/zero`` never end).
 """
 
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 from test_catalogue_cli import Case, _run, _tree, arx_record, case, del_, set_
+from test_catalogue_cli import copy_in as copy_
 
 from servoid.data import load_experiment_spec
 
@@ -265,6 +275,141 @@ MAT_CASES = [
              set_("channels.y", "source", '"run.t.x"'), base="rigmat73"),
 ]
 
+# -- issue 21: inputs checked before they are read -------------------------------------------------
+
+
+def fifo(name: str) -> object:
+    """Replace a file of the folder by a named pipe (no writer: an open would block)."""
+    def edit(folder: Path) -> None:
+        (folder / name).unlink(missing_ok=True)
+        os.mkfifo(folder / name)
+    return edit
+
+
+def link(name: str, target: str) -> object:
+    """Replace a file of the folder by a symbolic link to ``target``."""
+    def edit(folder: Path) -> None:
+        (folder / name).unlink(missing_ok=True)
+        (folder / name).symlink_to(target)
+    return edit
+
+
+def csv_lines(change) -> object:  # type: ignore[no-untyped-def]
+    """Rewrite the lines of the rig CSV (line 6 of the file is the first sample)."""
+    def edit(folder: Path) -> None:
+        path = folder / "data.csv"
+        path.write_text("\n".join(change(path.read_text(encoding="utf-8").splitlines())) + "\n",
+                        encoding="utf-8")
+    return edit
+
+
+def utf16(name: str) -> object:
+    def edit(folder: Path) -> None:
+        path = folder / name
+        path.write_bytes(path.read_text(encoding="utf-8").encode("utf-16"))
+    return edit
+
+
+def other_record(name: str) -> object:
+    """A copy of the rig CSV with one sample changed: another record of the same rig."""
+    def change(lines: list[str]) -> list[str]:
+        fields = lines[-1].split(",")
+        fields[1] = repr(float(fields[1]) + 0.5)
+        return [*lines[:-1], ",".join(fields)]
+
+    def edit(folder: Path) -> None:
+        lines = (folder / "data.csv").read_text(encoding="utf-8").splitlines()
+        (folder / name).write_text("\n".join(change(lines)) + "\n", encoding="utf-8")
+    return edit
+
+
+def ms_time(lines: list[str]) -> list[str]:
+    """The time column of the rig CSV written in milliseconds as whole numbers, no unit."""
+    out = [*lines[:4], lines[4].replace("time [s]", "time")]
+    out += [f"{k}," + line.split(",", 1)[1] for k, line in enumerate(lines[5:])]
+    return out
+
+
+def mat_ns_time(folder: Path) -> None:
+    """The struct MAT file with ``run.t`` in int64 nanoseconds."""
+    import scipy.io
+
+    t, u, y = arx_record()
+    ns = np.round(t * 1e9).astype(np.int64)
+    scipy.io.savemat(folder / "data.mat", {"run": {"signals": {"u": u[:, None], "y": y[:, None]},
+                                                   "t": ns[:, None]}}, do_compression=True)
+
+
+def h5_edit(change) -> object:  # type: ignore[no-untyped-def]
+    def edit(folder: Path) -> None:
+        import h5py
+
+        with h5py.File(folder / "data.mat", "a") as f:
+            change(f)
+    return edit
+
+
+def external_link(f) -> None:  # type: ignore[no-untyped-def]
+    import h5py
+
+    f["run"]["signals"]["far"] = h5py.ExternalLink("../../secret.mat", "/y")
+
+
+def unwritten(f) -> None:  # type: ignore[no-untyped-def]
+    f["run"]["signals"].create_dataset("big", shape=(1, 2**27), dtype="<f8")
+
+
+def tdms_offset(folder: Path) -> None:
+    from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
+
+    t, u, y = arx_record()
+    props = {"wf_increment": float(t[1] - t[0]), "wf_start_offset": 1e308}
+    with TdmsWriter(str(folder / "data.tdms")) as writer:
+        writer.write_segment([RootObject({}), GroupObject("command", {}),
+                              ChannelObject("command", "AI0", u, props),
+                              GroupObject("measure", {}),
+                              ChannelObject("measure", "AI1", y, props)])
+
+
+TWO_RECORDS = (other_record("val.csv"), set_("validation", "file", '"val.csv"'))
+
+HOSTILE_CASES = [
+    csv_case("data-fifo", "data.csv is a named pipe (FIFO), not a regular file", fifo("data.csv")),
+    csv_case("data-link-to-dev-zero", "data.csv (a symbolic link to /dev/zero) is a character "
+             "device, not a regular file", link("data.csv", "/dev/zero")),
+    case("toml-fifo", "identify {in}/fifo.toml --out {out}", "fifo.toml is a named pipe (FIFO)", fifo("fifo.toml"),
+         base="rigcsv"),
+    csv_case("data-dangling-link", "no such file", link("data.csv", "gone.csv")),
+    csv_case("data-link-loop", "data.csv is a symbolic link that loops", link("data.csv",
+                                                                               "data.csv")),
+    csv_case("csv-utf16", "it is UTF-16 (little-endian) text, with a byte-order mark (FF FE)",
+             utf16("data.csv")),
+    csv_case("csv-digit-grouping", "line 9, column 2: '1_000' groups its digits with '_'",
+             csv_lines(lambda ls: [*ls[:8], ls[8].split(",")[0] + ",1_000," +
+                                   ",".join(ls[8].split(",")[2:]), *ls[9:]])),
+    csv_case("csv-bom-inside", "holds a byte-order mark (U+FEFF)",
+             csv_lines(lambda ls: [*ls, "\ufeff" + ls[-1]])),
+    csv_case("csv-header-cell-140k", "the header row cannot be split into cells",
+             csv_lines(lambda ls: [*ls[:4], "x" * 140_000 + "," + ls[4], *ls[5:]])),
+    csv_case("csv-delimiter-narx", "got 'narx'", set_("data", "delimiter", '"narx"')),
+    csv_case("csv-time-ms-no-unit", "time column 'time' has no unit and holds whole numbers "
+             "stepping by 1: likely milliseconds", csv_lines(ms_time)),
+    csv_case("records-same-twice", "[data] file lists the same record twice",
+             copy_("data.csv", "copy.csv"), set_("data", "file", '["data.csv", "copy.csv"]'),
+             *TWO_RECORDS),
+    csv_case("validation-is-estimation", "holds the same samples as the estimation record",
+             copy_("data.csv", "val.csv"), set_("validation", "file", '"val.csv"')),
+    mat_case("mat-int64-ns-time", "time vector 'run.t' has no unit and holds integers (int64)",
+             mat_ns_time),
+    mat_case("mat73-external-link", "variable 'run.signals.far' is an external link",
+             h5_edit(external_link), set_("channels.y", "source", '"run.signals.far"'),
+             base="rigmat73"),
+    mat_case("mat73-unwritten-dataset", "but stores only 0 bytes", h5_edit(unwritten),
+             set_("channels.y", "source", '"run.signals.big"'), base="rigmat73"),
+    tdms_case("tdms-wf-start-offset-1e308", "wf_start_offset = 1e+308 s is too large",
+              tdms_offset),
+]
+
 ALL = CSV_CASES + TDMS_CASES + MAT_CASES
 
 
@@ -303,3 +448,38 @@ def test_bad_input(entry: Case, rig_bases, tmp_path, capsys, monkeypatch):
     assert "Traceback" not in out + err
 
     assert _tree(tmp_path) == before
+
+
+def _safe_tree(root: Path) -> dict[str, str]:
+    """Every entry under ``root``: a regular file's SHA-256, else what it is (never opened)."""
+    import hashlib
+    import stat
+
+    out = {}
+    for path in sorted(root.rglob("*")):
+        mode = path.lstat().st_mode
+        key = path.relative_to(root).as_posix()
+        if stat.S_ISLNK(mode):
+            out[key] = f"link -> {os.readlink(path)}"
+        elif stat.S_ISREG(mode):
+            out[key] = hashlib.sha256(path.read_bytes()).hexdigest()
+        else:
+            out[key] = "dir" if stat.S_ISDIR(mode) else f"special {stat.S_IFMT(mode):o}"
+    return out
+
+
+@pytest.mark.parametrize("entry", HOSTILE_CASES)
+def test_hostile_input(entry: Case, rig_bases, tmp_path, capsys, monkeypatch):
+    places = _prepare(entry, rig_bases, tmp_path)
+    argv = [word.format(**places) for word in entry.argv]
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "secret.mat").write_bytes(b"")  # what an external link might reach
+    before = _safe_tree(tmp_path)
+    for flags in ([], ["--json"]):
+        code, out, err = _run(capsys, [*argv, *flags])
+        assert code == 1, err
+        assert "Traceback" not in out + err
+        message = json.loads(out)["error"] if flags else err
+        assert flags or err.startswith("servoid: error: "), err
+        assert entry.fragment in message, message
+    assert _safe_tree(tmp_path) == before

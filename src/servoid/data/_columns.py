@@ -16,22 +16,27 @@ from .._errors import (
     ChannelError,
     DataError,
     FileFormatError,
-    MissingFileError,
     OptionError,
     ServoidError,
+    ServoidWarning,
     check_option,
 )
+from .._files import check_input_file
+from .._warn import warn
 from ._experiment import ROLES, Channel, Experiment, _check_time
 
-__all__ = ["DEFAULT_MAX_BYTES", "MissingChannel", "RolesArg", "build_experiment",
-           "check_file_size", "check_max_bytes", "check_reader_options", "existing_file",
-           "library_errors"]
+__all__ = ["DEFAULT_MAX_BYTES", "TIME_UNITS", "MissingChannel", "RolesArg", "build_experiment",
+           "check_file_size", "check_max_bytes", "check_reader_options", "check_time_unit",
+           "existing_file", "library_errors", "time_in_seconds"]
 
 RolesArg = Mapping[str, str | Sequence[str]] | None
 
 #: Default memory budget of the readers [bytes]: 2 GiB, 2.7e8 doubles (a MAT variable, a
 #: TDMS channel, a CSV file's text).
 DEFAULT_MAX_BYTES = 2**31
+
+#: Units a time column or vector may be given in, with their scale to seconds.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}
 
 #: Relative deviation of a time step from the mean step accepted in a time column;
 #: the same default as :meth:`Experiment.from_arrays`.
@@ -60,20 +65,20 @@ class MissingChannel(ChannelError):
         self.available = tuple(available)
 
 
-def existing_file(path: str | os.PathLike[str]) -> Path:
-    """Return ``path`` as a Path, or raise :class:`MissingFileError` naming it.
+def existing_file(path: str | os.PathLike[str], what: str = "file") -> Path:
+    """Return ``path`` as a Path once it names a regular file, or raise naming it.
 
-    A path of the wrong type is an :class:`~servoid.OptionTypeError`, a
-    folder or device a :class:`FileFormatError`.
+    Checked before anything opens it (:func:`servoid._files.check_input_file`):
+    a path of the wrong type is an :class:`~servoid.OptionTypeError`, a
+    missing file or a dangling link a :class:`MissingFileError`; a folder,
+    named pipe, device, socket or symbolic link loop a
+    :class:`FileFormatError` naming what it is; a NUL byte a
+    :class:`DataError`.
     """
-    path = as_path("path", path)
-    if not path.exists():
-        raise MissingFileError(
-            f"{path}: no such file; check the path (relative paths are taken from {Path.cwd()})"
-        )
-    if not path.is_file():
-        raise FileFormatError(f"{path} is not a regular file; pass the path of a file")
-    return path
+    if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
+        as_path("path", path)  # the house message for a wrong type
+    check_input_file(path, what)
+    return Path(path)
 
 
 def check_reader_options(
@@ -111,13 +116,8 @@ def check_max_bytes(max_bytes: object) -> int:
 
 
 def check_file_size(path: Path, max_bytes: int) -> None:
-    """Refuse a file larger than the reader's budget before reading it."""
-    size = path.stat().st_size
-    if size > max_bytes:
-        raise DataError(
-            f"{path} has {size:,} bytes, over the budget of {max_bytes:,} bytes; if the file is "
-            "what you meant to read, pass max_bytes= a larger budget"
-        )
+    """Refuse a file larger than the reader's budget before opening it."""
+    check_input_file(path, "file", max_bytes=max_bytes)
 
 
 @contextmanager
@@ -135,6 +135,73 @@ def library_errors(path: Path, what: str) -> Iterator[None]:
             f"{path}: cannot be read as {what} ({type(exc).__name__}: {exc}); if it is one, it "
             "is damaged: copy or export it again"
         ) from exc
+
+
+def check_time_unit(time_unit: object) -> str | None:
+    """A reader's ``time_unit`` option checked: None or one of :data:`TIME_UNITS`."""
+    if time_unit is not None and (not isinstance(time_unit, str) or time_unit not in TIME_UNITS):
+        raise DataError(f"time_unit must be one of {', '.join(repr(u) for u in TIME_UNITS)}, "
+                        f"got {time_unit!r}")
+    return time_unit
+
+
+def time_in_seconds(path: Path, stamps: NDArray[Any], name: str, unit: str | None,
+                    fix: str, *, what: str = "time column") -> NDArray[np.float64]:
+    """Time stamps as seconds [s], refusing integer ticks read without a unit.
+
+    With ``unit`` (the file's or the caller's) the stamps are scaled by it.
+    Without one, stamps stored as integers (int64 nanoseconds from a logger),
+    or whole numbers stepping by 1 or more (milliseconds written as 0, 1, 2,
+    …) are a :class:`FileFormatError` naming ``fix``: read as seconds they
+    give a dt 1000 or 10⁹ times too long and every result would be off by
+    that factor. Stamps stepping by 0.1 s or more over hundreds of samples
+    draw a :class:`~servoid.ServoidWarning`, before any result is computed.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file, for messages.
+    stamps : numpy.ndarray
+        The time stamps as stored (any real dtype).
+    name : str
+        The column, channel or variable.
+    unit : str or None
+        A key of :data:`TIME_UNITS`, or None: not stated.
+    fix : str
+        How to state the unit, in the reader's words.
+    what : str
+        ``"time column"``, ``"time vector"``, ``"time channel"``.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 seconds.
+    """
+    if unit is not None:
+        scale = TIME_UNITS[unit]
+        values = np.asarray(stamps, dtype=float)
+        return values * scale if scale != 1.0 else values
+    integer = stamps.dtype.kind in "iu"
+    values = np.asarray(stamps, dtype=float)
+    if values.size < 2:
+        return values  # the Experiment says why it needs two
+    head = values[:1001]
+    step = float(np.median(np.diff(head)))
+    whole = bool(np.all(np.isfinite(head))) and bool(np.all(head == np.round(head)))
+    if integer or (whole and step >= 1.0):
+        kind = f"holds integers ({stamps.dtype})" if integer else "holds whole numbers"
+        guess = ("clock ticks (nanoseconds or microseconds?)" if step >= 1000 else
+                 "likely milliseconds or a sample count")
+        raise FileFormatError(
+            f"{path}: {what} {name!r} has no unit and {kind} stepping by {step:g}: "
+            f"{guess}, not seconds (read as seconds, dt would be {step:g} s and every result "
+            f"off by that factor); give the unit: {fix}"
+        )
+    if step >= 0.1 and values.size >= 200:
+        warn(f"{path}: {what} {name!r} has no unit and steps by {step:g} s, a slow rate for a "
+             f"servo test ({1 / step:g} Hz); if it is in another unit, say so: {fix}",
+             ServoidWarning)
+    return values
 
 
 def build_experiment(

@@ -15,6 +15,12 @@ and refused naming that fix), columns nobody needs (``columns`` or
 costs memory only for the columns read), and a trailing delimiter on every
 line (an unnamed empty last column, tolerated).
 
+The file is checked before it is opened (a regular file within the
+budget: a FIFO, a device or a link loop is refused by name) and read no
+further than its size then. Text in another encoding than UTF-8 (UTF-16
+from a spreadsheet's "Unicode text", UTF-32) is named with the fix; a
+leading byte-order mark is dropped, one inside the file is named.
+
 A file cut short inside its last number still parses: ``0.12345`` becomes
 ``0.12``, ``1.5e-05`` becomes ``1.5e-0``. So a last data line without a line
 end is compared with the lines above it: fewer fields than the header, or a
@@ -30,16 +36,14 @@ second.
 
 from __future__ import annotations
 
-import codecs
 import csv
 import io
 import os
 import re
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from .._atomic import atomic_path
 from .._checks import as_bool, as_int, as_path, as_str, type_error
@@ -49,20 +53,26 @@ from .._errors import (
     FileFormatError,
     OptionError,
     ServoidError,
-    ServoidWarning,
 )
+from .._files import check_input_file, describe_encoding
 from .._spreadsheet import is_formula
-from .._warn import warn
 from ._columns import (
     DEFAULT_MAX_BYTES,
     TIME_TOLERANCE,
+    TIME_UNITS,
     RolesArg,
     build_experiment,
     check_file_size,
     check_max_bytes,
     check_reader_options,
     existing_file,
+    time_in_seconds,
 )
+from ._csv_rows import LINE_LIMIT as _LINE_LIMIT
+from ._csv_rows import Rows as _Rows
+from ._csv_rows import not_utf8 as _not_utf8
+from ._csv_rows import open_text as _open_text
+from ._csv_rows import parse_rows as _parse_rows
 from ._experiment import Experiment, check_experiment
 
 __all__ = ["header_names", "read_csv", "write_csv"]
@@ -70,16 +80,10 @@ __all__ = ["header_names", "read_csv", "write_csv"]
 ColumnsArg = Sequence[str | int] | None
 
 _HEADER_CELL = re.compile(r"^\s*(?P<name>.*?)\s*(?:\[(?P<unit>[^\]]*)\])?\s*$")
-# Sign, integer digits, decimals, exponent digits of a number as written.
-_NUMBER_SHAPE = re.compile(
-    r"^[+-]?(?P<int>\d*)(?:\.(?P<dec>\d*))?(?:[eE][+-]?(?P<exp>\d*))?$"
-)
-#: Lines above the last one that its format is compared with (at least, at most):
-#: fewer than 5 say too little about a format to call a value short.
-_FORMAT_MIN, _FORMAT_WINDOW = 5, 1000
 _DECIMAL_COMMA = re.compile(r"[-+]?\d+,\d+")
-_TIME_UNITS = {"": 1.0, "s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
-_LINE_END = re.compile(r"\r\n|\r|\n")
+#: Characters that cannot separate fields: they are part of numbers, quotes or line ends.
+_BAD_DELIMITERS = set("0123456789.+-eE\"#\r\n\0")
+_BOM = "\ufeff"
 
 
 def read_csv(
@@ -119,11 +123,13 @@ def read_csv(
     decimal : {".", ","}
         Decimal mark; ``","`` (European spreadsheets) needs another
         delimiter.
-    time_unit : {"s", "ms", "us"}, optional
+    time_unit : {"s", "ms", "us", "ns"}, optional
         Unit of the time column when its header gives none (a header
-        ``time [ms]`` says it itself). Time stamps that step by 0.1 s or
-        more over hundreds of samples draw a warning that they may be in
-        another unit.
+        ``time [ms]`` says it itself). Without a unit, time stamps of whole
+        numbers stepping by 1 or more (milliseconds written 0, 1, 2, …) are
+        refused: read as seconds, every result would be 1000 times off;
+        ``time_unit="s"`` takes them as seconds. Stamps stepping by 0.1 s
+        or more over hundreds of samples draw a warning.
     columns : sequence of str or int, optional
         The columns to read, by header name or 0-based index; the time
         column is read too when it is in the file. Default: all. Only
@@ -136,9 +142,10 @@ def read_csv(
         header: a logger's preamble. A preamble left unskipped is refused
         with the number to pass.
     max_bytes : int
-        Budget [bytes]: a larger file is refused before it is read;
+        Budget [bytes]: a larger file is refused before it is opened;
         default 2 GiB. The text is streamed, not held: memory goes to
-        the columns read.
+        the columns read. A file that grows while it is read is read as
+        it was when checked.
     jitter : float
         Largest deviation of a time step from the mean step, as a fraction
         of it (default 1e-3); raise it for a logger with time-stamp jitter.
@@ -151,8 +158,11 @@ def read_csv(
     Raises
     ------
     FileFormatError
-        Empty file, ragged rows, non-numeric cells (with line and column),
-        or a preamble before the header.
+        Empty file, ragged rows, non-numeric cells (with line and column,
+        naming digit grouping or a byte-order mark), a preamble before the
+        header, text in UTF-16 or another encoding (named), time stamps of
+        whole numbers without a unit, or a path that is not a regular file
+        (a folder, FIFO, device or link loop, named).
     DataError
         The file is larger than `max_bytes`.
     ChannelError
@@ -161,16 +171,14 @@ def read_csv(
     """
     path = existing_file(path)
     dt = check_reader_options(dt=dt, roles=roles, names={"time": time})
-    as_str("delimiter", delimiter)
-    if len(delimiter) != 1:
-        raise DataError(f"delimiter must be one character (',' or ';' or '\\t'), got {delimiter!r}")
+    _check_delimiter(delimiter)
     if decimal not in (".", ","):
         raise DataError(f"decimal must be '.' or ',', got {decimal!r}")
     if decimal == "," and delimiter == ",":
         raise DataError("a decimal comma needs another field separator: pass delimiter=';' "
                         "(or a tab) with decimal=','")
-    if time_unit is not None and time_unit not in _TIME_UNITS:
-        raise DataError(f"time_unit must be one of {', '.join(repr(u) for u in _TIME_UNITS if u)}"
+    if time_unit is not None and time_unit not in TIME_UNITS:
+        raise DataError(f"time_unit must be one of {', '.join(repr(u) for u in TIME_UNITS)}"
                         f", got {time_unit!r}")
     wanted = _column_list("columns", columns)
     skipped = _column_list("skip_columns", skip_columns)
@@ -178,8 +186,9 @@ def read_csv(
         raise OptionError("give columns= (what to read) or skip_columns= (what not to read), "
                           "not both")
     skip_rows = as_int("skip_rows", skip_rows, minimum=0)
-    check_file_size(path, check_max_bytes(max_bytes))
-    lines, header_at = _read_head(path, skip_rows)
+    max_bytes = check_max_bytes(max_bytes)
+    check_file_size(path, max_bytes)
+    lines, header_at = _read_head(path, skip_rows, max_bytes)
     _check_preamble(path, lines, header_at, delimiter)
     _check_separator(path, lines, header_at, delimiter, decimal)
     cells, units_of = _parse_header(path, lines[header_at], header_at + 1, delimiter)
@@ -194,20 +203,22 @@ def read_csv(
     names = [cells[k] for k in keep]
     _check_names(path, cells, keep, header_at + 1)
     units = {cells[k]: units_of[k] for k in keep}
-    rows = _Rows(path, header_at + 1, delimiter, decimal, count=keep != list(range(width)))
+    rows = _Rows(path, header_at + 1, delimiter, decimal, count=keep != list(range(width)),
+                 max_bytes=max_bytes)
     data = _parse_rows(path, rows, keep, width, cells)
     columns_read = {n: data[:, j] for j, n in enumerate(names)}
     stamps = None
     if time is not None and time in columns_read:
-        unit = units.get(time, "") or (time_unit or "")
-        scale = _TIME_UNITS.get(unit)
-        if scale is None:
+        unit = units.get(time, "") or time_unit
+        if unit is not None and unit not in TIME_UNITS:
             raise FileFormatError(
                 f"{path}: time column {time!r} has unit {units[time]!r}; expected one of "
-                f"{', '.join(repr(u) for u in _TIME_UNITS)}"
+                f"{', '.join(repr(u) for u in TIME_UNITS)}"
             )
-        stamps = columns_read.pop(time) * scale
-        _check_time_unit(path, stamps, time, bool(units.get(time)) or time_unit is not None)
+        stamps = time_in_seconds(
+            path, columns_read.pop(time), time, unit,
+            f"time_unit='ms' (or 'us', or 's' if they are seconds; [data] time_unit = \"ms\" in "
+            f"an experiment file) or a header '{time} [ms]'")
     elif dt is None:
         hint = f"it has no column {time!r}; " if time is not None else ""
         raise DataError(
@@ -237,10 +248,24 @@ def header_names(path: Path, *, delimiter: str = ",", skip_rows: int = 0) -> lis
         (:func:`read_csv` then says why).
     """
     try:
-        lines, header_at = _read_head(path, skip_rows)
+        _check_delimiter(delimiter)
+        check_input_file(path, "file")
+        lines, header_at = _read_head(path, skip_rows, None)
         return _parse_header(path, lines[header_at], header_at + 1, delimiter)[0]
     except (ServoidError, OSError):
         return None
+
+
+def _check_delimiter(delimiter: object) -> None:
+    """Refuse a field separator that is not one character that can separate numbers."""
+    as_str("delimiter", delimiter)
+    assert isinstance(delimiter, str)
+    if len(delimiter) != 1:
+        raise DataError(f"delimiter must be one character (',' or ';' or '\\t'), got "
+                        f"{delimiter!r}")
+    if delimiter in _BAD_DELIMITERS:
+        raise DataError(f"delimiter {delimiter!r} cannot separate fields: it is part of numbers, "
+                        "quotes, comments or line ends; use ',' or ';' or '\\t' (a tab)")
 
 
 def _column_list(key: str, value: ColumnsArg) -> list[str | int] | None:
@@ -417,19 +442,6 @@ def _check_separator(path: Path, lines: list[str], header_at: int, delimiter: st
                               "decimal=','")
 
 
-def _check_time_unit(path: Path, stamps: NDArray[np.float64], name: str, stated: bool) -> None:
-    """Warn when time stamps without a stated unit step like milliseconds read as seconds."""
-    if stated or stamps.size < 200:
-        return
-    step = float(np.median(np.diff(stamps[:1000])))
-    if step >= 0.1:
-        warn(
-            f"{path}: time column {name!r} has no unit and steps by {step:g} s, a slow rate for "
-            f"a servo test ({1 / step:g} Hz); if it is in milliseconds, say so: time_unit='ms' "
-            f"([data] time_unit = \"ms\" in an experiment file) or a header '{name} [ms]'",
-            ServoidWarning)
-
-
 def write_csv(
     exp: Experiment,
     path: str | os.PathLike[str],
@@ -543,7 +555,22 @@ def _parse_header(
     path: Path, line: str, lineno: int, delimiter: str
 ) -> tuple[list[str], list[str]]:
     """Names and units of the header cells; an unnamed cell is ``""``."""
-    cells = next(csv.reader([line], delimiter=delimiter))
+    if _BOM in line:
+        raise FileFormatError(
+            f"{path}, line {lineno}: the header row holds a byte-order mark (U+FEFF) at "
+            f"character {line.index(_BOM) + 1}, the mark a text editor writes at the start of "
+            "a file: two files were probably joined here; delete the mark (and any lines of "
+            "the other file)"
+        )
+    try:
+        cells = next(csv.reader([line], delimiter=delimiter))
+    except csv.Error as exc:
+        longest = max(len(c) for c in line.split(delimiter))
+        raise FileFormatError(
+            f"{path}, line {lineno}: the header row cannot be split into cells ({exc}; its "
+            f"longest cell has {longest:,} characters): a header names the channels, such as "
+            "'time [s],u [V],y [m]'; if the header is further down, pass skip_rows="
+        ) from None
     names: list[str] = []
     units: list[str] = []
     for cell in cells:
@@ -564,19 +591,29 @@ def _parse_header(
     return names, units
 
 
-def _read_head(path: Path, skip_rows: int) -> tuple[list[str], int]:
+def _read_head(path: Path, skip_rows: int, max_bytes: int | None) -> tuple[list[str], int]:
     """The lines up to the header and a window after it; the header's index.
 
     The window reaches the first data line and at least
     :data:`_PREAMBLE_WINDOW` lines past the header (or the end of the file):
     enough to check the separator, the header and a preamble without
-    reading the data, which are streamed later.
+    reading the data, which are streamed later. No line longer than
+    :data:`_LINE_LIMIT` is read whole.
     """
     lines: list[str] = []
     header_at = first_row = None
     try:
-        with path.open(encoding="utf-8-sig", newline=None) as f:
-            for line in f:
+        with _open_text(path, max_bytes) as f:
+            found = describe_encoding(f.buffer.peek(4096)[:4096])
+            if found:
+                raise _not_utf8(path, found)
+            while line := f.readline(_LINE_LIMIT):
+                if len(line) >= _LINE_LIMIT and not line.endswith(("\n", "\r")):
+                    raise FileFormatError(
+                        f"{path}, line {len(lines) + 1}: more than {_LINE_LIMIT:,} characters "
+                        "without a line end: not a CSV file of text lines (a binary file, or "
+                        "one whose line ends were lost)"
+                    )
                 lines.append(line.rstrip("\r\n"))
                 k = len(lines) - 1
                 text = lines[-1]
@@ -598,208 +635,3 @@ def _read_head(path: Path, skip_rows: int) -> tuple[list[str], int]:
     if header_at is None:
         raise FileFormatError(f"{path}: empty CSV file, expected a header row of channel names")
     return lines, header_at
-
-
-def _not_utf8(path: Path) -> FileFormatError:
-    """The error for a file that is not UTF-8 text, with the first bad byte."""
-    decoder = codecs.getincrementaldecoder("utf-8")()
-    done = 0
-    with path.open("rb") as f:
-        while chunk := f.read(1 << 20):
-            try:
-                decoder.decode(chunk)
-            except UnicodeDecodeError as exc:
-                return FileFormatError(f"{path}: not a text CSV file (byte {done + exc.start} "
-                                       "is not UTF-8)")
-            done += len(chunk)
-    return FileFormatError(f"{path}: not a text CSV file (it ends inside a UTF-8 character)")
-
-
-class _Rows:
-    """The data lines of a CSV file, streamed from disk (never all in memory).
-
-    Blank and comment lines are dropped, a decimal comma becomes a point,
-    and with ``count`` the fewest and most delimiters on a line are kept:
-    when only some columns are converted, loadtxt does not see the others.
-    """
-
-    def __init__(self, path: Path, start: int, delimiter: str, decimal: str,
-                 count: bool) -> None:
-        self.path, self.start, self.delimiter = path, start, delimiter
-        self.comma, self.count = decimal == ",", count
-        self.n = self.lines = 0
-        self.fewest = self.most = -1
-
-    def __iter__(self) -> Iterator[str]:
-        self.n = self.lines = 0
-        fewest = most = -1
-        d = self.delimiter
-        for _, line in self.numbered():
-            if self.count:
-                c = line.count(d)
-                if c < fewest or fewest < 0:
-                    fewest = c
-                most = max(most, c)
-                self.fewest, self.most = fewest, most
-            self.n += 1
-            yield line
-
-    def numbered(self) -> Iterator[tuple[int, str]]:
-        """(line number, text) of each data line."""
-        with self.path.open(encoding="utf-8-sig", newline=None) as f:
-            for _ in range(self.start):
-                f.readline()
-            lineno = self.start
-            for line in f:
-                lineno += 1
-                self.lines = lineno
-                stripped = line.strip()
-                if not stripped or stripped[0] == "#":
-                    continue
-                yield lineno, line.replace(",", ".") if self.comma else line
-
-    def tail(self, n: int) -> list[tuple[int, str]]:
-        """The last ``n`` data lines (numbered), read from the end of the file."""
-        size = self.path.stat().st_size
-        step = 1 << 16
-        while True:
-            begin = max(0, size - step)
-            with self.path.open("rb") as f:
-                f.seek(begin)
-                chunk = f.read().decode("utf-8", errors="replace").lstrip("\ufeff")
-            lines = _LINE_END.split(chunk)  # as the text-mode reader splits, not splitlines
-            if begin:
-                lines = lines[1:]  # the first is partial
-            first = self.lines - len(lines) + 1  # number of the first line in the chunk
-            out = [(first + k, line.replace(",", ".") if self.comma else line)
-                   for k, line in enumerate(lines)
-                   if first + k > self.start and line.strip()
-                   and not line.lstrip().startswith("#")]
-            if len(out) > n or begin == 0:
-                return out[-n - 1:]
-            step *= 4
-
-
-def _parse_rows(
-    path: Path, rows: _Rows, keep: list[int], width: int, cells: list[str],
-) -> NDArray[np.float64]:
-    """The kept columns of the data rows; every row must have ``width`` fields."""
-    every = keep == list(range(width))
-    try:
-        data = np.loadtxt(
-            rows,
-            delimiter=rows.delimiter,
-            ndmin=2,
-            dtype=float,
-            comments=None,
-            quotechar='"',
-            usecols=None if every else keep,
-        )
-    except ValueError:  # UnicodeDecodeError too: the walk below says where
-        data = None
-    if data is not None and data.shape == (rows.n, len(keep)) and (
-            every or rows.fewest == rows.most == width - 1):
-        if _unterminated(path):
-            _check_last_line(path, rows, cells)
-        return data
-    return _diagnose(path, rows, keep, width, cells)
-
-
-def _diagnose(path: Path, rows: _Rows, keep: list[int], width: int,
-              cells: list[str]) -> NDArray[np.float64]:
-    """The fast parser failed: walk the rows to say where and what."""
-    cut = _unterminated(path)
-    lines = rows.numbered()
-    try:
-        ahead = next(lines, None)
-        while ahead is not None:
-            (lineno, line), ahead = ahead, next(lines, None)
-            # the last data line, and the file's last line: rows.lines is final once read
-            last = cut and ahead is None and lineno == rows.lines
-            _check_row(path, lineno, line, rows.delimiter, keep, width, cells, last)
-    except UnicodeDecodeError:
-        raise _not_utf8(path) from None
-    raise FileFormatError(f"{path}: unreadable numeric data")  # pragma: no cover
-
-
-def _check_row(path: Path, lineno: int, line: str, delimiter: str, keep: list[int], width: int,
-               cells: list[str], last: bool) -> None:
-    """Raise naming the line and column if one data line is not ``width`` numbers."""
-    fields = line.rstrip("\r\n").split(delimiter)
-    if len(fields) != width:
-        raise FileFormatError(
-            f"{path}, line {lineno}: {len(fields)} field(s), the header has {width}"
-            + (" (the last line, with no line end: the file looks truncated; copy it "
-               "again or delete the partial line)" if last and len(fields) < width
-               else " (truncated line?)" if len(fields) < width else "")
-        )
-    for k in keep:
-        cell = fields[k]
-        try:
-            float(cell.strip().strip('"'))
-        except ValueError:
-            hint = "" if len(keep) == 1 or not cells[k] else (
-                f" (column {cells[k]!r}; if it holds text, leave it out with "
-                f"skip_columns=[{k}] or choose the columns to read with columns=[...])")
-            raise FileFormatError(
-                f"{path}, line {lineno}, column {k + 1}: {cell.strip()!r} is not a number"
-                + hint
-            ) from None
-
-
-def _unterminated(path: Path) -> bool:
-    """Whether the file's last line has no line end (it may be cut short)."""
-    with path.open("rb") as f:
-        f.seek(-1, os.SEEK_END)
-        return f.read(1) not in (b"\n", b"\r")
-
-
-def _check_last_line(path: Path, rows: _Rows, cells: list[str]) -> None:
-    """Raise if the unterminated last line's last value looks cut short."""
-    tail = rows.tail(_FORMAT_WINDOW)
-    if not tail or tail[-1][0] != rows.lines:
-        return  # the file ends in a comment or blank line: no number was cut
-    if len(tail) <= _FORMAT_MIN:
-        return  # too few lines above to know their format
-    lineno, line = tail[-1]
-    last = _cell(line, rows.delimiter)
-    above = [_cell(text, rows.delimiter) for _, text in tail[:-1]]
-    short = _shorter_than_format(last, above)
-    if short is None:
-        return
-    name = cells[-1] or "the last column"
-    raise FileFormatError(
-        f"{path}, line {lineno}: the last line has no line end and its last value "
-        f"{last!r} ({name!r}) is written shorter than the values above it ({short}): "
-        "the file looks truncated inside that number. If the line is complete, end the file "
-        "with a newline; otherwise delete the line or copy the file again"
-    )
-
-
-def _cell(line: str, delimiter: str) -> str:
-    return line.rsplit(delimiter, 1)[-1].strip().strip('"').strip()
-
-
-def _shorter_than_format(last: str, above: list[str]) -> str | None:
-    """Why ``last`` is shorter than the format of ``above``, or None."""
-    shape = _NUMBER_SHAPE.match(last)
-    shapes = [_NUMBER_SHAPE.match(a) for a in above]
-    if shape is None or not all(shapes):
-        return None  # nan, inf or another spelling: no format to compare
-    decimals = {len(m.group("dec") or "") for m in shapes if m}
-    exponents = {m.group("exp") is not None and len(m.group("exp")) for m in shapes if m}
-    (want_dec,), (want_exp,) = (
-        (decimals, exponents) if len(decimals) == len(exponents) == 1 else ({0}, {False})
-    )
-    if want_dec or want_exp:  # a fixed format, e.g. %.6f or %.4e
-        dec = len(shape.group("dec") or "")
-        exp = shape.group("exp")
-        if dec < want_dec:
-            return f"{dec} decimals, every value above has {want_dec}"
-        if want_exp and (exp is None or len(exp) < want_exp):
-            return f"every value above has {want_exp} exponent digits"
-        return None
-    shortest = min(above, key=len)
-    if len(last) < len(shortest):
-        return f"{len(last)} characters, the shortest above is {shortest!r}"
-    return None

@@ -18,7 +18,12 @@ from .._errors import ChannelError, DataError, OptionTypeError, check_option
 if TYPE_CHECKING:
     from scipy.signal import dlti  # noqa: F401
 
-__all__ = ["ROLES", "Channel", "Experiment", "ExperimentSet", "Role", "check_experiment"]
+__all__ = ["DT_RANGE", "ROLES", "Channel", "Experiment", "ExperimentSet", "Role", "check_experiment",
+           "timing_problem"]
+
+#: Sample periods servoid computes with [s]: squares and reciprocals (frequencies, variances
+#: per second) stay finite in double precision. A dt outside is a damaged or mis-scaled value.
+DT_RANGE = (1e-150, 1e150)
 
 Role = Literal["r", "u", "y", "side"]
 ROLES: tuple[Role, ...] = ("r", "u", "y", "side")
@@ -144,9 +149,9 @@ class Experiment:
             raise DataError(f"channel names must be unique, repeated: {', '.join(dupes)}")
         if channels[0].values.size < 2:
             raise DataError(f"an Experiment needs at least 2 samples, got {channels[0].values.size}")
-        if not np.isfinite(self.dt * channels[0].values.size + abs(self.t0)):
-            raise DataError(f"dt = {self.dt:g} s and t0 = {self.t0:g} s: the record's time stamps "
-                            "overflow double precision; give dt and t0 in seconds")
+        problem = timing_problem(self.dt, self.t0, channels[0].values.size)
+        if problem:
+            raise DataError(f"{problem}; give dt and t0 in seconds")
         object.__setattr__(self, "channels", channels)
         object.__setattr__(self, "notes", MappingProxyType(dict(self.notes)))
 
@@ -582,6 +587,37 @@ def _role_names(role: str, k: int, given: str | Sequence[str] | None) -> list[st
 
 #: Time stamps checked at a time (:func:`_check_time`).
 _CHUNK = 1 << 16
+
+
+def timing_problem(dt: float, t0: float, n: int) -> str | None:
+    """What makes ``dt``, ``t0`` and ``n`` samples unusable as a time base, or None.
+
+    Parameters
+    ----------
+    dt : float
+        Sample period [s], finite and > 0.
+    t0 : float
+        Time of the first sample [s], finite.
+    n : int
+        Number of samples.
+
+    Returns
+    -------
+    str or None
+        The problem in words (``"dt = 5e-324 s is outside ..."``), or None.
+    """
+    low, high = DT_RANGE
+    if not low <= dt <= high:
+        return (f"dt = {dt:g} s is outside the sample periods servoid computes with ({low:g} … "
+                f"{high:g} s: beyond them frequencies or variances overflow)")
+    last = abs(t0) + dt * n
+    if not np.isfinite(last):
+        return f"dt = {dt:g} s and t0 = {t0:g} s: the record's time stamps overflow double precision"
+    if float(np.spacing(last)) > dt:
+        return (f"t0 = {t0:g} s is too large for dt = {dt:g} s: near {last:.3g} s a double "
+                f"resolves only {float(np.spacing(last)):.3g} s, more than a sample period, so "
+                "the sample times cannot be told apart")
+    return None
 
 
 def _check_time(time: NDArray[np.float64], n: int, tol: float) -> tuple[float, float]:

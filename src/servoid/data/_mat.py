@@ -15,12 +15,19 @@ A file is untrusted input. v4 and v5 files are walked by
 the variables that passed it: the ones asked for, and scalars and one-row
 strings for the notes. scipy's compiled v5 reader trusts type codes and
 sizes, so a damaged variable it parsed could end the process with SIGSEGV.
-v7.3 datasets are read only after their declared shape × item size is
-checked against the memory budget.
+A compressed variable is inflated only as far as its header and declared
+data need, and never one nobody asked for. v7.3 (HDF5) files are read by
+:mod:`~servoid.data._mat73` in a child process that is stopped when it
+makes no progress; links out of the file are refused unless allowed.
+
+A time vector of integers (int64 nanoseconds from a logger) or of whole
+numbers stepping by 1 or more is refused unless ``time_unit`` says what
+it counts: read as seconds it would make every result wrong by that factor.
 """
 
 from __future__ import annotations
 
+import io
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -29,8 +36,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._checks import as_str_list
+from .._checks import as_bool, as_str_list
 from .._errors import ChannelError, DataError, FileFormatError
+from .._files import BoundedFile, open_input
 from ._columns import (
     DEFAULT_MAX_BYTES,
     TIME_TOLERANCE,
@@ -38,11 +46,14 @@ from ._columns import (
     build_experiment,
     check_max_bytes,
     check_reader_options,
+    check_time_unit,
     existing_file,
     library_errors,
+    time_in_seconds,
 )
 from ._experiment import Experiment
-from ._mat_check import _KIND_WORDS, MatEntry, check_mat, format_bytes
+from ._mat73 import load_v73
+from ._mat_check import _KIND_WORDS, MatEntry, check_mat
 
 __all__ = ["DEFAULT_MAX_BYTES", "read_mat"]
 
@@ -61,6 +72,8 @@ def read_mat(
     roles: RolesArg = None,
     max_bytes: int = DEFAULT_MAX_BYTES,
     jitter: float = TIME_TOLERANCE,
+    time_unit: str | None = None,
+    allow_external: bool = False,
 ) -> Experiment:
     """Read the vectors of a MAT file into an Experiment.
 
@@ -88,6 +101,12 @@ def read_mat(
     jitter : float
         Largest deviation of a time step from the mean step, as a fraction
         of it (default 1e-3); raise it for a logger with time-stamp jitter.
+    time_unit : {"s", "ms", "us", "ns"}, optional
+        Unit of the ``time`` vector. Without it, a time vector of integers
+        (clock ticks) or of whole numbers stepping by 1 or more is refused.
+    allow_external : bool
+        Follow a v7.3 file's external links and external or virtual
+        storage, which read other files; default False: refused.
 
     Returns
     -------
@@ -98,8 +117,9 @@ def read_mat(
     ------
     FileFormatError
         Not a MAT file, truncated, damaged (a declared size or type code
-        that does not fit), over the memory budget, or vectors of different
-        lengths.
+        that does not fit), over the memory budget, vectors of different
+        lengths, a time vector of integer ticks without ``time_unit``, a
+        link out of the file, or a v7.3 read that stopped making progress.
     ChannelError
         A variable or struct field named in ``variables``, ``time`` or
         ``roles`` is missing (the message lists what there is).
@@ -111,18 +131,23 @@ def read_mat(
     if variables is not None:
         variables = as_str_list("variables", variables)
     max_bytes = check_max_bytes(max_bytes)
+    time_unit = check_time_unit(time_unit)
+    allow_external = as_bool("allow_external", allow_external)
     wanted = None if variables is None else {*variables, *([time] if time is not None else [])}
-    if _is_hdf5(path):
-        raw, listed = _load_v73(path, wanted, max_bytes)
-    else:
-        raw, listed = _load_v4_v5(path, wanted, max_bytes)
+    with open_input(path, "file") as f:
+        if _is_hdf5(f):
+            f.close()  # read in a child process, by path: checked above to be a regular file
+            raw, listed = load_v73(path, wanted, max_bytes, allow_external)
+        else:
+            raw, listed = _load_v4_v5(path, f, wanted, max_bytes)
     vectors: dict[str, NDArray[np.float64]] = {}
     notes: dict[str, Any] = {}
     skipped: dict[str, tuple[int, ...]] = {}
     for name, value in raw.items():
         kind = _classify(value)
         if kind == "vector":
-            vectors[name] = np.asarray(value, dtype=float).ravel()
+            vectors[name] = np.asarray(value).ravel() if name == time else \
+                np.asarray(value, dtype=float).ravel()
         elif kind == "scalar":
             notes[name] = np.asarray(value).ravel()[0].item()
         elif kind == "string":
@@ -157,7 +182,13 @@ def read_mat(
             f"{', '.join(_vector_names(vectors, listed)) or 'none'}{hint}"
         )
     used = {n: vectors[n] for n in chosen}
-    stamps = vectors[time] if time is not None else None
+    stamps = None
+    if time is not None:
+        stamps = time_in_seconds(
+            path, vectors[time], time, time_unit,
+            "pass time_unit='ns' (or 'us', 'ms', or 's' if they are seconds); in an "
+            "experiment file, remove [data] time and give [data] dt [s] instead",
+            what="time vector")
     lengths = {n: v.size for n, v in used.items()}
     if stamps is not None:
         lengths[str(time)] = stamps.size
@@ -184,32 +215,86 @@ def read_mat(
 
 
 def _load_v4_v5(
-    path: Path, wanted: set[str] | None, max_bytes: int
+    path: Path, f: BoundedFile, wanted: set[str] | None, max_bytes: int
 ) -> tuple[dict[str, Any], dict[str, MatEntry]]:
     """The checked variables of a v4/v5 file, and the entries left unread."""
     with library_errors(path, "a MAT file"):
         from scipy.io import loadmat
         from scipy.io.matlab import matfile_version
 
-        with path.open("rb") as f:
-            head = f.read(128)
+        f.seek(0)
+        head = f.read(128)
         if len(head) < 128 and 0 not in head[:4]:  # scipy indexes byte 126 unchecked
             raise FileFormatError(
                 f"{path}: truncated MAT file: {len(head)} bytes, a v5 header alone is 128"
             )
-        version, _ = matfile_version(path, appendmat=False)
+        f.seek(0)
+        version, _ = matfile_version(f, appendmat=False)
         if version not in (0, 1):
             raise FileFormatError(
                 f"{path}: MAT version field says {version}.x but the file is not HDF5 (v7.3): "
                 "a damaged header"
             )
-        entries = check_mat(path, version, wanted, max_bytes)
-        load = [e.name for e in entries.values() if e.loadable]
-        loaded = loadmat(path, appendmat=False, variable_names=load, squeeze_me=False,
+        entries = check_mat(path, version, wanted, max_bytes, f)
+        load = [e for e in entries.values() if e.loadable and e.span is not None]
+        # scipy is shown the checked elements alone: it parses nothing else (it inflated a
+        # compressed variable it was not asked for, to check its stream was consumed)
+        spans = [(0, 128)] * (version == 1) + [e.span for e in load if e.span is not None]
+        loaded = loadmat(_Spliced(f, spans), appendmat=False,
+                         variable_names=[e.name for e in load], squeeze_me=False,
                          chars_as_strings=True) if load else {}
     raw = {k: v for k, v in loaded.items() if not k.startswith("__")}
     raw.update({n: e.value for n, e in entries.items() if e.value is not None})
     return raw, {n: e for n, e in entries.items() if n not in raw}
+
+
+class _Spliced(io.RawIOBase):
+    """A read-only file made of byte ranges of another, in order.
+
+    Parameters
+    ----------
+    f : binary file
+        The file, seekable.
+    spans : list of (start, stop)
+        The ranges shown, in bytes of ``f``.
+    """
+
+    def __init__(self, f: BoundedFile, spans: list[tuple[int, int]]) -> None:
+        super().__init__()
+        self.f = f
+        self.spans = spans
+        self.starts = np.cumsum([0] + [b - a for a, b in spans]).tolist()
+        self.pos = 0
+
+    def readable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return True
+
+    def tell(self) -> int:
+        return self.pos
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        base = (0, self.pos, self.starts[-1])[whence]
+        self.pos = max(0, base + offset)
+        return self.pos
+
+    def readinto(self, b: Any) -> int:
+        view = memoryview(b).cast("B")
+        done = 0
+        while done < len(view) and self.pos < self.starts[-1]:
+            k = int(np.searchsorted(self.starts, self.pos, side="right")) - 1
+            a, stop = self.spans[k]
+            at = a + self.pos - self.starts[k]
+            n = min(len(view) - done, stop - at)
+            self.f.seek(at)
+            got = self.f.readinto(view[done:done + n])
+            if not got:
+                break
+            done += got
+            self.pos += got
+        return done
 
 
 def _vector_names(vectors: dict[str, Any], listed: dict[str, MatEntry]) -> list[str]:
@@ -219,9 +304,9 @@ def _vector_names(vectors: dict[str, Any], listed: dict[str, MatEntry]) -> list[
     return [*vectors, *more]
 
 
-def _is_hdf5(path: Path) -> bool:
-    with path.open("rb") as f:
-        head = f.read(max(_HDF5_OFFSETS) + 8)
+def _is_hdf5(f: BoundedFile) -> bool:
+    f.seek(0)
+    head = f.read(max(_HDF5_OFFSETS) + 8)
     if head.startswith(b"MATLAB 7.3"):
         return True
     return any(head[k : k + 8] == _HDF5_SIGNATURE for k in _HDF5_OFFSETS)
@@ -240,129 +325,3 @@ def _classify(value: Any) -> str:
     if arr.ndim >= 1 and arr.size > 1 and sum(d > 1 for d in arr.shape) == 1:
         return "vector"
     return "other"
-
-
-def _load_v73(
-    path: Path, wanted: set[str] | None, max_bytes: int
-) -> tuple[dict[str, Any], dict[str, MatEntry]]:
-    """The datasets of a v7.3 file within the budget, and those left unread."""
-    try:
-        import h5py
-    except ImportError as exc:
-        raise ImportError(
-            f"{path} is a MAT v7.3 (HDF5) file; reading it needs h5py: "
-            "pip install servoid[mat73]"
-        ) from exc
-    out: dict[str, Any] = {}
-    listed: dict[str, MatEntry] = {}
-    with library_errors(path, "a MAT v7.3 (HDF5) file"), h5py.File(path, "r") as f:
-        for name, obj in f.items():
-            if name.startswith("#"):
-                continue  # what references point to
-            if not isinstance(obj, h5py.Dataset):
-                if isinstance(obj, h5py.Group):  # a struct: its fields are named with dots
-                    listed[name] = MatEntry(name, "struct", (1, 1))
-                continue
-            shape = tuple(int(d) for d in reversed(obj.shape))  # MATLAB's order
-            kind: Any = _v73_kind(obj)
-            cls = _v73_class(obj)
-            entry = MatEntry(name, kind, shape)
-            note = entry.is_note and kind in ("numeric", "char")
-            if wanted is not None and name not in wanted and not note:
-                listed[name] = entry
-                continue
-            nbytes = int(np.prod(shape, dtype=object)) * obj.dtype.itemsize
-            if nbytes > max_bytes:
-                if wanted is None or name in wanted:
-                    raise FileFormatError(
-                        f"{path}: variable {name!r} declares shape {shape} of "
-                        f"{obj.dtype.itemsize}-byte values ({format_bytes(nbytes)}), over the "
-                        f"{format_bytes(max_bytes)} budget: a damaged file, or pass max_bytes= "
-                        "to read a variable this large"
-                    )
-                listed[name] = entry
-                continue
-            if obj.attrs.get("MATLAB_empty", 0):
-                continue
-            # MATLAB writes column-major arrays, so HDF5 holds them transposed.
-            data = np.asarray(obj[()]).T
-            if cls == "char":
-                out[name] = "".join(chr(int(c)) for c in data.ravel())
-            elif cls == "logical":
-                out[name] = data.astype(bool)
-            else:
-                out[name] = data
-        for name in sorted(n for n in wanted or () if "." in n):
-            _v73_field(path, f, name, max_bytes, out, listed)
-    return out, listed
-
-
-def _v73_field(path: Path, f: Any, name: str, max_bytes: int, out: dict[str, Any],
-               listed: dict[str, MatEntry]) -> None:
-    """Read the struct field ``name`` (dotted) of a v7.3 file into ``out``."""
-    import h5py
-
-    parts = name.split(".")
-    node = f
-    for depth, part in enumerate(parts):
-        here = ".".join(parts[:depth])
-        if depth and not isinstance(node, h5py.Group):
-            kind = _v73_kind(node)
-            raise ChannelError(
-                f"{path}: {here!r} is {_KIND_WORDS.get(kind, kind)}, not a struct: it has no "
-                "fields to name with a dot"
-            )
-        if depth and any(_is_reference(node[k]) and _v73_class(node[k]) != "cell"
-                         for k in node if not k.startswith("#")):
-            raise FileFormatError(
-                f"{path}: {here!r} is a struct array; servoid reads fields of a 1×1 struct "
-                "only: save each element as its own struct (or the signals as numeric fields "
-                "of one struct)"
-            )
-        if part not in node or part.startswith("#"):
-            if depth == 0:
-                return  # not in the file: the reader lists what there is
-            fields = [k for k in node if not k.startswith("#")]
-            raise ChannelError(
-                f"variable {name!r} is not in {path}: the struct {here!r} has the field(s) "
-                f"{', '.join(fields) or '(none)'}"
-            )
-        node = node[part]
-    if isinstance(node, h5py.Group):
-        listed[name] = MatEntry(name, "struct", (1, 1))
-        return
-    shape = tuple(int(d) for d in reversed(node.shape))
-    kind = _v73_kind(node)
-    if kind != "numeric":
-        listed[name] = MatEntry(name, kind, shape)
-        return
-    nbytes = int(np.prod(shape, dtype=object)) * node.dtype.itemsize
-    if nbytes > max_bytes:
-        raise FileFormatError(
-            f"{path}: variable {name!r} declares shape {shape} of {node.dtype.itemsize}-byte "
-            f"values ({format_bytes(nbytes)}), over the {format_bytes(max_bytes)} budget: a "
-            "damaged file, or pass max_bytes= to read a variable this large"
-        )
-    out[name] = np.zeros((0, 0)) if node.attrs.get("MATLAB_empty", 0) else \
-        np.asarray(node[()]).T
-
-
-def _v73_class(node: Any) -> str:
-    cls = node.attrs.get("MATLAB_class", b"")
-    return cls.decode(errors="replace") if isinstance(cls, bytes) else str(cls)
-
-
-def _is_reference(node: Any) -> bool:
-    import h5py
-
-    return isinstance(node, h5py.Dataset) and h5py.check_dtype(ref=node.dtype) is not None
-
-
-def _v73_kind(node: Any) -> str:
-    """What a v7.3 dataset holds, in the words of :data:`_KIND_WORDS`."""
-    cls = _v73_class(node)
-    if cls in ("cell", "struct", "char"):
-        return cls
-    if _is_reference(node):
-        return "cell"
-    return "numeric" if node.dtype.kind in "biuf" else "unknown"

@@ -52,13 +52,15 @@ import mmap
 import struct
 import zlib
 from collections.abc import Collection
-from dataclasses import dataclass, field
+from contextlib import nullcontext
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, BinaryIO, Literal
 
 import numpy as np
 
 from .._errors import ChannelError, FileFormatError
+from .._files import format_bytes, open_input
 
 __all__ = ["MAX_NAME_BYTES", "MatEntry", "check_mat", "format_bytes"]
 
@@ -69,7 +71,7 @@ MAX_NOTE_CHARS = 65536
 
 Kind = Literal[
     "numeric", "char", "complex", "sparse", "cell", "struct", "object", "function",
-    "opaque", "unknown",
+    "opaque", "external", "unknown",
 ]
 
 # v5 data-type codes (miINT8 ...) with their item sizes, as in scipy's table.
@@ -111,6 +113,9 @@ class MatEntry:
     value : numpy.ndarray or None
         A struct field's values, decoded by the walker (scipy does not
         read fields); None for a top-level variable.
+    span : tuple of int or None
+        Where a loadable variable's element lies in the file: ``(start,
+        stop)`` bytes; scipy is shown these elements alone.
     """
 
     name: str
@@ -118,6 +123,7 @@ class MatEntry:
     shape: tuple[int, ...]
     loadable: bool = False
     value: Any = field(default=None, compare=False, repr=False)
+    span: tuple[int, int] | None = field(default=None, compare=False, repr=False)
 
     @property
     def is_note(self) -> bool:
@@ -130,7 +136,8 @@ class MatEntry:
 
 
 def check_mat(
-    path: Path, version: int, wanted: Collection[str] | None, max_bytes: int
+    path: Path, version: int, wanted: Collection[str] | None, max_bytes: int,
+    file: BinaryIO | None = None,
 ) -> dict[str, MatEntry]:
     """Walk a v4 (``version`` 0) or v5 (1) MAT file and list its variables.
 
@@ -145,6 +152,9 @@ def check_mat(
         are always checked in full, as candidate notes.
     max_bytes : int
         Memory budget [bytes] of one variable.
+    file : binary file, optional
+        The file, already opened and checked (a :class:`~servoid._files.BoundedFile`):
+        only its first ``size`` bytes are mapped. Default: open ``path``.
 
     Returns
     -------
@@ -157,24 +167,18 @@ def check_mat(
     FileFormatError
         A header or a wanted variable that scipy must not parse.
     """
-    with path.open("rb") as f:
-        size = f.seek(0, 2)
+    with nullcontext(file) if file is not None else open_input(path, "file") as f:
+        size = getattr(f, "size", None)
+        if size is None:
+            size = f.seek(0, 2)
         if size == 0:
             raise FileFormatError(f"{path}: empty file, not a MAT file")
         # Mapped, not read: the walk touches only tags and headers of unwanted variables.
         # The map is not closed explicitly: views of it may live on in a traceback, and
         # it is unmapped when the last one goes.
-        data = memoryview(mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ))
+        data = memoryview(mmap.mmap(f.fileno(), size, access=mmap.ACCESS_READ))
     walker = _V4(path, data) if version == 0 else _V5(path, data, max_bytes)
     return walker.walk(wanted)
-
-
-def format_bytes(n: int) -> str:
-    """A byte count for a message: ``"74.5 GiB"``, ``"8 bytes"``."""
-    for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
-        if n >= scale:
-            return f"{n / scale:.3g} {unit}"
-    return f"{n} bytes"
 
 
 class _DamagedError(Exception):
@@ -202,6 +206,7 @@ class _V4:
         data, size, pos = self.data, len(self.data), 0
         entries: dict[str, MatEntry] = {}
         while pos < size:
+            start = pos
             where = f"{self.path}: variable {len(entries) + 1} (header at byte {pos})"
             if size - pos < _V4_HEADER:
                 raise FileFormatError(
@@ -232,9 +237,9 @@ class _V4:
             pos += nbytes
             kind: Kind = ("complex" if is_complex else "numeric", "char", "sparse")[cls]
             if name_text not in entries:
-                entries[name_text] = MatEntry(
-                    name_text, kind, (rows, cols), loadable=kind in ("numeric", "char")
-                )
+                loadable = kind in ("numeric", "char")
+                entries[name_text] = MatEntry(name_text, kind, (rows, cols), loadable=loadable,
+                                              span=(start, pos) if loadable else None)
         return entries
 
     @staticmethod
@@ -343,7 +348,8 @@ class _V5:
             else:
                 entry = self._matrix(body, where, wanted, entries)
             if entry.name not in entries:
-                entries[entry.name] = entry
+                entries[entry.name] = replace(entry, span=(start, pos)) if entry.loadable \
+                    else entry
         entries.update(self.fields)
         return entries
 
@@ -372,7 +378,7 @@ class _V5:
                 raise _DamagedError(
                     f"inflates to type code {mdtype}, not a matrix ({_MI_MATRIX})"
                 )
-            entry, _ = self._header(cursor)
+            entry, flags = self._header(cursor)
         except _DamagedError as exc:
             raise FileFormatError(
                 f"{self.path}: {where} (compressed): {exc}: a damaged MAT file"
@@ -387,6 +393,15 @@ class _V5:
                     f"declares {format_bytes(count)} when inflated, over the "
                     f"{format_bytes(self.max_bytes)} budget (pass max_bytes= if it is real)"
                 )
+            if not paths:
+                # Inflate no more than the header and the declared data take: a scalar whose
+                # element declares 2 GiB (zeros compress 1000:1) is refused, not inflated.
+                need = self._needed(cursor, entry, flags)
+                if count > need:
+                    raise _DamagedError(
+                        f"declares {format_bytes(count)} inflated, but its header and data "
+                        f"take {format_bytes(need)}: the element holds something else"
+                    )
             full = self._inflate(body, 8 + count, whole=True)
             cursor = _Cursor(memoryview(full), self.order, 8, len(full))
             _, flags = self._header(cursor)
@@ -402,6 +417,40 @@ class _V5:
                 "variable is damaged"
             ) from None
         return MatEntry(entry.name, entry.kind, entry.shape, loadable=True)
+
+    def _needed(self, cursor: _Cursor, entry: MatEntry, flags: int) -> int:
+        """Bytes after the matrix tag that a numeric or char variable's header and data take.
+
+        ``cursor`` stands after the name; the data element's tag follows. The
+        declared shape is checked against the budget first.
+        """
+        self._check_shape(entry, flags)
+        peek = _Cursor(cursor.buf, self.order, cursor.pos, cursor.end)
+        peek.need(8, "the data tag")
+        (first,) = struct.unpack_from(self.order + "I", peek.buf, peek.pos)
+        if first >> 16:  # a small data element: 8 bytes in all
+            return peek.pos + 8 - 8
+        _, count = peek.u32s("the data tag")
+        return peek.pos + count + (-count % 8) - 8
+
+    def _check_shape(self, entry: MatEntry, flags: int) -> None:
+        """Refuse dimensions that are not an array's, or a shape over the budget."""
+        if len(entry.shape) < 2:
+            # MATLAB writes at least two; scipy's chars_to_strings reads dims[ndim - 1]
+            # unchecked, so a char array of no dimensions reads before the array (SIGSEGV).
+            raise _DamagedError(
+                f"{len(entry.shape)} dimension(s), a MATLAB array has at least 2"
+            )
+        if any(d < 0 for d in entry.shape):
+            raise _DamagedError(f"negative dimensions {entry.shape}")
+        n = _prod(entry.shape)
+        mclass = flags & 0xFF
+        itemsize = 4 if mclass == _MX_CHAR else _MX_ITEMSIZE[mclass]
+        if n * itemsize > self.max_bytes:
+            raise _DamagedError(
+                f"shape {entry.shape} needs {format_bytes(n * itemsize)}, over the "
+                f"{format_bytes(self.max_bytes)} budget (pass max_bytes= if it is real)"
+            )
 
     @staticmethod
     def _inflate(body: memoryview, limit: int, *, whole: bool = False) -> bytes:
@@ -476,22 +525,9 @@ class _V5:
 
     def _data(self, cursor: _Cursor, entry: MatEntry, flags: int) -> None:
         """Check the data element scipy will read for a numeric or char variable."""
-        if len(entry.shape) < 2:
-            # MATLAB writes at least two; scipy's chars_to_strings reads dims[ndim - 1]
-            # unchecked, so a char array of no dimensions reads before the array (SIGSEGV).
-            raise _DamagedError(
-                f"{len(entry.shape)} dimension(s), a MATLAB array has at least 2"
-            )
-        if any(d < 0 for d in entry.shape):
-            raise _DamagedError(f"negative dimensions {entry.shape}")
+        self._check_shape(entry, flags)
         n = _prod(entry.shape)
         mclass = flags & 0xFF
-        itemsize = 4 if mclass == _MX_CHAR else _MX_ITEMSIZE[mclass]
-        if n * itemsize > self.max_bytes:
-            raise _DamagedError(
-                f"shape {entry.shape} needs {format_bytes(n * itemsize)}, over the "
-                f"{format_bytes(self.max_bytes)} budget (pass max_bytes= if it is real)"
-            )
         mdtype, payload = cursor.element("the data")
         if mclass == _MX_CHAR:
             if mdtype not in _MI_CHAR:
@@ -577,14 +613,16 @@ class _V5:
         """The checked numeric data element after a field's header, as float64."""
         mdtype, payload = cursor.element("the data")
         values = np.frombuffer(payload, dtype=self.order + _MI_DTYPE[mdtype])
-        return values.reshape(node.shape, order="F").astype(float)
+        # a copy (the payload is a view of the mapped file) in the stored type: a time
+        # field of integer ticks must still look like one to the reader
+        return values.reshape(node.shape, order="F").astype(values.dtype.newbyteorder("="))
 
 
 _KIND_WORDS = {
     "numeric": "a numeric array", "char": "text", "complex": "a complex array",
     "sparse": "a sparse matrix", "cell": "a cell array", "struct": "a struct",
     "object": "an object", "function": "a function handle", "opaque": "an opaque object",
-    "unknown": "of an unknown class",
+    "external": "an external link to another file", "unknown": "of an unknown class",
 }
 
 

@@ -90,6 +90,7 @@ from .._checks import as_bool, as_path, type_error
 from .._errors import ChannelError, FileFormatError, OptionError, ServoidError, check_option
 from ._columns import MissingChannel, existing_file
 from ._csv import header_names
+from ._distinct import check_distinct
 from ._experiment import Channel, Experiment, ExperimentSet
 from ._io import FORMATS, Format, format_of, read_experiment
 from ._preprocess import decimate, lowpass, split
@@ -679,6 +680,8 @@ class ExperimentSpec:
         validations = tuple(self.load(p, detrend=False) for p in self.validation_paths)
         for v in validations:
             _check_like(parts[0], v)
+        check_distinct(self._origin, self.data_paths, parts, self.validation_paths,
+                       validations)
         est_parts, validations = self._detrended(parts, validations)
         est = est_parts[0] if len(est_parts) == 1 else ExperimentSet(est_parts)
         return est, validations

@@ -20,7 +20,6 @@ it only repeats the metadata, and a stale one would describe other data.
 
 from __future__ import annotations
 
-import io
 import logging
 import math
 import os
@@ -34,6 +33,7 @@ import numpy as np
 from .._atomic import atomic_path
 from .._checks import as_bool, as_path, as_str, as_str_list
 from .._errors import ChannelError, DataError, FileFormatError, OptionError
+from .._files import open_input
 from ._columns import (
     DEFAULT_MAX_BYTES,
     TIME_TOLERANCE,
@@ -42,10 +42,12 @@ from ._columns import (
     build_experiment,
     check_max_bytes,
     check_reader_options,
+    check_time_unit,
     existing_file,
     library_errors,
+    time_in_seconds,
 )
-from ._experiment import Experiment, check_experiment
+from ._experiment import Experiment, check_experiment, timing_problem
 
 __all__ = ["read_tdms", "write_tdms"]
 
@@ -64,6 +66,7 @@ def read_tdms(
     channels: Sequence[str] | None = None,
     max_bytes: int = DEFAULT_MAX_BYTES,
     jitter: float = TIME_TOLERANCE,
+    time_unit: str | None = None,
 ) -> Experiment:
     """Read channels of one or more groups of a TDMS file.
 
@@ -94,6 +97,10 @@ def read_tdms(
     jitter : float
         Largest deviation of a time step from the mean step, as a fraction
         of it (default 1e-3); raise it for a logger with time-stamp jitter.
+    time_unit : {"s", "ms", "us", "ns"}, optional
+        Unit of the ``time`` channel. Without it, a time channel of integers
+        (clock ticks) or of whole numbers stepping by 1 or more is refused:
+        read as seconds, every result would be off by the tick's factor.
 
     Returns
     -------
@@ -119,8 +126,9 @@ def read_tdms(
     if channels is not None:
         channels = as_str_list("channels", channels, min_length=1)
     max_bytes = check_max_bytes(max_bytes)
+    time_unit = check_time_unit(time_unit)
     with _truncation_watch() as warnings, library_errors(path, "TDMS"), \
-            _BoundedReader(io.FileIO(path, "rb")) as file:
+            open_input(path, "file") as file:
         from nptdms import TdmsFile
 
         tdms = TdmsFile.open(file)  # metadata only; data below, channel by channel
@@ -161,7 +169,8 @@ def read_tdms(
                     f"{8 * len(ch):,} bytes as float64, over the budget of {max_bytes:,} bytes; if "
                     "the file is what you meant to read, pass max_bytes= a larger budget"
                 )
-            columns[name] = np.asarray(ch[:], dtype=float)
+            values = ch[:]
+            columns[name] = values if name == time else np.asarray(values, dtype=float)
             props[name] = dict(ch.properties)
         if warnings:
             raise _damaged(path, warnings[0])
@@ -187,10 +196,14 @@ def read_tdms(
                 f"{path}: no time channel {time!r} in group {tdms_group.name!r}; it has: "
                 f"{', '.join(columns)}"
             )
-        stamps = columns.pop(time)
+        stamps = time_in_seconds(
+            path, columns.pop(time), time, time_unit,
+            "pass time_unit='ms' (or 'us', 'ns', or 's' if they are seconds); in an experiment "
+            "file, remove [data] time to use the waveform timing, or set [data] dt [s]",
+            what="time channel")
         props.pop(time)
     else:
-        dt, t0 = _waveform_timing(path, props, dt)
+        dt, t0 = _waveform_timing(path, props, dt, next(iter(lengths.values()), 0))
     units = {n: str(p.get("unit_string", "")) for n, p in props.items()}
     default_roles = {n: str(p[_ROLE_PROPERTY]) for n, p in props.items() if _ROLE_PROPERTY in p}
     return build_experiment(
@@ -319,7 +332,7 @@ def _resolve(path: Path, name: str, groups: Mapping[str, Any], scope: list[Any])
 
 
 def _waveform_timing(
-    path: Path, props: Mapping[str, Mapping[str, Any]], dt: float | None
+    path: Path, props: Mapping[str, Mapping[str, Any]], dt: float | None, n: int
 ) -> tuple[float | None, float]:
     incs = {n: p.get("wf_increment") for n, p in props.items()}
     have = {n: _timing_number(path, n, "wf_increment", v) for n, v in incs.items()
@@ -345,7 +358,16 @@ def _waveform_timing(
         raise FileFormatError(
             f"{path}: channels have different wf_start_offset values: {sorted(offsets)}"
         )
-    return dt_file, offsets.pop()
+    t0 = offsets.pop()
+    problem = timing_problem(dt_file, t0, n)
+    if problem:
+        problem = problem.replace("dt = ", "wf_increment = ", 1).replace(
+            "t0 = ", "wf_start_offset = ", 1)
+        raise FileFormatError(
+            f"{path}: {problem}: a damaged waveform property; fix it in the file, or pass "
+            "time= a channel of time stamps"
+        )
+    return dt_file, t0
 
 
 def _timing_number(path: Path, channel: str, key: str, value: Any) -> float:
@@ -374,25 +396,6 @@ def _plain(value: Any) -> Any:
             return str(value)
         return value.item()
     return value
-
-
-class _BoundedReader(io.BufferedReader):
-    """A binary file whose ``read(n)`` never asks for more than is left.
-
-    ``BufferedReader.read(n)`` allocates ``n`` bytes before reading, so a
-    damaged 4-byte length in a TDMS file would cost up to 4 GiB.
-    """
-
-    def __init__(self, raw: io.FileIO) -> None:
-        super().__init__(raw)
-        self.size = os.fstat(raw.fileno()).st_size
-
-    def read(self, n: int | None = -1) -> bytes:
-        if n is not None and n > 0:
-            n = max(0, min(n, self.size - self.tell()))
-            if n == 0:
-                return b""
-        return super().read(n)
 
 
 @contextmanager

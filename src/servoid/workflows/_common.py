@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import os
 import re
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
@@ -193,9 +194,10 @@ def check_sizes(paths: Sequence[Path], max_bytes: int) -> None:
 
 def check_outputs(targets: Sequence[Path], inputs: Sequence[Path], overwrite: bool) -> None:
     """Refuse to write over an input, or over earlier results unless ``overwrite``."""
-    protected = {Path(p).resolve() for p in inputs}
+    # realpath, not Path.resolve: a loop of links is left for the readers to name
+    protected = {Path(os.path.realpath(p)) for p in inputs}
     for path in targets:
-        if path.resolve() in protected:
+        if Path(os.path.realpath(path)) in protected:
             raise OutputExistsError(f"refusing to write {path}: it is an input of this run")
         if path.exists() and not overwrite:
             raise OutputExistsError(

@@ -25,12 +25,12 @@ from typing import Any
 from .. import __version__
 from .._checks import as_bool, as_mapping, as_path, read_json, type_error
 from .._errors import (
-    FileFormatError,
     MissingFileError,
     OptionError,
     OutputExistsError,
     ServoidWarning,
 )
+from .._files import check_input_file
 from .._lock import FolderLock, hold_folder
 from .._progress import stage
 from .._warn import warn
@@ -140,16 +140,15 @@ def _identify(spec: ExperimentSpec | str | os.PathLike[str], out: Path | None, *
     for key, names, paths in (("[data] file", spec.files, spec.data_paths),
                               ("[validation] file", spec.validation.files, spec.validation_paths)):
         for name, path in zip(names, paths, strict=True):  # the records before the truth file
-            if not path.exists():
+            try:  # a regular file: a pipe, a device or a loop of links is named, not opened
+                check_input_file(path, f"{key} {name!r}")
+            except MissingFileError:
                 raise MissingFileError(f"{key} {name!r} is {path}: no such file (paths in an "
-                                       "experiment file are relative to its folder)")
+                                       "experiment file are relative to its folder)") from None
     if truth is None and "truth" in report and spec.source is not None:
         # read at the end of a run; a missing or malformed file should not cost the run first
         path = spec.source.parent / report["truth"]
-        if path.exists() and not path.is_file():
-            raise FileFormatError(f"[report] truth = {report['truth']!r} is {path}, a folder; "
-                                  "name the JSON file of known values")
-        read_json(path, "[report] truth file")
+        read_json(path, "[report] truth file")  # checked before it is read: not a folder or pipe
     _check_channels(spec, method, options)
     if max_bytes is not None:
         check_sizes([*spec.data_paths, *spec.validation_paths], max_bytes)
