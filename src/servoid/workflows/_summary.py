@@ -146,7 +146,8 @@ def summary_of(method: str, parameters: Sequence[Any], verdict: Verdict, *,
     method : str
         The registered method.
     parameters : sequence
-        Estimate table rows (``Estimate.table()``) or :class:`ParameterValue`.
+        Estimate table rows (``Estimate.table()``) or :class:`ParameterValue`
+        (a None where there is no interval is read as NaN).
     verdict : Verdict
         The result's verdict (decision, reason, test conditions).
     validation : ValidationReport, optional
@@ -160,15 +161,16 @@ def summary_of(method: str, parameters: Sequence[Any], verdict: Verdict, *,
     extra : sequence of ParameterValue
         Scalars reported beside the parameters.
     """
-    rows = tuple(p if isinstance(p, ParameterValue) else ParameterValue.from_row(p)
-                 for p in parameters)
+    # every number a float (None, where a method has no interval, as NaN)
+    rows = tuple(ParameterValue.from_row(p) for p in parameters)
     fit = white = independent = None
     if validation is not None:
         fit = _num(validation.fit_percent)
+        fit = fit if math.isfinite(fit) else None  # results.json writes a NaN fit as null
         residuals = validation.residuals
         white, independent = bool(residuals.is_white), bool(residuals.is_independent)
     return RecordSummary(
-        (*rows, *extra), fit_percent=fit, white=white, independent=independent,
+        (*rows, *(ParameterValue.from_row(p) for p in extra)), fit_percent=fit, white=white, independent=independent,
         structure_rejected=structure_rejected, flags=tuple(flags), notes=len(notes),
         diverged=tuple(diverged), decision=verdict.decision, reason=verdict.reason,
         conditions=tuple(c.to_dict() for c in verdict.conditions), method=method)
