@@ -68,3 +68,21 @@ def test_the_command_line_lists_the_formats_without_numpy():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.split() == ["('tdms',", "'csv')", "False"]
+
+
+def test_the_experiment_file_page_lists_the_registry():
+    from pathlib import Path
+
+    page = Path(__file__).resolve().parents[2] / "docs" / "experiment-file.md"
+    rows = {}
+    for line in page.read_text(encoding="utf-8").splitlines():
+        cells = [c.strip().strip("`") for c in line.strip().strip("|").split("|")]
+        if len(cells) == 5 and cells[0] in RIG_FORMATS:
+            rows[cells[0]] = cells
+    assert list(rows) == list(RIG_FORMATS)
+    for name, (_, suffixes, writes, keys, bounds) in rows.items():
+        fmt = RIG_FORMATS[name]
+        assert suffixes.split("`, `") == list(fmt.suffixes)
+        assert writes.startswith("yes") == (fmt.writer is not None)
+        assert [k for k in keys.split("`, `") if k != "—"] == list(fmt.options)
+        assert bounds == fmt.budget
