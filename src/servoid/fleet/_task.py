@@ -20,11 +20,9 @@ from typing import Any
 
 from .. import __version__
 from .._errors import DataError, ServoidError
-from ._files import REGULAR_ONLY, file_problem, open_regular
+from ._files import REGULAR_ONLY, file_problem
 
 __all__ = ["identify_record", "identify_records", "record_hashes", "record_inputs", "record_key"]
-
-_CHUNK = 1 << 20
 
 
 def record_key(path: Path, identify: Mapping[str, Any] | None) -> str:
@@ -159,8 +157,7 @@ def _inputs(path: Path) -> tuple[list[Path], Any]:
 
 
 def _digest(file: Path) -> bytes:
-    h = hashlib.sha256()
-    with open_regular(file) as f:
-        while chunk := f.read(_CHUNK):
-            h.update(chunk)
-    return h.digest()
+    """SHA-256 of a file: the run that identifies the record reads it from memory."""
+    from ..data import file_sha256
+
+    return bytes.fromhex(file_sha256(file))
