@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import importlib
+
+import servoid
 import inspect
 
 import pytest
@@ -69,3 +71,12 @@ def test_error_tree():
     for cls in (servoid.DataError, servoid.OptionError, servoid.OptionTypeError,
                 servoid.ModelError):
         assert issubclass(cls, servoid.ServoidError)
+
+
+def test_version_is_the_one_pyproject_states():
+    import tomllib
+    from pathlib import Path
+
+    pyproject = Path(__file__).resolve().parents[1] / "pyproject.toml"
+    declared = tomllib.loads(pyproject.read_text(encoding="utf-8"))["project"]["version"]
+    assert servoid.__version__ == declared

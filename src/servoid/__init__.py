@@ -15,8 +15,7 @@ from ._errors import (
     ServoidWarning,
     SimulationDivergedError,
 )
-
-__version__ = "0.1.0"
+from ._version import __version__
 
 __all__ = [
     "ChannelError",

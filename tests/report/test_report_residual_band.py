@@ -10,9 +10,9 @@ from scipy import stats
 from servoid.data import Experiment
 from servoid.models import TransferFunction
 from servoid.report import plot_residuals
-from servoid.report._figures import _cross_bands
 from servoid.signals import prbs
 from servoid.validate import validate
+from servoid.validate._figures import _cross_bands
 
 DT = 1e-3
 

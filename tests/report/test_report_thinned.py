@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from servoid.report._figures import thinned
+from servoid._drawing import thinned
 
 
 def test_short_signals_are_drawn_whole():
@@ -39,8 +39,8 @@ def test_the_zoom_of_a_long_record_stays_a_zoom():
 
     from servoid.data import Experiment
     from servoid.models import PolynomialModel
-    from servoid.report._figures import _zoom
     from servoid.validate import validate
+    from servoid.validate._figures import _zoom
 
     rng = np.random.default_rng(1)
     n = 400_000

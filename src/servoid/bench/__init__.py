@@ -14,6 +14,18 @@ found here for one release, with a :class:`DeprecationWarning`.
 from .._moved import moved_names
 from ._lti import Intersample, simulate_lti, simulate_lti_loop
 
+# isort: split
+# Building blocks other servoid packages import (through this package, not its modules);
+# not part of the public API (__all__).
+from ._analog import Hold as Hold
+from ._analog import butterworth as butterworth
+from ._analog import discrete_sos as discrete_sos
+from ._analog import discretise as discretise
+from ._analog import realise as realise
+from ._daq import note_warning as note_warning
+from ._daq import quantise as quantise
+from ._daq import resolve_rng as resolve_rng
+
 __all__ = [
     "Intersample",
     "simulate_lti",

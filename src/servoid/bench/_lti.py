@@ -33,7 +33,7 @@ from .._errors import DataError, ModelError, check_option
 from .._lazy import signal as sps
 from ..data import Experiment
 from ..models import StateSpace, TransferFunction
-from ..signals._checks import MAX_SAMPLES
+from ..signals import MAX_SAMPLES
 from ._analog import butterworth, discretise, realise
 from ._daq import resolve_rng
 

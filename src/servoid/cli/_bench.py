@@ -9,9 +9,9 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from .._flags import at_least, finite, folder_out, in_flags, out_path, positive
 from .._progress import stage
 from ..data import RigFormat  # the format records only: no numerics
-from ._flags import at_least, finite, folder_out, in_flags, out_path, positive
 
 __all__ = ["BENCH_FIDELITIES", "PNEUMATIC_TEST_NAMES", "add_bench"]
 
@@ -98,9 +98,11 @@ def add_bench(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
     json_flag(ehsa)
     ehsa.set_defaults(run=_run_ehsa)
     _add_pneumatic(rigs, json_flag)
-    from ..plants.ema._cli import add_cli as add_ema  # argparse only: --help stays light
+    from ..plants import PLANTS  # the records only: each part loads when it is used
 
-    add_ema(rigs, json_flag)
+    for plant in PLANTS.values():  # a plant's own `servoid bench` commands (argparse only)
+        if "cli" in plant.parts:
+            plant.load("cli")(rigs, json_flag)
 
 
 def _run_ehsa(args: argparse.Namespace) -> tuple[dict[str, Any], str]:

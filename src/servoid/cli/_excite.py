@@ -6,8 +6,8 @@ import argparse
 from collections.abc import Callable
 from typing import Any
 
+from .._flags import in_flags, out_path
 from ..data import RigFormat  # the format records only: no numerics
-from ._flags import in_flags, out_path
 
 __all__ = ["add_excite"]
 

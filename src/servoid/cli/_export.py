@@ -9,7 +9,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from ._flags import out_path
+from .._flags import out_path
 
 __all__ = ["add_export"]
 
@@ -80,9 +80,8 @@ def _run_report(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from .._atomic import atomic_path
     from .._errors import DataError, ModelError, OptionError
-    from ..models._file import RECORD_TYPES, record_text, write_mat
-    from ..workflows import load_results
-    from ..workflows._results import greybox_record
+    from ..models import RECORD_TYPES, record_text, write_mat
+    from ..workflows import greybox_record, load_results
 
     # a grey-box run: its model file is written from the record, without running its code
     record = greybox_record(args.results)
@@ -155,7 +154,7 @@ def _kind(model: Any) -> str:
 def _json_record(model: Any, data: Mapping[str, Any]) -> dict[str, Any]:
     """A model file's data, with the covariance the run kept."""
     # a NarxModel's record holds its own covariance; a block model's sits in results.json
-    from ..models._file import model_record
+    from ..models import model_record
 
     if isinstance(model, dict):  # a grey-box model's record, complete with its covariance
         return {**model, "units": None}

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ._flags import at_least, finite, folder_out, out_path
+from .._flags import at_least, finite, folder_out, out_path
 
 __all__ = ["add_bench_fleet", "add_fleet"]
 

@@ -25,10 +25,10 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, NoReturn
 
-from .. import __version__
 from .._errors import ServoidError, ServoidWarning
+from .._flags import out_path
+from .._version import __version__
 from .._words import command_line_words
-from ._flags import out_path
 
 __all__ = ["main"]
 
@@ -106,7 +106,7 @@ def _run(args: argparse.Namespace, words: list[str], command: list[str], shown: 
         warnings.showwarning = show
         with stage(" ".join(command)):  # from here on, nothing is silent for long
             if command != ["methods"]:  # a report names the command that wrote it
-                from ..workflows._provenance import set_command
+                from ..workflows import set_command
 
                 set_command(["servoid", *words])
             if shown and args.run.__name__ not in _LIGHT:  # these compute: name numba's compiles
@@ -278,8 +278,8 @@ def _json_flag(parser: argparse.ArgumentParser) -> None:
 
 
 def _run_demo(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from .._flags import at_least, folder_out
     from ..plants.ehsa import run_demo
-    from ._flags import at_least, folder_out
 
     at_least("--seed", args.seed, 0)
     folder_out("--out", Path(args.out))
@@ -288,7 +288,7 @@ def _run_demo(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 
 def _run_methods(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
-    from ..workflows._methods import METHODS, get_method
+    from ..workflows import METHODS, get_method
 
     if args.name:
         method = get_method(args.name)
@@ -302,8 +302,8 @@ def _run_methods(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 
 def _run_identify(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from .._flags import at_least
     from ..workflows import identify
-    from ._flags import at_least
 
     if args.max_bytes is not None:
         at_least("--max-bytes", args.max_bytes, 1)

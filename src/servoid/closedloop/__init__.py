@@ -20,6 +20,14 @@ from ._blackbox import fit_cliv, fit_two_stage
 from ._feedback import FeedbackTest, feedback_test, warn_if_feedback
 from ._indirect import fit_indirect_tf
 
+# isort: split
+# Building blocks other servoid packages import (through this package, not its modules);
+# not part of the public API (__all__).
+from ._channels import check_name as check_name
+from ._channels import output_name as output_name
+from ._channels import reference_name as reference_name
+from ._coloured import sandwich as sandwich
+
 __all__ = [
     "FeedbackTest",
     "feedback_test",

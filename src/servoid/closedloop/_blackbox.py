@@ -31,8 +31,7 @@ from .._checks import as_bool, as_int
 from .._errors import DataError, ServoidWarning, check_option
 from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
-from ..estimate import Estimate, fit_bj, fit_iv, fit_oe
-from ..estimate._covariance import Covariance
+from ..estimate import Covariance, Estimate, fit_bj, fit_iv, fit_oe
 from ._channels import aic_order, check_excites, ls_fit, output_name, reference_name, single_name
 
 __all__ = ["fit_cliv", "fit_two_stage"]

@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._lazy import signal as sps
-from ..estimate._covariance import filtered_gram, sandwich_covariance
+from ..estimate import filtered_gram, sandwich_covariance
 
 __all__ = ["oe_gradient", "sandwich"]
 

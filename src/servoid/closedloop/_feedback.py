@@ -414,7 +414,7 @@ def _segments(ss: list[NDArray[np.float64]], us: list[NDArray[np.float64]], cols
 def _lagged_sums(segments: list[_Segment],
                  cols: _Columns) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Gram matrix of the columns over every segment's rows, and each column's sum."""
-    from ..estimate._gram import lagged_gram
+    from ..estimate import lagged_gram
 
     size = cols.target + 1
     gram, sums = np.zeros((size, size)), np.zeros(size)

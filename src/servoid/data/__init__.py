@@ -106,6 +106,10 @@ _HOME = {
 }
 
 
+# Building blocks other servoid packages import (not part of the public API, __all__).
+_HOME.update({"check_experiment": "_experiment", "read_toml": "_toml"})
+
+
 def __getattr__(name: str) -> Any:
     """Import an export on first use."""
     if name not in _HOME:

@@ -137,12 +137,44 @@ __all__ = [
 ]
 
 
+#: Building blocks other servoid packages import (through this package, not its modules);
+#: not part of the public API (__all__). "module:attribute" where the name differs.
+_SHARED = {
+    "Covariance": "_covariance",
+    "GREYBOX_COVARIANCES": "_covariance",
+    "GreyboxCovariance": "_covariance",
+    "bootstrap_covariance": "_covariance",
+    "filtered_gram": "_covariance",
+    "least_squares_covariance": "_covariance",
+    "sandwich_covariance": "_covariance",
+    "resolve_covariance": "_covariance:resolve",
+    "MAX_STARTS": "_diagnostics",
+    "draw_starts": "_diagnostics",
+    "summarise_starts": "_diagnostics",
+    "weakest_parameters": "_diagnostics",
+    "lagged_gram": "_gram",
+    "piece_transition": "_hybrid",
+    "OdeSystem": "_ode",
+    "make_system": "_ode",
+    "simulation_seconds": "_ode",
+    "OdeModel": "_ode_model",
+    "fit_ode": "_ode_model",
+    "executed_sha256": "_ode_user",
+    "load_function": "_ode_user",
+    "parse_ref": "_ode_user",
+    "Hold": "_svf",
+    "check_not_constant": "_channels",
+    "output_name": "_channels",
+}
+
+
 def __getattr__(name: str) -> Any:
     """Import an estimator's module when its name is first read."""
-    module = _WHERE.get(name)
+    module = _WHERE.get(name) or _SHARED.get(name)
     if module is None:
         return _moved(name)  # a name that moved into servoid.plants, or AttributeError
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    module, _, attribute = module.partition(":")
+    value = getattr(importlib.import_module(f".{module}", __name__), attribute or name)
     globals()[name] = value  # later reads skip this hook
     return value
 

@@ -378,7 +378,7 @@ class OdeModel:
 
     def _file_record(self) -> dict[str, Any] | None:
         """The whole model file's data, or None when the code cannot be referenced."""
-        from ..models._file import model_record
+        from ..models import model_record
 
         try:
             return {**model_record(self), "units": None}

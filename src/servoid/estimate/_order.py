@@ -12,8 +12,7 @@ import numpy as np
 
 from .._checks import as_int, type_error
 from .._errors import DataError, check_option
-from ..data import Experiment, ExperimentSet
-from ..data._experiment import check_experiment
+from ..data import Experiment, ExperimentSet, check_experiment
 from ..validate import fit_percent, simulate_from_data
 from ._arx import ArxOrders, InputRole, fit_arx
 from ._estimate import Estimate

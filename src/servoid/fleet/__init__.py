@@ -16,7 +16,7 @@ with the security the user gives (:func:`tls_security`).
 ('SN-0107',)
 """
 
-from ..workflows._summary import ParameterValue, RecordSummary, summarise
+from ..workflows import ParameterValue, RecordSummary, summarise
 from ._cluster import tls_security
 from ._limits import RULE, Limit
 from ._result import FleetResult, ParameterStats

@@ -17,11 +17,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..report import Check, Conditions, Figure, Page, Section, Table, Verdict
-from ..report._figures import fit_titles
-from ..report._text import plain
-from ..workflows._methods import method_of
-from ..workflows._registry import toml_value
+from ..report import Check, Conditions, Figure, Page, Section, Table, Verdict, fit_titles, plain
+from ..workflows import method_of, toml_value
 from ._limits import RULE
 from ._stats import OUTLIER_Z
 

@@ -13,8 +13,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .. import __version__
 from .._atomic import atomic_path
+from .._version import __version__
 from ._limits import RULE
 from ._spec import FleetSpec
 from ._stats import OUTLIER_Z, ControlLimits, Drift, control_limits, drift, robust_z

@@ -31,7 +31,7 @@ from .._errors import DataError, OptionError, OptionTypeError
 from .._lock import FolderLock, hold_folder, ledger, sha256_file, write_ledger
 from .._progress import Progress, stage
 from .._words import option
-from ..workflows._methods import method_of
+from ..workflows import method_of
 from ._cluster import check_scheduler, connect, dashboard_link, quiet_dask, start_local
 from ._result import FleetResult, assemble
 from ._spec import FleetRecord, FleetSpec, load_fleet_spec

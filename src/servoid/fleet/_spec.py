@@ -39,7 +39,7 @@ from typing import Any
 
 from .._checks import file_name_problem
 from .._errors import DataError, FileFormatError, OptionError, OptionTypeError
-from ..data._toml import read_toml
+from ..data import read_toml
 from ._files import REGULAR_ONLY, file_problem
 from ._limits import Limit, parse_limits
 
@@ -108,8 +108,7 @@ class FleetSpec:
 
 def load_fleet_spec(path: str | os.PathLike[str]) -> FleetSpec:
     """Read and check a fleet file (see the module docstring for its tables)."""
-    from ..workflows import get_method
-    from ..workflows._methods import method_of
+    from ..workflows import get_method, method_of
 
     source = Path(path)
     problem = file_problem(source)

@@ -18,8 +18,8 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from .. import __version__
 from .._errors import DataError, ServoidError
+from .._version import __version__
 from ._files import REGULAR_ONLY, file_problem
 
 __all__ = ["identify_record", "identify_records", "record_hashes", "record_inputs", "record_key"]
@@ -102,7 +102,7 @@ def identify_record(path: str, identify: Mapping[str, Any] | None, *,
     """
     from ..data import load_experiment_spec
     from ..workflows import identify as run
-    from ..workflows._methods import method_of
+    from ..workflows import method_of
 
     start, cpu = time.perf_counter(), time.process_time()
     out: dict[str, Any] = {"status": "failed", "summary": None, "error": "", "warnings": []}

@@ -13,6 +13,8 @@ any model — polynomial, transfer function, state space, an Estimate of one,
 or a python-control / scipy.signal system (:func:`as_lti`).
 """
 
+from typing import Any
+
 from ._discretize import c2d, d2c
 from ._file import export_mat, load_model, save_model
 from ._frd import FrequencyResponseData, NonlinearDistortion
@@ -23,6 +25,16 @@ from ._response import TimeResponse
 from ._specs import ResonancePeak, bandwidth, phase_lag, resonance_peak
 from ._statespace import StateSpace
 from ._transfer import TransferFunction
+
+# isort: split
+# Building blocks other servoid packages import (through this package, not its modules);
+# not part of the public API (__all__).
+from ._file import RECORD_TYPES as RECORD_TYPES
+from ._file import model_from_record as model_from_record
+from ._file import model_record as model_record
+from ._file import past_float as past_float
+from ._file import record_text as record_text
+from ._file import write_mat as write_mat
 
 __all__ = [
     "FrequencyResponseData",
@@ -49,3 +61,12 @@ __all__ = [
     "to_control",
     "to_scipy",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """The compiled kernels other packages share, imported on first use (numba)."""
+    if name in ("all_finite", "filter_into"):
+        from . import _kernels
+
+        return getattr(_kernels, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

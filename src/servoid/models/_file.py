@@ -454,13 +454,8 @@ def _record_class(kind: str) -> Any:
 
 
 def _is_estimate(value: object) -> bool:
-    # estimate imports models, so not at module level; and an Estimate exists only once
-    # servoid.estimate is loaded, so a plain model never pays for that import
-    if "servoid.estimate" not in sys.modules:
-        return False
-    from ..estimate import Estimate
-
-    return isinstance(value, Estimate)
+    # an Estimate of a model, recognised by what it carries (servoid.estimate sits above models)
+    return all(hasattr(value, name) for name in ("model", "names", "covariance", "parameters"))
 
 
 def _rows(polys: list[np.ndarray]) -> np.ndarray:

@@ -241,7 +241,7 @@ class BlockModel:
             When a static block is a user :class:`StaticFunction`: a model
             file holds numbers, not code (the message says what to do).
         """
-        from ..models._file import model_record
+        from ..models import model_record
 
         return {
             "structure": self.structure, "offset": self.offset,
@@ -266,7 +266,7 @@ class BlockModel:
         DataError, ModelError, FileFormatError
             Values that make no model.
         """
-        from ..models._file import model_from_record
+        from ..models import model_from_record
 
         shapes = []
         for key in ("input_nonlinearity", "output_nonlinearity"):

@@ -52,8 +52,7 @@ from .._lazy import optimize
 from .._lazy import signal as sps
 from .._warn import warn
 from ..data import Experiment, ExperimentSet
-from ..estimate import Estimate
-from ..estimate._channels import output_name
+from ..estimate import Estimate, output_name
 from ._block import STRUCTURES, BlockModel, Structure
 from ._block_linear import LinearBlock, free_response
 from ._block_start import hammerstein_start, wiener_start

@@ -33,10 +33,8 @@ from .._checks import as_float, as_int, type_error
 from .._errors import DataError, OptionError, ServoidWarning, check_option
 from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
-from ..estimate import Estimate
-from ..estimate._channels import check_not_constant
-from ..estimate._channels import output_name as _channel_output
-from ..estimate._ls import lstsq
+from ..estimate import Estimate, check_not_constant, lstsq
+from ..estimate import output_name as _channel_output
 from ._narx_kernel import fill_regressors, forward_select
 from ._narx_model import NarxModel, Term, encode_terms, term_label
 

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from .._checks import as_array, as_float, as_int, as_str, type_error
 from .._errors import DataError, ModelError, ServoidWarning, check_option
 from .._warn import warn
-from ..validate._simulate import INITIALS, Initial, check_signals
+from ..validate import INITIALS, Initial, check_signals
 from ._narx_kernel import predict_k, simulate_free
 
 __all__ = ["NarxModel", "Term", "term_label"]

@@ -13,12 +13,13 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Iterable, Mapping
+from numbers import Real
 from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import as_array
+from .._checks import as_array, as_int, type_error
 from .._errors import DataError, ModelError, OptionTypeError
 
 __all__ = [
@@ -31,8 +32,11 @@ __all__ = [
     "check_signal",
     "check_state",
     "freeze_arrays",
+    "integer_field",
     "integration_step",
     "largest_step",
+    "positive_field",
+    "real_field",
     "replace_fields",
 ]
 
@@ -203,3 +207,23 @@ def freeze_arrays(obj: object, names: Iterable[str], *, flags: tuple[str, ...] =
             arr = np.array(as_array(name, value, finite=False), dtype=np.float64)
         arr.setflags(write=False)
         object.__setattr__(obj, name, arr)
+
+
+def real_field(name: str, value: object, unit: str) -> float:
+    """``value`` as a float: a real number (not a bool) in ``unit``."""
+    if isinstance(value, bool) or not isinstance(value, Real):
+        raise type_error(name, value, f"a real number [{unit}]")
+    return float(value)
+
+
+def positive_field(name: str, value: object, unit: str) -> float:
+    """``value`` as a finite float > 0 in ``unit``."""
+    v = real_field(name, value, unit)
+    if not (math.isfinite(v) and v > 0):
+        raise DataError(f"{name} must be finite and > 0 [{unit}], got {v}")
+    return v
+
+
+def integer_field(name: str, value: object, low: int, high: int) -> int:
+    """``value`` as an int within [low, high]."""
+    return as_int(name, value, minimum=low, maximum=high)

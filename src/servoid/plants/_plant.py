@@ -32,11 +32,12 @@ PARTS: dict[str, str] = {
     "bench": "write_bench(out, **options) → the rig files, experiment file and truth it wrote",
     "fleet": "write_fleet(out, **options) → a virtual fleet of units (or none)",
     "methods": "a tuple of workflow Methods: the plant's physical identification",
+    "cli": "add_cli(subcommands, json_flag) → adds its `servoid bench …` commands (argparse only)",
 }
 
 
 #: Parts a plant may leave out.
-_OPTIONAL = frozenset({"bench", "fleet"})
+_OPTIONAL = frozenset({"bench", "fleet", "cli"})
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,13 @@ from ._model_figures import plot_bode_bands, plot_pole_zero, plot_singular_value
 from ._rigid_figures import plot_force_fit, plot_friction, plot_linear, plot_loop
 from ._verdict import Check, Conditions, Verdict
 
+# isort: split
+# Building blocks other servoid packages import (through this package, not its modules);
+# not part of the public API (__all__).
+from ._figures import fit_titles as fit_titles
+from ._text import plain as plain
+from ._verdict import pvalue_text as pvalue_text
+
 __all__ = [
     "Check",
     "Conditions",

@@ -14,6 +14,11 @@ from ._lfsr import PRBS_TAPS
 from ._spectrum import Spectrum, SpectrumMethod, crest_factor, power_spectrum
 from ._waveforms import ChirpMethod, Harmonics, MultisineScale, Phases, chirp, multisine, steps
 
+# isort: split
+# Building blocks other servoid packages import (through this package, not its modules);
+# not part of the public API (__all__).
+from ._checks import MAX_SAMPLES as MAX_SAMPLES
+
 __all__ = [
     "PRBS_TAPS",
     "ChirpMethod",

@@ -1,9 +1,17 @@
 """Validation: fit metrics, residual tests and the ValidationReport."""
 
+from ._figures import residuals_figure, validation_figure
 from ._metrics import fit_percent, nrmse, relative_error, rmse, vaf
 from ._report import ValidationReport, compare, simulate_from_data, validate
 from ._residuals import ResidualAnalysis, residual_analysis
 from ._simulate import Replayable, discrete_model, is_replayable, simulate_model
+
+# isort: split
+# Building blocks other servoid packages import (through this package, not its modules);
+# not part of the public API (__all__).
+from ._simulate import INITIALS as INITIALS
+from ._simulate import Initial as Initial
+from ._simulate import check_signals as check_signals
 
 __all__ = [
     "Replayable",
@@ -16,9 +24,11 @@ __all__ = [
     "nrmse",
     "relative_error",
     "residual_analysis",
+    "residuals_figure",
     "rmse",
     "simulate_from_data",
     "simulate_model",
     "vaf",
     "validate",
+    "validation_figure",
 ]

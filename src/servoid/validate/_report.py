@@ -11,8 +11,7 @@ from numpy.typing import NDArray
 
 from .._checks import as_bool, as_float, as_int, type_error
 from .._errors import DataError, ModelError, SimulationDivergedError, check_option
-from ..data import Experiment
-from ..data._experiment import check_experiment
+from ..data import Experiment, check_experiment
 from ._metrics import fit_of_moments, fit_percent, metric_set
 from ._residuals import ResidualAnalysis, analyse_residuals
 from ._simulate import (
@@ -190,7 +189,7 @@ class ValidationReport:
             acts on it. Close it with ``plt.close(fig)`` when done.
         """
         from .._pyplot import pyplot_figure
-        from ..report._figures import validation_figure
+        from ._figures import validation_figure
 
         return validation_figure(self, new=pyplot_figure)
 
@@ -440,7 +439,7 @@ def simulate_from_data(
         m = max(a.size - 1, *(bk.size - 1 for bk in bks))
         if m and m >= len(y) - 1:
             raise DataError(f"validation needs more than {m + 1} samples, got {len(y)}")
-        from ..models._kernels import filter_into
+        from ..models import filter_into
 
         # y_sim = Σ B_i u_i, then in place A y_sim = that, with y(0…m−1) the initial conditions
         y_sim = np.empty(len(y))
@@ -476,7 +475,7 @@ def _arx_outputs(
         (y, y_pred) from where the prediction is exact
         (:func:`_prediction_start`).
     """
-    from ..models._kernels import all_finite
+    from ..models import all_finite
     from ._kernels import MOMENTS, arx_pass
 
     y, u = check_signals(y, u)
@@ -554,7 +553,7 @@ def _time_of(experiment: Experiment) -> Any:
 def _check_finite_run(y_sim: NDArray[np.float64], first: int, model: Any,
                       experiment: Experiment) -> None:
     """Refuse, by its own error, a simulation that diverged on the record."""
-    from ..models._kernels import all_finite
+    from ..models import all_finite
 
     run = y_sim[first:]
     if run.flags.c_contiguous and all_finite(run):  # one pass, no boolean temporary

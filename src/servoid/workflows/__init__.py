@@ -23,6 +23,7 @@ if TYPE_CHECKING:
     from ._methods import get_method, method_names
     from ._registry import Identification, Method, Option
     from ._results import Results, load_results, rerender
+    from ._summary import ParameterValue, RecordSummary
     from ._run import identify, write_results
 
 __all__ = [
@@ -32,6 +33,8 @@ __all__ = [
     "Method",
     "Option",
     "OrderRow",
+    "ParameterValue",
+    "RecordSummary",
     "Results",
     "get_method",
     "identify",
@@ -46,10 +49,17 @@ _HOME = {
     "DivergedRun": "_common",
     "IdentificationResult": "_lti", "OrderRow": "_lti",
     "Identification": "_registry", "Method": "_registry", "Option": "_registry",
+    "ParameterValue": "_summary", "RecordSummary": "_summary",
     "Results": "_results", "load_results": "_results", "rerender": "_results",
     "get_method": "_methods", "method_names": "_methods",
     "identify": "_run", "write_results": "_run",
 }
+
+# For servoid's front ends (cli, fleet): imported through this package, not part of __all__.
+_HOME.update({
+    "METHODS": "_methods", "method_of": "_methods", "set_command": "_provenance",
+    "greybox_record": "_results", "summarise": "_summary", "toml_value": "_registry",
+})
 
 
 def __getattr__(name: str) -> Any:

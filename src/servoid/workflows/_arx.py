@@ -10,19 +10,12 @@ from ..data import ExperimentSpec
 from ..estimate import OrderSelection, fit_arx, select_arx_order
 from ._examples import open_loop
 from ._lti import IdentificationResult, OrderRow, lti_result, n_inputs, on_edge, order_grid
-from ._options import choice, integer, optional, orders, text
+from ._options import HORIZON, OUTPUT, ROLE, choice, orders
 from ._registry import Method, Option
 
 __all__ = ["HORIZON", "METHOD", "OUTPUT", "ROLE"]
 
 _LOWEST = {"na": 0, "nb": 1, "nk": 0}
-
-ROLE = Option("input", "u", choice(("u", "r")),
-              'role of the input channel(s): "u" (plant input) or "r" (reference, closed loop)')
-OUTPUT = Option("output", None, optional(text()), "output channel when the data have several")
-HORIZON = Option("horizon", 5, integer(minimum=1),
-                 "k of the k-step prediction fit on validation data [samples]")
-
 
 def run(spec: ExperimentSpec, options: Mapping[str, Any],
         truth: Mapping[str, float] | None) -> IdentificationResult:

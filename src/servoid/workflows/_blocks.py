@@ -34,11 +34,10 @@ from ..nonlinear import (
     fit_block,
 )
 from ..report import Figure, Section, new_figure, save_figure
-from ._arx import HORIZON, OUTPUT, ROLE
 from ._common import keyed, parameter_table, warnings_as_notes
 from ._examples import open_loop
 from ._lti import IdentificationResult, lti_result, model_dict
-from ._options import boolean, choice, integer, number, optional
+from ._options import HORIZON, OUTPUT, ROLE, boolean, choice, integer, number, optional
 from ._registry import FigureWriter, Method, Option
 
 __all__ = ["HAMMERSTEIN", "HAMMERSTEIN_WIENER", "WIENER", "BlockResult"]

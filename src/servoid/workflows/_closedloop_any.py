@@ -13,10 +13,9 @@ from ..closedloop import fit_cliv, fit_indirect_tf, fit_two_stage
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 from ..estimate import Estimate
 from ..models import TransferFunction
-from ._arx import HORIZON
 from ._examples import closed_loop
 from ._lti import IdentificationResult, lti_result
-from ._options import boolean, choice, integer, optional, text
+from ._options import HORIZON, boolean, choice, integer, optional, text
 from ._pem import COVARIANCE, SEARCH, orders_text
 from ._registry import Method, Option, TableSchema
 

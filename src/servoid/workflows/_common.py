@@ -23,8 +23,7 @@ from .._errors import (
 )
 from .._words import option
 from ..estimate import Estimate
-from ..report import Figure, Section, Table
-from ..report._verdict import pvalue_text
+from ..report import Figure, Section, Table, pvalue_text
 from ..validate import ValidationReport
 
 __all__ = ["REPORT_KEYS", "DivergedRun", "check_outputs", "check_sizes", "keyed",

@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import __version__
 from .._errors import ServoidError
+from .._version import __version__
 from ..data import Experiment, ExperimentSpec
 from ..estimate import estimate_frf, fit_frf
 from ..models import FrequencyResponseData, bandwidth, phase_lag, resonance_peak

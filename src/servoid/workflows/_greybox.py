@@ -50,17 +50,22 @@ from .._errors import DataError, OptionError
 from .._progress import stage
 from .._warn import warn
 from ..data import Experiment, ExperimentSpec
-from ..estimate import GreyboxParameter
-from ..estimate._diagnostics import MAX_STARTS
-from ..estimate._ode import OdeSystem, make_system, simulation_seconds
-from ..estimate._ode_model import fit_ode
-from ..estimate._ode_user import executed_sha256, load_function, parse_ref
+from ..estimate import (
+    MAX_STARTS,
+    GreyboxParameter,
+    OdeSystem,
+    executed_sha256,
+    fit_ode,
+    load_function,
+    make_system,
+    parse_ref,
+    simulation_seconds,
+)
 from ..report import Page
-from ._arx import OUTPUT
 from ._common import warnings_as_notes
 from ._examples import greybox_tank
 from ._lti import IdentificationResult, lti_result
-from ._options import boolean, choice, integer, number, optional
+from ._options import OUTPUT, boolean, choice, integer, number, optional
 from ._registry import Method, Option
 
 __all__ = ["GREYBOX", "GreyboxResult"]

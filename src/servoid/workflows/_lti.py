@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import __version__
 from .._errors import ServoidError, ServoidWarning, SimulationDivergedError
+from .._version import __version__
 from .._warn import warn
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 from ..estimate import Estimate, frequency_band

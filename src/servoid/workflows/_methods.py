@@ -18,7 +18,6 @@ from collections.abc import Iterator, Mapping
 from typing import Any
 
 from .._errors import check_option
-from ..plants import PLANTS
 from ._registry import Method
 
 __all__ = ["DEFAULT_METHOD", "METHODS", "get_method", "method_names", "method_of"]
@@ -109,11 +108,14 @@ class _Methods(Mapping[str, Method]):
     def __init__(self, listed: tuple[tuple[str, str, str], ...]) -> None:
         self._where = {name: where for name, where, _ in listed}
         self._summary = {name: summary for name, _, summary in listed}
-        for plant in PLANTS.values():  # "plant:<name>": one of the plant's methods
+        # The plants build their methods with this package's kit; their records are read by
+        # name (as every method module is), so workflows never imports a plant's code.
+        self._plants = plants = importlib.import_module("servoid.plants").PLANTS
+        for plant in plants.values():  # "plant:<name>": one of the plant's methods
             for name, summary in plant.methods.items():
                 self._where.setdefault(name, f"plant:{plant.name}")
                 self._summary.setdefault(name, summary)
-        if len(self._where) != len(listed) + sum(len(p.methods) for p in PLANTS.values()):
+        if len(self._where) != len(listed) + sum(len(p.methods) for p in plants.values()):
             raise ValueError("a method is listed twice")
         self._loaded: dict[str, Method] = {}
 
@@ -121,8 +123,8 @@ class _Methods(Mapping[str, Method]):
         if name not in self._loaded:
             module, attribute = self._where[name].split(":")  # KeyError: not a method
             if module == "plant":
-                method = next((m for m in PLANTS[attribute].load("methods") if m.name == name),
-                              None)
+                method = next((m for m in self._plants[attribute].load("methods")
+                               if m.name == name), None)
             else:
                 method = getattr(importlib.import_module(f".{module}", __package__), attribute)
             if not isinstance(method, Method) or method.name != name:

@@ -10,10 +10,9 @@ from .._checks import as_int_list, as_str, type_error
 from .._errors import DataError
 from ..data import ExperimentSpec
 from ..estimate import fit_n4sid, fit_oe, to_polynomial
-from ._arx import HORIZON, ROLE
 from ._examples import open_loop
 from ._lti import IdentificationResult, lti_result
-from ._options import boolean, choice, integer, optional
+from ._options import HORIZON, ROLE, boolean, choice, integer, optional
 from ._registry import Method, Option
 
 __all__ = ["N4SID"]

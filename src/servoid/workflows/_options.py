@@ -12,9 +12,10 @@ from typing import Any
 
 from .._checks import as_bool, as_float, as_int, as_int_list, as_str, type_error
 from .._errors import DataError, check_option
-from ._registry import Check
+from ._registry import Check, Option
 
-__all__ = ["boolean", "choice", "choices", "integer", "number", "optional", "orders", "text"]
+__all__ = ["HORIZON", "OUTPUT", "ROLE", "boolean", "choice", "choices", "integer", "number", "optional",
+           "orders", "text"]
 
 
 def integer(minimum: int | None = None, maximum: int | None = None) -> Check:
@@ -87,3 +88,14 @@ def optional(inner: Check) -> Check:
     def check(value: Any, where: str, name: str) -> Any:
         return None if value is None else inner(value, where, name)
     return check
+
+
+# The options several methods share.
+#: the role of the input channel(s)
+ROLE = Option("input", "u", choice(("u", "r")),
+              'role of the input channel(s): "u" (plant input) or "r" (reference, closed loop)')
+#: the output channel
+OUTPUT = Option("output", None, optional(text()), "output channel when the data have several")
+#: k of the k-step prediction fit
+HORIZON = Option("horizon", 5, integer(minimum=1),
+                 "k of the k-step prediction fit on validation data [samples]")

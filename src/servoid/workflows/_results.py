@@ -135,7 +135,7 @@ def greybox_record(path: str | Path) -> dict[str, Any] | None:
         model.get("type") == "greybox_ode" else None
     if not isinstance(record, Mapping):
         return None
-    from ..estimate._ode_model import OdeModel
+    from ..estimate import OdeModel
 
     if record.get("type") != "OdeModel":
         raise FileFormatError(f"{path}: model.model_file is not the record of an OdeModel; the "
@@ -376,7 +376,7 @@ def _from_model_dict(model: Mapping[str, Any], path: Path, variance: object,
         record = model.get("model_file")
         if not isinstance(record, Mapping):
             return None  # a run that predates saved grey-box models: nothing to rebuild
-        from ..models._file import model_from_record
+        from ..models import model_from_record
 
         return model_from_record(record, where=f"results file {path}", allow_code=allow_code)
     if kind == "transfer_function":

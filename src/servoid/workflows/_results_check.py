@@ -23,7 +23,7 @@ from typing import Any
 
 from .._checks import file_name_problem, parse_json, read_text
 from .._errors import FileFormatError, MissingFileError
-from ..models._file import past_float
+from ..models import past_float
 
 __all__ = ["check_results", "read_manifest"]
 

@@ -22,7 +22,6 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from .. import __version__
 from .._checks import as_bool, as_mapping, as_path, read_json, type_error
 from .._errors import (
     MissingFileError,
@@ -33,6 +32,7 @@ from .._errors import (
 from .._files import check_input_file
 from .._lock import FolderLock, hold_folder
 from .._progress import stage
+from .._version import __version__
 from .._warn import warn
 from .._words import option
 from ..data import ExperimentSpec, load_experiment_spec

@@ -9,11 +9,10 @@ from typing import Any
 
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 from ..estimate import Estimate, fit_tf
-from ._arx import HORIZON, OUTPUT
 from ._closedloop_any import LOOP, known_loop
 from ._examples import open_loop
 from ._lti import IdentificationResult, fit_or_search, lti_result, n_inputs, order_grid
-from ._options import choice, integer, number, optional, orders
+from ._options import HORIZON, OUTPUT, choice, integer, number, optional, orders
 from ._pem import COVARIANCE
 from ._registry import Method, Option
 

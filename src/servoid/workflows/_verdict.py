@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from ..data import Experiment, ExperimentSet
-from ..report._verdict import Check, Conditions, Verdict, pvalue_text
+from ..report import Check, Conditions, Verdict, pvalue_text
 from ..validate import ValidationReport
 
 __all__ = ["BAND_DB", "NO_PEAK", "count_check", "covariance_is_robust", "diverged_check",

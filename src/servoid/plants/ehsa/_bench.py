@@ -44,8 +44,7 @@ from numpy.typing import NDArray
 
 from ..._errors import DataError, OptionTypeError, check_option
 from ..._lazy import signal as sps
-from ...bench._analog import Hold, discrete_sos, discretise, realise
-from ...bench._daq import note_warning, quantise, resolve_rng
+from ...bench import Hold, discrete_sos, discretise, note_warning, quantise, realise, resolve_rng
 from ...data import Channel, Experiment, decimate
 from ...models import StateSpace, TransferFunction
 from ...signals import Excitation

@@ -13,13 +13,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from numbers import Real
 from typing import Literal
 
-from ..._checks import as_int, type_error
 from ..._errors import DataError, OptionTypeError, check_option
-from ...bench._analog import butterworth
+from ...bench import butterworth
 from ...models import TransferFunction
+from .._common import integer_field, positive_field, real_field
 from ._params import SET_B, EhsaParameters
 
 __all__ = ["FIDELITIES", "REFERENCES", "EhsaBench", "Fidelity", "Reference"]
@@ -153,8 +152,8 @@ class EhsaBench:
                                   f"got {type(self.params).__name__}")
         check_option("fidelity", self.fidelity, FIDELITIES)
         check_option("reference", self.reference, REFERENCES)
-        f_acq = _positive("f_acq", self.f_acq, "Hz")
-        f_s = _positive("f_s", self.f_s, "Hz")
+        f_acq = positive_field("f_acq", self.f_acq, "Hz")
+        f_s = positive_field("f_s", self.f_s, "Hz")
         ratio = f_acq / f_s
         if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
             hint = max(1, math.ceil(ratio)) * f_s
@@ -164,8 +163,8 @@ class EhsaBench:
             )
         _set(self, "f_acq", f_acq)
         _set(self, "f_s", f_s)
-        _set(self, "aa_order", _integer("aa_order", self.aa_order, *_AA_ORDERS))
-        cutoff = 0.2 * f_acq if self.aa_cutoff is None else _positive(
+        _set(self, "aa_order", integer_field("aa_order", self.aa_order, *_AA_ORDERS))
+        cutoff = 0.2 * f_acq if self.aa_cutoff is None else positive_field(
             "aa_cutoff", self.aa_cutoff, "Hz")
         if cutoff >= f_acq / 2:
             raise DataError(
@@ -173,10 +172,10 @@ class EhsaBench:
                 f"{f_acq / 2:g} Hz, got {cutoff:g} Hz; the default is 0.2·f_acq"
             )
         _set(self, "aa_cutoff", cutoff)
-        _set(self, "bits", _integer("bits", self.bits, *_BITS))
-        adc = _positive("adc_range", self.adc_range, "V")
+        _set(self, "bits", integer_field("bits", self.bits, *_BITS))
+        adc = positive_field("adc_range", self.adc_range, "V")
         _set(self, "adc_range", adc)
-        _set(self, "command_range", _positive("command_range", self.command_range, "m"))
+        _set(self, "command_range", positive_field("command_range", self.command_range, "m"))
         defaults = {
             "position_sensitivity": adc / self.params.stroke,
             "command_sensitivity": adc / self.command_range,
@@ -187,18 +186,18 @@ class EhsaBench:
                  "p_supply_sensitivity": "V/Pa", "p_return_sensitivity": "V/Pa"}
         for name, default in defaults.items():
             value = getattr(self, name)
-            _set(self, name, default if value is None else _positive(name, value, units[name]))
+            _set(self, name, default if value is None else positive_field(name, value, units[name]))
         _set(self, "temperature_sensitivity",
-             _positive("temperature_sensitivity", self.temperature_sensitivity, "V/°C"))
+             positive_field("temperature_sensitivity", self.temperature_sensitivity, "V/°C"))
         if self.snr_db is not None:
-            snr = _real("snr_db", self.snr_db, "dB")
+            snr = real_field("snr_db", self.snr_db, "dB")
             if not math.isfinite(snr):
                 raise DataError(
                     f"snr_db must be finite [dB], got {snr}; pass snr_db=None for no sensor noise"
                 )
             _set(self, "snr_db", snr)
-        _set(self, "oversample", _integer("oversample", self.oversample, 1, 64))
-        temp = _real("oil_temperature", self.oil_temperature, "°C")
+        _set(self, "oversample", integer_field("oversample", self.oversample, 1, 64))
+        temp = real_field("oil_temperature", self.oil_temperature, "°C")
         if not math.isfinite(temp):
             raise DataError(f"oil_temperature must be finite [°C], got {temp}")
         _set(self, "oil_temperature", temp)
@@ -321,19 +320,3 @@ def _round_up(value: float) -> float:
 def _set(obj: EhsaBench, name: str, value: object) -> None:
     object.__setattr__(obj, name, value)
 
-
-def _real(name: str, value: object, unit: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, Real):
-        raise type_error(name, value, f"a real number [{unit}]")
-    return float(value)
-
-
-def _positive(name: str, value: object, unit: str) -> float:
-    v = _real(name, value, unit)
-    if not (math.isfinite(v) and v > 0):
-        raise DataError(f"{name} must be finite and > 0 [{unit}], got {v}")
-    return v
-
-
-def _integer(name: str, value: object, low: int, high: int) -> int:
-    return as_int(name, value, minimum=low, maximum=high)

@@ -24,8 +24,8 @@ from ..._errors import OutputExistsError
 from ..._lock import hold_folder
 from ..._words import option
 from ...signals import prbs
-from ...workflows._run import identify
-from ...workflows._summary import Displayed
+from ...workflows import identify
+from ...workflows.kit import Displayed
 from ._bench import BenchRun, run
 from ._bench_config import EhsaBench
 from ._bench_files import write_bench_files

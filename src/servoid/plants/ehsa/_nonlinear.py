@@ -79,11 +79,10 @@ from ..._errors import (
     check_option,
 )
 from ..._warn import warn
-from ...closedloop._channels import output_name, reference_name
+from ...closedloop import output_name, reference_name
 from ...data import Experiment, ExperimentSet, as_segments, detect_intersample
-from ...estimate import Estimate, check_identifiability
-from ...estimate._covariance import GREYBOX_COVARIANCES, resolve
-from ...estimate._diagnostics import weakest_parameters
+from ...estimate import GREYBOX_COVARIANCES, Estimate, check_identifiability, weakest_parameters
+from ...estimate import resolve_covariance as resolve
 from ...models import TransferFunction
 from ._loop import FeedbackLoop
 from ._nonlinear_model import (

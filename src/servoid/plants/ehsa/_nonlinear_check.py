@@ -23,11 +23,19 @@ import numpy as np
 from ..._checks import as_float, as_instance, as_int, type_error
 from ..._errors import DataError, ServoidWarning
 from ..._warn import warn
-from ...closedloop._channels import output_name, reference_name
+from ...closedloop import output_name, reference_name
 from ...data import Experiment, ExperimentSet
 from ...estimate import Estimate
-from ...validate import ValidationReport, fit_percent, residual_analysis, validate
-from ...validate._metrics import nrmse, relative_error, rmse, vaf
+from ...validate import (
+    ValidationReport,
+    fit_percent,
+    nrmse,
+    relative_error,
+    residual_analysis,
+    rmse,
+    vaf,
+    validate,
+)
 from ._loop import FeedbackLoop
 from ._nonlinear import NONLINEAR_DEFAULTS, refine_nonlinear_ehsa
 from ._nonlinear_model import NonlinearEhsa

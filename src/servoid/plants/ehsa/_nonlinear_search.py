@@ -20,8 +20,12 @@ from numpy.typing import NDArray
 from ..._errors import ConvergenceError, ServoidWarning
 from ..._lazy import optimize
 from ..._warn import warn
-from ...estimate._covariance import bootstrap_covariance, least_squares_covariance
-from ...estimate._diagnostics import draw_starts, summarise_starts
+from ...estimate import (
+    bootstrap_covariance,
+    draw_starts,
+    least_squares_covariance,
+    summarise_starts,
+)
 from ._nonlinear_model import UNITS, NonlinearEhsa
 
 __all__ = [

@@ -42,7 +42,7 @@ from ..._errors import (
 )
 from ..._lazy import optimize
 from ..._warn import warn
-from ...closedloop._channels import check_name
+from ...closedloop import check_name
 from ...data import Experiment, ExperimentSet, as_segments, detect_intersample
 from ...estimate import Estimate, fit_tf_greybox
 from ...models import TransferFunction, c2d

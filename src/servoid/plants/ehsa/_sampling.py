@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 
 from ..._errors import ModelError
 from ..._lazy import signal as sps
-from ...estimate._hybrid import piece_transition
+from ...estimate import piece_transition
 from ...models import TransferFunction
 from . import _kernels
 

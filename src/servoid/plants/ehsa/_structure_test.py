@@ -69,7 +69,7 @@ from ..._checks import as_float, as_int, as_mapping, type_error
 from ..._errors import ChannelError, DataError, OptionError, ServoidWarning
 from ..._lazy import stats
 from ..._warn import warn
-from ...closedloop._coloured import sandwich
+from ...closedloop import sandwich
 from ...data import Experiment, ExperimentSet, as_segments
 from ...estimate import Estimate
 from ...validate import residual_analysis

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from ..._checks import as_float
 from ..._errors import DataError, ModelError, OptionError, ServoidWarning, check_option
 from ..._lazy import signal as sps
-from ...closedloop._channels import check_name
+from ...closedloop import check_name
 from ...data import Experiment, ExperimentSet, as_segments
 from ...estimate import fit_arx, fit_tf_greybox
 from ...models import TransferFunction

@@ -13,11 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from ... import __version__
 from ..._checks import as_float, as_float_list, type_error
 from ..._errors import DataError, OptionError, ServoidWarning
 from ..._lazy import signal as sps
 from ..._progress import stage
+from ..._version import __version__
 from ...data import Experiment, ExperimentSpec
 from ...models import TransferFunction
 from ...report import (
@@ -32,22 +32,36 @@ from ...report import (
     plot_poles,
     plot_residuals,
     plot_validation,
+    pvalue_text,
 )
-from ...report._verdict import pvalue_text
 from ...validate import ValidationReport, validate
-from ...workflows._arx import HORIZON
-from ...workflows._common import (
+from ...workflows.kit import (
+    HORIZON,
+    Displayed,
+    FigureWriter,
+    Method,
+    Option,
+    ParameterValue,
+    RecordSummary,
+    TableSchema,
+    boolean,
+    choice,
+    choices,
+    count_check,
+    integer,
+    interval_check,
     keyed,
+    number,
+    optional,
     parameter_table,
     read_truth,
     report_options,
+    spec_conditions,
     spec_inputs,
+    summary_of,
+    validation_checks,
     validation_section,
 )
-from ...workflows._options import boolean, choice, choices, integer, number, optional
-from ...workflows._registry import FigureWriter, Method, Option, TableSchema
-from ...workflows._summary import Displayed, ParameterValue, RecordSummary, summary_of
-from ...workflows._verdict import count_check, interval_check, spec_conditions, validation_checks
 from ._api import APPROACHES, identify_closed_loop
 from ._loop import FeedbackLoop, reduced_plant
 from ._nonlinear import NONLINEAR_DEFAULTS

@@ -109,6 +109,7 @@ PLANT = Plant(
         "loop": f"{_HERE}._control:EmaController",
         "bench": f"{_HERE}._bench_files:write_bench",
         "fleet": f"{_HERE}._fleet:write_fleet",
+        "cli": f"{_HERE}._cli:add_cli",
         "methods": f"{_HERE}._workflow:METHODS",
     },
 )

@@ -332,8 +332,7 @@ def run_bench(bench: EmaBench, reference: ArrayLike, *, rng: np.random.Generator
         A channel clipped at the ADC range; the drive at its current or
         voltage limit.
     """
-    from ...bench._analog import butterworth, discrete_sos, realise
-    from ...bench._daq import note_warning, quantise, resolve_rng
+    from ...bench import butterworth, discrete_sos, note_warning, quantise, realise, resolve_rng
     from ...data import Channel, Experiment
 
     if not isinstance(bench, EmaBench):

@@ -91,8 +91,8 @@ def _run_ema(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     import json
     import warnings
 
+    from ..._flags import at_least, finite, folder_out, in_flags, positive
     from ..._progress import stage
-    from ...cli._flags import at_least, finite, folder_out, in_flags, positive
     from ._bench import EmaBench
     from ._bench_files import write_bench
     from ._params import TVC_EMA
@@ -137,8 +137,8 @@ def _run_ema(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 
 def _run_fleet(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from ..._flags import at_least, finite, folder_out, in_flags, positive
     from ..._progress import stage
-    from ...cli._flags import at_least, finite, folder_out, in_flags, positive
     from ._fleet import write_fleet
 
     at_least("--units", args.units, 3)

@@ -103,7 +103,7 @@ def _text(value: Any, where: str, name: str) -> str:
 def _loop() -> Any:
     """The ``[loop]`` schema (built on first use, like :data:`METHOD`)."""
     if "LOOP" not in globals():
-        from ...workflows._registry import Option, TableSchema
+        from ...workflows.kit import Option, TableSchema
 
         checks = {"u_max": _limit, "i_max": _limit, "w_max": _limit,
                   "outer_every": _count(1), "encoder_counts": _count(0), "feedback": _text}
@@ -128,8 +128,7 @@ def _example(folder: Any, seed: int = 0) -> Any:
 
 
 def _build() -> Any:
-    from ...workflows._options import boolean, integer, number, optional, text
-    from ...workflows._registry import Method, Option
+    from ...workflows.kit import Method, Option, boolean, integer, number, optional, text
 
     return Method(
         name="ema",

@@ -22,15 +22,22 @@ from typing import Any
 
 import numpy as np
 
-from ... import __version__
 from ..._errors import ChannelError, OptionError
+from ..._version import __version__
 from ...data import Experiment
 from ...report import Check, Figure, Page, Section, Table, Verdict
 from ...validate import fit_percent, residual_analysis
-from ...workflows._common import read_truth, report_options
-from ...workflows._registry import FigureWriter
-from ...workflows._summary import Displayed, ParameterValue, RecordSummary, summary_of
-from ...workflows._verdict import count_check, record_conditions
+from ...workflows.kit import (
+    Displayed,
+    FigureWriter,
+    ParameterValue,
+    RecordSummary,
+    count_check,
+    read_truth,
+    record_conditions,
+    report_options,
+    summary_of,
+)
 from ._control import EmaController
 from ._figures import plot_equations, plot_validation_run
 from ._filters import anti_alias_replica

@@ -48,11 +48,18 @@ from numpy.typing import NDArray
 
 from ..._errors import DataError, OptionTypeError, check_option
 from ..._lazy import signal as sps
-from ...bench._analog import butterworth, discrete_sos, discretise, realise
-from ...bench._daq import note_warning, quantise, resolve_rng
+from ...bench import (
+    butterworth,
+    discrete_sos,
+    discretise,
+    note_warning,
+    quantise,
+    realise,
+    resolve_rng,
+)
 from ...data import Channel, Experiment
 from ...models import StateSpace, TransferFunction
-from ..ehsa._bench_config import _integer, _positive, _real
+from .._common import integer_field, positive_field, real_field
 from ._params import PNEUMATIC_NOMINAL, PneumaticParameters
 from ._sim import PneumaticResponse, PositionController, simulate_pneumatic
 
@@ -148,14 +155,14 @@ class PneumaticTest:
 
     def __post_init__(self) -> None:
         check_option("test name", self.name, _TEST_NAMES)
-        object.__setattr__(self, "duration", _positive("duration", self.duration, "s"))
+        object.__setattr__(self, "duration", positive_field("duration", self.duration, "s"))
         if self.controller is not None and not isinstance(self.controller, PositionController):
             raise OptionTypeError(f"controller must be a PositionController or None, "
                                   f"got {type(self.controller).__name__}")
         for name, unit in (("u_amplitude", "V"), ("u_frequency", "Hz"), ("r_amplitude", "m"),
                            ("r_frequency", "Hz"), ("force_amplitude", "N"),
                            ("force_frequency", "Hz"), ("force_delay", "s")):
-            value = _real(name, getattr(self, name), unit)
+            value = real_field(name, getattr(self, name), unit)
             if not math.isfinite(value):
                 raise DataError(f"{name} must be finite [{unit}], got {value}")
             if name.endswith(("frequency", "delay")) and value < 0:
@@ -196,7 +203,7 @@ class PneumaticTest:
         PneumaticTest
             A validated copy.
         """
-        d = _positive("duration", duration, "s")
+        d = positive_field("duration", duration, "s")
         return PneumaticTest(**{**vars(self), "duration": d,
                                 "force_delay": self.force_delay * d / self.duration})
 
@@ -352,19 +359,19 @@ class PneumaticBench:
             if getattr(p, name) <= 0.0:
                 raise DataError(f"params.{name} must be an absolute pressure > 0 Pa, got "
                                 f"{getattr(p, name):g} (a gauge pressure? add 1.013e5 Pa)")
-        f_acq = _positive("f_acq", self.f_acq, "Hz")
+        f_acq = positive_field("f_acq", self.f_acq, "Hz")
         _set(self, "f_acq", f_acq)
-        _set(self, "oversample", _integer("oversample", self.oversample, 1, 64))
-        _set(self, "aa_order", _integer("aa_order", self.aa_order, 1, 10))
-        cutoff = 0.2 * f_acq if self.aa_cutoff is None else _positive(
+        _set(self, "oversample", integer_field("oversample", self.oversample, 1, 64))
+        _set(self, "aa_order", integer_field("aa_order", self.aa_order, 1, 10))
+        cutoff = 0.2 * f_acq if self.aa_cutoff is None else positive_field(
             "aa_cutoff", self.aa_cutoff, "Hz")
         if cutoff >= f_acq / 2:
             raise DataError(f"aa_cutoff must lie below f_acq/2 = {f_acq / 2:g} Hz, got "
                             f"{cutoff:g} Hz; the default is 0.2·f_acq")
         _set(self, "aa_cutoff", cutoff)
-        _set(self, "bits", _integer("bits", self.bits, 8, 24))
+        _set(self, "bits", integer_field("bits", self.bits, 8, 24))
         if self.snr_db is not None:
-            snr = _real("snr_db", self.snr_db, "dB")
+            snr = real_field("snr_db", self.snr_db, "dB")
             if not math.isfinite(snr):
                 raise DataError(f"snr_db must be finite [dB], got {snr}; pass snr_db=None "
                                 "for no sensor noise")
@@ -377,12 +384,12 @@ class PneumaticBench:
             std = {}
             for name, value in self.noise_std.items():
                 check_option("noise_std channel", name, sensors)
-                v = _real(f"noise_std[{name!r}]", value, PNEUMATIC_CHANNELS[name][1])
+                v = real_field(f"noise_std[{name!r}]", value, PNEUMATIC_CHANNELS[name][1])
                 if not (math.isfinite(v) and v >= 0):
                     raise DataError(f"noise_std[{name!r}] must be finite and >= 0, got {v}")
                 std[name] = v
             _set(self, "noise_std", MappingProxyType(std))
-        temp = _real("temperature_noise", self.temperature_noise, "K")
+        temp = real_field("temperature_noise", self.temperature_noise, "K")
         if not (math.isfinite(temp) and temp >= 0):
             raise DataError(f"temperature_noise must be finite and >= 0 [K], got {temp}")
         _set(self, "temperature_noise", temp)
@@ -390,11 +397,11 @@ class PneumaticBench:
                  "pressure_range": "Pa", "velocity_range": "m/s", "acceleration_range": "m/s²",
                  "force_range": "N", "temperature_sensitivity": "V/K"}
         for name, unit in units.items():
-            _set(self, name, _positive(name, getattr(self, name), unit))
-        spool = 1.5 * p.k_v * p.u_max if self.spool_range is None else _positive(
+            _set(self, name, positive_field(name, getattr(self, name), unit))
+        spool = 1.5 * p.k_v * p.u_max if self.spool_range is None else positive_field(
             "spool_range", self.spool_range, "m")
         _set(self, "spool_range", spool)
-        pos = 0.625 * p.stroke if self.position_range is None else _positive(
+        pos = 0.625 * p.stroke if self.position_range is None else positive_field(
             "position_range", self.position_range, "m")
         if pos <= p.stroke / 2.0:
             raise DataError(f"position_range must exceed the half stroke {p.stroke / 2:g} m, "

@@ -36,8 +36,7 @@ from ..._errors import ChannelError, DataError, IdentifiabilityError, ServoidWar
 from ..._progress import stage
 from ..._warn import warn
 from ...data import Experiment
-from ...estimate._covariance import GREYBOX_COVARIANCES, GreyboxCovariance
-from ...estimate._svf import Hold
+from ...estimate import GREYBOX_COVARIANCES, GreyboxCovariance, Hold
 from ._params import PneumaticParameters
 from ._refine import (
     REFINABLE,

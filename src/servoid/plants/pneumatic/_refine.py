@@ -41,8 +41,7 @@ from numpy.typing import NDArray
 from ..._checks import as_float, as_float_list, as_instance, as_int, as_mapping, as_str, as_str_list
 from ..._errors import DataError, ModelError, OptionError
 from ...data import Experiment
-from ...estimate import Estimate, GreyboxParameter, fit_greybox, lstsq
-from ...estimate._covariance import GreyboxCovariance
+from ...estimate import Estimate, GreyboxCovariance, GreyboxParameter, fit_greybox, lstsq
 from ...validate import fit_percent
 from ._params import PneumaticParameters
 from ._sim import PositionController, simulate_pneumatic

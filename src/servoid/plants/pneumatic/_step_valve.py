@@ -19,8 +19,7 @@ import numpy as np
 
 from ..._errors import DataError
 from ...data import Experiment
-from ...estimate import lstsq, state_variable_filter
-from ...estimate._svf import Hold
+from ...estimate import Hold, lstsq, state_variable_filter
 from ._steps import StepResult, channel, check_positive, ls_estimate, physical_estimate
 
 __all__ = ["identify_valve"]

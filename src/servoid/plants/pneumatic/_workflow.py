@@ -36,9 +36,9 @@ from typing import Any
 
 import numpy as np
 
-from ... import __version__
 from ..._checks import as_float, as_mapping, as_str, type_error
 from ..._errors import DataError, OptionError, check_option
+from ..._version import __version__
 from ...data import Experiment, ExperimentSpec, load_experiment_spec
 from ...report import (
     Check,
@@ -49,14 +49,28 @@ from ...report import (
     Table,
     Verdict,
     new_figure,
+    plain,
     save_figure,
 )
-from ...report._text import plain
-from ...workflows._common import read_truth, report_options
-from ...workflows._options import boolean, choice, number, optional, text
-from ...workflows._registry import FigureWriter, Method, Option, TableSchema
-from ...workflows._summary import Displayed, ParameterValue, RecordSummary, summary_of
-from ...workflows._verdict import count_check, record_conditions
+from ...workflows.kit import (
+    Displayed,
+    FigureWriter,
+    Method,
+    Option,
+    ParameterValue,
+    RecordSummary,
+    TableSchema,
+    boolean,
+    choice,
+    count_check,
+    number,
+    optional,
+    read_truth,
+    record_conditions,
+    report_options,
+    summary_of,
+    text,
+)
 from ._pipeline import MultistepResult, identify_multistep
 from ._refine import REFINABLE, RecordComparison
 from ._sim import PositionController

@@ -78,8 +78,7 @@ from ..._errors import (
 )
 from ..._lazy import optimize
 from ...data import Channel, Experiment, decimate, lowpass
-from ...estimate._estimate import Estimate
-from ...estimate._ls import lstsq
+from ...estimate import Estimate, lstsq
 from ._axis import CascadeController, RigidAxis, RigidLoopResponse, simulate_rigid_loop
 
 Integration = Literal["exact", "sign"]  # as simulate_rigid_loop takes them

@@ -35,7 +35,6 @@ from typing import Any
 
 import numpy as np
 
-from ... import __version__
 from ..._checks import as_float, as_int_list, as_mapping, read_json
 from ..._errors import (
     ChannelError,
@@ -44,6 +43,7 @@ from ..._errors import (
     OptionError,
     ServoidWarning,
 )
+from ..._version import __version__
 from ...data import Experiment, ExperimentSpec
 from ...estimate import Estimate, fit_arx
 from ...report import (
@@ -59,11 +59,26 @@ from ...report import (
     plot_loop,
 )
 from ...validate import relative_error, simulate_from_data
-from ...workflows._common import parameter_table, report_options
-from ...workflows._options import boolean, choice, choices, integer, number, optional, text
-from ...workflows._registry import FigureWriter, Method, Option, TableSchema
-from ...workflows._summary import Displayed, RecordSummary, summary_of
-from ...workflows._verdict import loop_verdict, record_conditions
+from ...workflows.kit import (
+    Displayed,
+    FigureWriter,
+    Method,
+    Option,
+    RecordSummary,
+    TableSchema,
+    boolean,
+    choice,
+    choices,
+    integer,
+    loop_verdict,
+    number,
+    optional,
+    parameter_table,
+    record_conditions,
+    report_options,
+    summary_of,
+    text,
+)
 from ._axis import CascadeController, RigidAxis, simulate_rigid_loop
 from ._inverse import (
     FRICTION_MODELS,

@@ -16,7 +16,7 @@ from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
-from .._errors import DataError, ServoidError
+from ._errors import DataError, ServoidError
 
 __all__ = ["at_least", "finite", "folder_out", "in_flags", "out_path", "positive", "reword"]
 
