@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import importlib
-
-import servoid
 import inspect
 
 import pytest
+
+import servoid
 
 PACKAGES = ["servoid", "servoid.data", "servoid.signals", "servoid.models", "servoid.estimate",
             "servoid.validate", "servoid.report", "servoid.workflows", "servoid.cli",

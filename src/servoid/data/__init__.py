@@ -13,8 +13,9 @@ rig-file formats (``--format``) without loading numpy.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from .._exports import lazy_exports
 
 if TYPE_CHECKING:
     from ._csv import read_csv, write_csv
@@ -110,14 +111,4 @@ _HOME = {
 _HOME.update({"check_experiment": "_experiment", "read_toml": "_toml"})
 
 
-def __getattr__(name: str) -> Any:
-    """Import an export on first use."""
-    if name not in _HOME:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{_HOME[name]}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+__getattr__, __dir__ = lazy_exports(__name__, _HOME)

@@ -8,9 +8,9 @@ it needs, nothing else.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from .._exports import lazy_exports
 from .._moved import moved_names
 
 if TYPE_CHECKING:
@@ -168,21 +168,6 @@ _SHARED = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    """Import an estimator's module when its name is first read."""
-    module = _WHERE.get(name) or _SHARED.get(name)
-    if module is None:
-        return _moved(name)  # a name that moved into servoid.plants, or AttributeError
-    module, _, attribute = module.partition(":")
-    value = getattr(importlib.import_module(f".{module}", __name__), attribute or name)
-    globals()[name] = value  # later reads skip this hook
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
-
-
 #: Names that moved into servoid.plants: found there, with a warning, for one release.
 _MOVED = {
     "FRICTION_MODELS": "servoid.plants.rigid",
@@ -192,3 +177,5 @@ _MOVED = {
     "inverse_dynamics_regression": "servoid.plants.rigid",
 }
 _moved = moved_names(__name__, _MOVED)
+
+__getattr__, __dir__ = lazy_exports(__name__, {**_WHERE, **_SHARED}, fallback=_moved)

@@ -17,9 +17,9 @@ line here.  The friction laws any plant may use are here too
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from .._exports import lazy_exports
 from ._plant import PARTS, Plant
 from .ehsa import PLANT as _EHSA
 from .ema import PLANT as _EMA
@@ -52,10 +52,4 @@ PLANTS: dict[str, Plant] = {plant.name: plant for plant in (_EHSA, _PNEUMATIC, _
 _FRICTION = ("coulomb_friction", "karnopp_friction", "stribeck_friction",
              "three_regime_friction", "viscous_friction")
 
-
-def __getattr__(name: str) -> Any:
-    if name not in _FRICTION:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}._friction"), name)
-    globals()[name] = value
-    return value
+__getattr__, __dir__ = lazy_exports(__name__, dict.fromkeys(_FRICTION, "_friction"))

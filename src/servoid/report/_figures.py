@@ -33,7 +33,10 @@ def plot_residuals(
     *,
     u: ArrayLike | None = None,
 ) -> None:
-    """Save :func:`servoid.validate.residuals_figure` of ``report`` (input ``u``) to ``path``."""
+    """Save the residual correlations of ``report`` to ``path``.
+
+    The figure is :func:`servoid.validate.residuals_figure` of ``report`` and the input ``u``.
+    """
     save_figure(residuals_figure(report, u), path, overwrite)
 
 

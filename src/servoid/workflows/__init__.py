@@ -12,9 +12,9 @@ Each name is imported on first use, so that the command line starts (and
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from .._exports import lazy_exports
 from .._moved import moved_names
 
 if TYPE_CHECKING:
@@ -23,8 +23,8 @@ if TYPE_CHECKING:
     from ._methods import get_method, method_names
     from ._registry import Identification, Method, Option
     from ._results import Results, load_results, rerender
-    from ._summary import ParameterValue, RecordSummary
     from ._run import identify, write_results
+    from ._summary import ParameterValue, RecordSummary
 
 __all__ = [
     "DivergedRun",
@@ -62,19 +62,6 @@ _HOME.update({
 })
 
 
-def __getattr__(name: str) -> Any:
-    """Import an export on first use."""
-    if name not in _HOME:
-        return _moved(name)  # a name that moved into servoid.plants, or AttributeError
-    value = getattr(importlib.import_module(f".{_HOME[name]}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
-
-
 #: Names that moved into servoid.plants: found there, with a warning, for one release.
 _MOVED = {
     "ClosedLoopIdentification": "servoid.plants.ehsa",
@@ -86,3 +73,5 @@ _MOVED = {
     "run_demo": "servoid.plants.ehsa",
 }
 _moved = moved_names(__name__, _MOVED)
+
+__getattr__, __dir__ = lazy_exports(__name__, _HOME, fallback=_moved)

@@ -171,9 +171,9 @@ class TableSchema:
 
 @runtime_checkable
 class Identification(Protocol):
-    """What a method's run returns: one result, summarised, judged, printable, writable.
+    """What a method's run returns: one result and its contract.
 
-    ``write_results``, the report's verdict box and provenance, the fleet
+    A result is summarised, judged, printable and writable: ``write_results``, the report's verdict box and provenance, the fleet
     row and ``load_results`` use these and nothing else: no caller reads a
     method's ``results.json`` back, nor asks which method made a result.
     """

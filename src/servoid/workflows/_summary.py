@@ -30,9 +30,9 @@ __all__ = ["Displayed", "ParameterValue", "RecordSummary", "input_digest", "summ
 
 @dataclass(frozen=True)
 class ParameterValue:
-    """One estimated scalar of one record: value, standard deviation, 95 % interval, unit.
+    """One estimated scalar of one record, with its uncertainty.
 
-    A scalar read from data without an uncertainty (an FRF's bandwidth) has
+    Its value, standard deviation, 95 % interval and unit. A scalar read from data without an uncertainty (an FRF's bandwidth) has
     NaN for its std and interval.
     """
 

@@ -27,9 +27,7 @@ units fail by a wide margin.
 
 from __future__ import annotations
 
-import csv
 import datetime as dt
-import io
 import math
 import os
 from dataclasses import dataclass
@@ -42,10 +40,11 @@ from ..._checks import as_path
 from ..._errors import DataError
 from ..._progress import Progress
 from ...data import RigFormat
+from .._fleet import damage_file, scattered, truncated_normal, write_rows
 from ._bench import run
 from ._bench_config import EhsaBench
 from ._bench_files import write_bench_files
-from ._params import SET_B, EhsaParameters
+from ._params import SET_B
 
 __all__ = ["FLEET_LIMITS", "FLEET_SCATTER", "VirtualFleet", "write_virtual_fleet"]
 
@@ -56,7 +55,6 @@ FLEET_LIMITS = {"K": 0.08, "omega_hp": 0.06, "delta_hp": 0.40}
 _DEFECTS = (("valve area gradient 20 % low", {"w": 0.80}),
             ("air in the oil: bulk modulus 45 % low", {"beta_e": 0.55}),
             ("worn seal: leakage ×3", {"K_ce": 3.0}))
-_TRUNCATE = 2.5
 
 
 @dataclass(frozen=True)
@@ -143,7 +141,8 @@ def write_virtual_fleet(
     for k in range(units + corrupt):
         serial = f"SN-{k + 1:04d}"
         date = start + dt.timedelta(days=k)
-        factors = {name: 1.0 + sigma * _truncated(gen) for name, sigma in FLEET_SCATTER.items()}
+        factors = {name: 1.0 + sigma * truncated_normal(gen)
+                   for name, sigma in FLEET_SCATTER.items()}
         defect = ""
         if bad_every and k % bad_every == bad_every - 1 and k < units:
             defect, change = _DEFECTS[(k // bad_every) % len(_DEFECTS)]
@@ -151,13 +150,13 @@ def write_virtual_fleet(
             bad.append(serial)
         age = (date - start).days / 100.0
         factors["K_ce"] *= 1.0 + drift * age
-        params = _unit(SET_B, factors)
+        params = scattered(SET_B, factors)
         unit_dir = root / "units" / serial
         record = run(EhsaBench(params=params, snr_db=snr_db), excitation,
                      rng=int(seed) * 100_003 + k)
         files = write_bench_files(record, unit_dir, overwrite=overwrite)
         if k >= units:
-            _truncate(next(f for f in files if RigFormat.find(f) is not None))
+            damage_file(next(f for f in files if RigFormat.find(f) is not None))
             damaged.append(serial)
         toml = next(f for f in files if f.suffix == ".toml")
         rows.append({"path": toml.relative_to(root).as_posix(), "serial": serial,
@@ -168,39 +167,16 @@ def write_virtual_fleet(
                       **{f"factor_{n}": f for n, f in factors.items()}})
         bar.update()
     bar.close()
-    manifest = _write_csv(root / "units.csv", rows, overwrite)
-    truth_file = _write_csv(root / "truth.csv", truth, overwrite)
+    manifest = write_rows(root / "units.csv", rows, overwrite)
+    truth_file = write_rows(root / "truth.csv", truth, overwrite)
     fleet_file = root / "fleet.toml"
     with atomic_path(fleet_file, overwrite=overwrite) as tmp:
         tmp.write_text(_fleet_toml(drift), encoding="utf-8")
     return VirtualFleet(root, fleet_file, manifest, truth_file, tuple(bad), tuple(damaged))
 
 
-def _truncated(gen: np.random.Generator) -> float:
-    while True:
-        z = float(gen.standard_normal())
-        if abs(z) <= _TRUNCATE:
-            return z
 
 
-def _unit(base: EhsaParameters, factors: dict[str, float]) -> EhsaParameters:
-    return base.with_(**{name: getattr(base, name) * f for name, f in factors.items()})
-
-
-def _truncate(path: Path) -> None:
-    data = path.read_bytes()
-    with atomic_path(path, overwrite=True) as tmp:
-        tmp.write_bytes(data[: len(data) // 3])
-
-
-def _write_csv(path: Path, rows: list[dict[str, object]], overwrite: bool) -> Path:
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    with atomic_path(path, overwrite=overwrite) as tmp:
-        tmp.write_text(buffer.getvalue(), encoding="utf-8")
-    return path
 
 
 def _fleet_toml(drift: float) -> str:

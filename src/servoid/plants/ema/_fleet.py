@@ -30,9 +30,7 @@ their intervals, bad ones fail by a wide margin.
 
 from __future__ import annotations
 
-import csv
 import datetime as dt
-import io
 import math
 import os
 from dataclasses import dataclass
@@ -43,9 +41,10 @@ import numpy as np
 from ..._atomic import atomic_path
 from ..._checks import as_bool, as_float, as_int, as_path
 from ..._errors import DataError
+from .._fleet import damage_file, scattered, truncated_normal, write_rows
 from ._bench import EmaBench, bench_reference, run_bench, truth_parameters
 from ._bench_files import write_run
-from ._params import TVC_EMA, EmaParameters
+from ._params import TVC_EMA
 
 __all__ = ["FLEET_LIMITS", "FLEET_SCATTER", "EmaFleet", "write_fleet"]
 
@@ -57,7 +56,6 @@ FLEET_LIMITS = {"K_m": 0.06, "k_s": 0.20, "T_cm": 0.40, "J_total": 0.05}
 _DEFECTS = (("worn screw: stiffness 35 % low", {"k_s": 0.65}),
             ("tight gear: motor-side Coulomb friction ×2.5", {"T_cm": 2.5}),
             ("weak magnets: motor constant 12 % low", {"K_m": 0.88}))
-_TRUNCATE = 2.5
 
 
 @dataclass(frozen=True)
@@ -141,57 +139,34 @@ def write_fleet(
     for k in range(units + corrupt):
         serial = f"EMA-{k + 1:04d}"
         date = start + dt.timedelta(days=k)
-        factors = {name: 1.0 + s * _truncated(gen) for name, s in FLEET_SCATTER.items()}
+        factors = {name: 1.0 + s * truncated_normal(gen) for name, s in FLEET_SCATTER.items()}
         defect = ""
         if bad_every and k % bad_every == bad_every - 1 and k < units:
             defect, change = _DEFECTS[(k // bad_every) % len(_DEFECTS)]
             factors = {n: f * change.get(n, 1.0) for n, f in factors.items()}
             bad.append(serial)
         factors["T_cm"] *= 1.0 + drift * (date - start).days / 100.0
-        params = _unit(TVC_EMA, factors)
+        params = scattered(TVC_EMA, factors)
         run = run_bench(base.with_(params=params), reference, rng=seed * 100_003 + k)
         files = write_run(run, root / "units" / serial, overwrite=overwrite)
         if k >= units:
-            _truncate(files[0])
+            damage_file(files[0])
             damaged.append(serial)
         rows.append({"path": files[1].relative_to(root).as_posix(), "serial": serial,
                      "date": date.isoformat(), "rig": "virtual EMA bench"})
         truth.append({"serial": serial, "date": date.isoformat(),
                       **truth_parameters(params),
                       "defect": defect or ("corrupt file" if k >= units else "")})
-    manifest = _write_csv(root / "units.csv", rows, overwrite)
-    truth_file = _write_csv(root / "truth.csv", truth, overwrite)
+    manifest = write_rows(root / "units.csv", rows, overwrite)
+    truth_file = write_rows(root / "truth.csv", truth, overwrite)
     fleet_file = root / "fleet.toml"
     with atomic_path(fleet_file, overwrite=overwrite) as tmp:
         tmp.write_text(_fleet_toml(drift), encoding="utf-8")
     return EmaFleet(root, fleet_file, manifest, truth_file, tuple(bad), tuple(damaged))
 
 
-def _truncated(gen: np.random.Generator) -> float:
-    while True:
-        z = float(gen.standard_normal())
-        if abs(z) <= _TRUNCATE:
-            return z
 
 
-def _unit(base: EmaParameters, factors: dict[str, float]) -> EmaParameters:
-    return base.with_(**{name: getattr(base, name) * f for name, f in factors.items()})
-
-
-def _truncate(path: Path) -> None:
-    data = path.read_bytes()
-    with atomic_path(path, overwrite=True) as tmp:
-        tmp.write_bytes(data[: len(data) // 3])
-
-
-def _write_csv(path: Path, rows: list[dict[str, object]], overwrite: bool) -> Path:
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    with atomic_path(path, overwrite=overwrite) as tmp:
-        tmp.write_text(buffer.getvalue(), encoding="utf-8")
-    return path
 
 
 def _fleet_toml(drift: float) -> str:
