@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._checks import type_error
 from .._drawing import plain, thinned
 from ._report import ValidationReport
 from ._residuals import _bartlett_autocorrelation, _lagged_sums, _unit_scale
@@ -33,6 +34,7 @@ def validation_figure(report: ValidationReport, unit: str = "", *,
     ``new(figsize)`` makes the figure: pyplot-free for reports, a pyplot
     figure for ``ValidationReport.plot``.
     """
+    _check_report(report)
     t = report.time
     first = report.first
     fig = (new or _figure)((9, 7.5))
@@ -111,6 +113,7 @@ def residuals_figure(report: ValidationReport, u: ArrayLike | None = None, *,
     new : callable
         ``new(figsize)`` makes the figure: pyplot-free by default.
     """
+    _check_report(report)
     res = report.residuals
     n_cross = res.cross_correlation.shape[0]
     fig = (new or _figure)((9, 2.6 * (1 + n_cross)))
@@ -198,3 +201,8 @@ def _figure(figsize: tuple[float, float]) -> Figure:
     from matplotlib.figure import Figure
 
     return Figure(figsize=figsize)
+
+
+def _check_report(report: object) -> None:
+    if not isinstance(report, ValidationReport):
+        raise type_error("report", report, "a ValidationReport (servoid.validate.validate)")
