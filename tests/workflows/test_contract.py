@@ -16,7 +16,7 @@ from types import MappingProxyType
 
 import pytest
 
-import servoid.workflows._common as common
+import servoid.data._digest as digest
 from servoid import OptionError
 from servoid.cli import main
 from servoid.data import load_experiment_spec
@@ -30,16 +30,21 @@ SRC = Path(__file__).parents[2] / "src" / "servoid"
 def counted(monkeypatch):
     """Count every SHA-256 of a whole file, by real path.
 
-    Every such hash of the workflows is ``_common.sha256``, which opens the
-    file; its ``open`` is counted, however a module imported the function.
+    Every hash of an input is ``servoid.data.file_sha256``, which reads the file
+    through ``_digest.open_input`` unless it remembers an unchanged file's digest
+    (a file written in the last seconds is read again every time it is asked for; the
+    test's files, written just before the run, count as a rig's older files do).
     """
     counts: collections.Counter[str] = collections.Counter()
+    real_open = digest.open_input
 
     def counting_open(path, *args, **kwargs):
         counts[os.path.realpath(path)] += 1
-        return open(path, *args, **kwargs)
+        return real_open(path, *args, **kwargs)
 
-    monkeypatch.setattr(common, "open", counting_open, raising=False)
+    monkeypatch.setattr(digest, "open_input", counting_open)
+    monkeypatch.setattr(digest, "_RACY", 0.0)
+    digest._forget()
     return counts
 
 
