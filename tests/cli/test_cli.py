@@ -147,9 +147,10 @@ def test_demo_refuses_a_foreign_folder(capsys, tmp_path):
 
 def test_parser_literals_match_the_bench():
     """The CLI names the bench's fidelities and tests without importing the bench."""
-    from servoid.cli._bench import BENCH_FIDELITIES, PNEUMATIC_TEST_NAMES
     from servoid.plants.ehsa import FIDELITIES
+    from servoid.plants.ehsa._cli import FIDELITIES as BENCH_FIDELITIES
     from servoid.plants.pneumatic import PNEUMATIC_TESTS
+    from servoid.plants.pneumatic._cli import TEST_NAMES as PNEUMATIC_TEST_NAMES
 
     assert BENCH_FIDELITIES == tuple(FIDELITIES)
     assert PNEUMATIC_TEST_NAMES == tuple(PNEUMATIC_TESTS)

@@ -1,4 +1,4 @@
-"""``servoid fleet`` and ``servoid bench fleet``: a batch or a life test of many records."""
+"""``servoid fleet``: a batch or a life test of many records."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .._flags import at_least, finite, folder_out, out_path
+from .._flags import at_least, out_path
 
-__all__ = ["add_bench_fleet", "add_fleet"]
+__all__ = ["add_fleet"]
 
 
 def add_fleet(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> None:
@@ -98,58 +98,3 @@ def _run_fleet(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
         print(str(result), file=sys.stderr)
         raise KeyboardInterrupt
     return result.to_dict() | {"files": [str(f) for f in result.files]}, str(result)
-
-
-def add_bench_fleet(rigs: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> None:
-    """Add ``servoid bench fleet`` to the bench's rigs."""
-    fleet = rigs.add_parser(
-        "fleet", help="a virtual fleet of EHSA units (the fleet demo)",
-        description="Write bench records of many EHSA units around Set B with stated "
-        "manufacturing scatter (valve 1.5 %, bulk modulus 2 %, volume 1 %, leakage 8 %, "
-        "1 sigma truncated at 2.5 sigma), every --bad-every-th unit outside tolerance, an "
-        "optional ageing drift of the leakage and --corrupt damaged files; plus units.csv, "
-        "truth.csv and fleet.toml with acceptance limits. Then: servoid fleet OUT/fleet.toml.",
-    )
-    fleet.add_argument("--out", type=out_path, default=Path("servoid-fleet"),
-                       help="folder (default: %(default)s)")
-    fleet.add_argument("--units", type=int, default=24, help="units (default: %(default)s)")
-    fleet.add_argument("--bad-every", type=int, default=8,
-                       help="every Nth unit is outside tolerance; 0: none (default: %(default)s)")
-    fleet.add_argument("--corrupt", type=int, default=1,
-                       help="extra records with a truncated rig file (default: %(default)s)")
-    fleet.add_argument("--drift", type=float, default=0.0,
-                       help="leakage growth per 100 days of test date, e.g. 0.5 for +50 %% "
-                       "(default: %(default)s)")
-    fleet.add_argument("--register", "-n", type=int, default=9,
-                       help="PRBS register length of each test (default: %(default)s)")
-    fleet.add_argument("--seed", type=int, default=0, help="seed (default: %(default)s)")
-    fleet.add_argument("--overwrite", action="store_true", help="replace an earlier fleet's files")
-    json_flag(fleet)
-    fleet.set_defaults(run=_run_bench_fleet)
-
-
-def _run_bench_fleet(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
-    from ..plants.ehsa import write_virtual_fleet
-
-    at_least("--units", args.units, 3)
-    at_least("--bad-every", args.bad_every, 0)
-    at_least("--corrupt", args.corrupt, 0)
-    at_least("--seed", args.seed, 0)
-    finite("--drift", args.drift, "per 100 days")
-    folder_out("--out", args.out)
-    if not 5 <= args.register <= 16:
-        from .._errors import DataError
-
-        raise DataError(f"--register must be from 5 to 16; got {args.register}")
-    fleet = write_virtual_fleet(args.out, units=args.units, seed=args.seed, drift=args.drift,
-                                bad_every=args.bad_every, corrupt=args.corrupt,
-                                register=args.register, overwrite=args.overwrite)
-    payload = {"folder": str(fleet.folder), "fleet_file": str(fleet.fleet_file),
-               "manifest": str(fleet.manifest), "truth": str(fleet.truth_file),
-               "bad": list(fleet.bad), "corrupt": list(fleet.corrupt)}
-    text = (f"virtual fleet: {args.units + args.corrupt} records in {fleet.folder}\n"
-            f"  outside tolerance: {', '.join(fleet.bad) or 'none'}\n"
-            f"  corrupt files:     {', '.join(fleet.corrupt) or 'none'}\n"
-            f"  truth:             {fleet.truth_file}\n"
-            f"next: servoid fleet {fleet.fleet_file}")
-    return payload, text

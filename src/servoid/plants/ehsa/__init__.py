@@ -211,6 +211,7 @@ PLANT = Plant(
         "loop": f"{__name__}._loop:FeedbackLoop",
         "bench": f"{__name__}._bench_files:write_bench",
         "fleet": f"{__name__}._fleet:write_virtual_fleet",
+        "cli": f"{__name__}._cli:add_cli",
         "methods": f"{__name__}._workflow:METHODS",
     },
 )

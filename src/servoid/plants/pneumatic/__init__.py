@@ -198,6 +198,7 @@ PLANT = Plant(
         "simulate": f"{__name__}._sim:simulate_pneumatic",
         "loop": f"{__name__}._sim:PositionController",
         "bench": f"{__name__}._bench_files:write_pneumatic_campaign",
+        "cli": f"{__name__}._cli:add_cli",
         "methods": f"{__name__}._workflow:METHODS",
     },
 )
