@@ -1,0 +1,26 @@
+"""Frequency-domain identification: nonparametric FRFs with variances, ML fits, acceptance.
+
+The nonparametric estimators return an :class:`FrfMeasurement`: the
+response on its lines with its noise variance (and, for M random-phase
+realisations, the stochastic nonlinear variance), the degrees of freedom
+of those estimates and the distortion levels of the detection lines.
+
+- :func:`estimate_lpm`, :func:`estimate_lrm`: local polynomial / rational
+  method for any excitation, transients included (open or closed loop).
+- :func:`estimate_bla`: periodic excitation, M realisations × P periods:
+  the best linear approximation with noise and nonlinear variances, odd
+  and even distortion levels; closed loop from the reference.
+"""
+
+from ._bla import estimate_bla
+from ._local import estimate_lpm, estimate_lrm
+from ._measured import DistortionLevels, FrfMeasurement, VarianceKind
+
+__all__ = [
+    "DistortionLevels",
+    "FrfMeasurement",
+    "VarianceKind",
+    "estimate_bla",
+    "estimate_lpm",
+    "estimate_lrm",
+]
