@@ -52,7 +52,8 @@ from .._errors import DataError, OptionTypeError, ServoidWarning
 from .._lazy import stats
 from .._warn import warn
 from ..data import Experiment
-from ..estimate._frf import _channel, _check_varies
+from ._channels import channel as _channel
+from ._channels import check_varies as _check_varies
 from ..signals import MultisinePlan
 from ._measured import DistortionLevels, FrfMeasurement
 

@@ -59,7 +59,8 @@ from numpy.typing import NDArray
 from .._checks import as_float, as_int
 from .._errors import DataError, OptionTypeError
 from ..data import Experiment
-from ..estimate._frf import _channel, _check_varies
+from ._channels import channel as _channel
+from ._channels import check_varies as _check_varies
 from ._measured import FrfMeasurement
 
 __all__ = ["estimate_lpm", "estimate_lrm"]
