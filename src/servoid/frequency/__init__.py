@@ -10,17 +10,28 @@ of those estimates and the distortion levels of the detection lines.
 - :func:`estimate_bla`: periodic excitation, M realisations × P periods:
   the best linear approximation with noise and nonlinear variances, odd
   and even distortion levels; closed loop from the reference.
+
+:func:`fit_ml` fits an s- or z-domain transfer function to a measurement
+by (sample) maximum likelihood, with the parameter covariance and the
+cost-function test; :func:`select_ml_order` picks the simplest order
+that passes it.
 """
 
 from ._bla import estimate_bla
 from ._local import estimate_lpm, estimate_lrm
 from ._measured import DistortionLevels, FrfMeasurement, VarianceKind
+from ._ml import Domain, MlFit, MlStart, fit_ml, select_ml_order
 
 __all__ = [
     "DistortionLevels",
+    "Domain",
     "FrfMeasurement",
+    "MlFit",
+    "MlStart",
     "VarianceKind",
     "estimate_bla",
     "estimate_lpm",
     "estimate_lrm",
+    "fit_ml",
+    "select_ml_order",
 ]
