@@ -420,8 +420,8 @@ def plan_multisine(
             raise DataError(
                 f"test_time = {budget:g} s holds {whole} period(s) of {n * dt:g} s; "
                 f"{max(m, 1)} realisation(s) of {p_tr} transient + {p} measured periods need "
-                f"{need:g} s. Allow more time, or lower the resolution, the realisations, the "
-                "periods or the settling time"
+                f"{need:g} s. Allow more time, or use a coarser resolution (a shorter period), "
+                "fewer realisations or periods, or a shorter settling time"
             )
     return MultisinePlan(dt=dt, period=n, excited=excited, realisations=m, periods=p,
                          transient_periods=p_tr, lines=lines, grid=grid, group=group, seed=seed)
