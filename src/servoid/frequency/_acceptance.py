@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from .._checks import as_float
-from .._errors import OptionError, ServoidError
+from .._errors import OptionError, OptionTypeError, ServoidError
 from .._lazy import stats
 from ..models import bandwidth, phase_lag, resonance_peak
 from ._measured import DistortionLevels
@@ -173,8 +173,6 @@ def acceptance_numbers(
     (6.6, 2.7)
     """
     if not isinstance(fit, MlFit):
-        from .._errors import OptionTypeError
-
         raise OptionTypeError(f"fit must be an MlFit (from fit_ml), got {type(fit).__name__}")
     level = as_float("level_db", level_db)
     if not level < 0:
@@ -230,6 +228,13 @@ def judge(numbers: tuple[SpecNumber, ...], limits: Mapping[str, float | None],
         One per number that has a limit, in the order of `numbers` (a
         limit on a number that was not computed fails, saying so).
     """
+    if not isinstance(numbers, (tuple, list)) or not all(isinstance(n, SpecNumber)
+                                                          for n in numbers):
+        raise OptionTypeError("numbers must be a tuple of SpecNumber (from acceptance_numbers), "
+                              f"got {type(numbers).__name__}")
+    if not isinstance(limits, Mapping):
+        raise OptionTypeError(f"limits must be a mapping of limit name to number, got "
+                              f"{type(limits).__name__}")
     unknown = sorted(set(limits) - set(LIMIT_KEYS))
     if unknown:
         raise OptionError(f"unknown acceptance limit(s) {', '.join(unknown)}; valid keys are "
@@ -240,8 +245,8 @@ def judge(numbers: tuple[SpecNumber, ...], limits: Mapping[str, float | None],
         lo, hi = limits.get(f"{name}_min"), limits.get(f"{name}_max")
         if lo is None and hi is None:
             continue
-        low = -math.inf if lo is None else float(lo)
-        high = math.inf if hi is None else float(hi)
+        low = -math.inf if lo is None else as_float(f"{name}_min", lo)
+        high = math.inf if hi is None else as_float(f"{name}_max", hi)
         text = _limit_text(low, high, unit)
         num = by_name.get(name)
         if num is None:

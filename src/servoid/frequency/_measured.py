@@ -161,7 +161,7 @@ class FrfMeasurement:
     distortion: DistortionLevels | None = None
 
     def __post_init__(self) -> None:
-        f = np.asarray(self.frequency, dtype=float)
+        f = _array("frequency", self.frequency, float)
         if f.ndim != 1 or f.size == 0 or np.any(np.diff(f) <= 0) or f[0] < 0:
             raise DataError("FrfMeasurement: frequency must be a non-empty increasing 1-D array "
                             "of lines >= 0 Hz")
@@ -169,7 +169,7 @@ class FrfMeasurement:
             value = getattr(self, name)
             if value is None:
                 continue
-            arr = np.array(value, dtype=complex if name == "response" else float, copy=True)
+            arr = _array(name, value, complex if name == "response" else float).copy()
             if arr.shape != f.shape:
                 raise DataError(f"FrfMeasurement: {name} must have the shape of frequency "
                                 f"{f.shape}, got {arr.shape}")
@@ -269,6 +269,14 @@ def as_measurement(value: object, name: str = "frf") -> FrfMeasurement:
         raise OptionTypeError(f"{name} must be an FrfMeasurement (from estimate_lpm, "
                               f"estimate_lrm or estimate_bla), got {type(value).__name__}")
     return value
+
+
+def _array(name: str, value: object, dtype: type) -> NDArray[Any]:
+    try:
+        return np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError):
+        raise DataError(f"FrfMeasurement: {name} must be an array of numbers, got "
+                        f"{type(value).__name__}") from None
 
 
 def _num(x: float | None) -> float | None:

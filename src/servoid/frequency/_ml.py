@@ -61,7 +61,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import as_float, as_int
-from .._errors import ConvergenceError, DataError, ServoidWarning, check_option
+from .._errors import (
+    ConvergenceError,
+    DataError,
+    OptionTypeError,
+    ServoidWarning,
+    check_option,
+)
 from .._lazy import linalg, optimize, stats
 from .._warn import warn
 from ..models import TransferFunction
@@ -344,13 +350,25 @@ def select_ml_order(
         p-value) and every fit, in the order of `orders`.
     """
     level = as_float("level", level, positive=True)
-    if not orders:
-        raise DataError("orders must name at least one (n_poles, n_zeros) pair")
-    fits = tuple(fit_ml(frf, int(p), int(z), **options) for p, z in orders)
+    pairs = _orders(orders)
+    fits = tuple(fit_ml(frf, p, z, **options) for p, z in pairs)
     for fit in fits:
         if fit.passes_cost_test(level):
             return fit, fits
     return max(fits, key=lambda f: f.p_value), fits
+
+
+def _orders(orders: object) -> list[tuple[int, int]]:
+    if isinstance(orders, (str, bytes)) or not isinstance(orders, Sequence) or not orders:
+        raise OptionTypeError(f"orders must be a non-empty sequence of (n_poles, n_zeros) pairs, "
+                              f"got {orders!r}")
+    out = []
+    for pair in orders:
+        if isinstance(pair, (str, bytes)) or not isinstance(pair, Sequence) or len(pair) != 2:
+            raise OptionTypeError(f"each order must be a pair (n_poles, n_zeros), got {pair!r}")
+        out.append((as_int("n_poles", pair[0], minimum=1), as_int("n_zeros", pair[1],
+                                                                   minimum=0)))
+    return out
 
 
 def cost_test(cost: float, n_lines: int, n_theta: int, dof: float) -> tuple[float, float, float]:
