@@ -80,6 +80,7 @@ MlStart = Literal["auto", "wls", "gtls", "btls"]
 _DOMAINS: tuple[Domain, ...] = ("s", "z")
 _STARTS: tuple[MlStart, ...] = ("auto", "wls", "gtls", "btls")
 _SK_ITER = 20
+_SK_TOL = 1e-9
 _MAX_NFEV = 2000
 
 
@@ -462,6 +463,7 @@ def _wls(prob: _Problem) -> NDArray[np.float64] | None:
     rhs = -cols_a[:, 0]
     w = 1.0 / (prob.sigma / np.abs(prob.fixed))
     best, best_cost = None, math.inf
+    last = None
     for _ in range(_SK_ITER + 1):
         theta = _solve_real(lhs * w[:, None], rhs * w)
         if theta is None:
@@ -469,6 +471,9 @@ def _wls(prob: _Problem) -> NDArray[np.float64] | None:
         cost = prob.cost(prob.with_delay(theta))
         if cost < best_cost:
             best, best_cost = theta, cost
+        if last is not None and _settled(theta, last):
+            break
+        last = theta
         a = np.abs(prob.a_of(theta))
         if not np.all(np.isfinite(a) & (a > 0)):
             break
@@ -506,11 +511,18 @@ def _gtls(prob: _Problem, boot: bool) -> NDArray[np.float64] | None:
         cost = prob.cost(prob.with_delay(theta))
         if cost < best_cost:
             best, best_cost = theta, cost
+        if best is not None and theta is not best and _settled(theta, best):
+            break
         a = np.abs(prob.a_of(theta))
         if not np.all(np.isfinite(a) & (a > 0)):
             break
         w = 1.0 / a
     return best
+
+
+def _settled(theta: NDArray[np.float64], last: NDArray[np.float64]) -> bool:
+    """The reweighted iteration has stopped moving."""
+    return bool(np.max(np.abs(theta - last)) <= _SK_TOL * max(float(np.max(np.abs(theta))), 1.0))
 
 
 def _stack(a: NDArray[np.complex128]) -> NDArray[np.float64]:
