@@ -76,6 +76,8 @@ class FrequencyIdentification(Displayed):
         The acceptance limits applied.
     plan_file : Path or None
         The multisine plan read.
+    hold : bool
+        The zero-order hold was divided out of the lines before the fit.
     notes : tuple of str
         Remarks.
     folder, files, conditions, digests
@@ -89,6 +91,7 @@ class FrequencyIdentification(Displayed):
     numbers: tuple[SpecNumber, ...]
     checks: tuple[AcceptanceCheck, ...] = ()
     plan_file: Path | None = None
+    hold: bool = False
     notes: tuple[str, ...] = ()
     folder: Path | None = None
     files: tuple[Path, ...] = field(default=())
@@ -188,7 +191,7 @@ class FrequencyIdentification(Displayed):
     def figures(self) -> dict[str, FigureWriter]:
         """One Bode diagram: lines with ±2σ (total and noise), distortion, the model."""
         return {"frequency.png": partial(plot_frequency, self.measurement, self.fit,
-                                         self.numbers)}
+                                         self.numbers, self.hold)}
 
     def page(self, files: Mapping[str, Path]) -> Page:
         """The report page."""
@@ -252,8 +255,8 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         measurement = estimate_lpm(exp, input=options["input"], output=options["output"],
                                    reference=options["reference"], degree=options["degree"],
                                    **band)
-    target = _without_hold(measurement) if (options["domain"] == "s"
-                                            and options["intersample"] == "zoh") else measurement
+    hold = options["domain"] == "s" and options["intersample"] == "zoh"
+    target = _without_hold(measurement) if hold else measurement
     fit_options = {"domain": options["domain"], "variance": options["variance"],
                    "delay": None if options["estimate_delay"] else options["delay"],
                    "delay_samples": options["delay_samples"]}
@@ -281,7 +284,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     conditions = (record_conditions(exp, f"record: {spec.data_path.name}",
                                     _channel_name(exp, channel)),)
     return FrequencyIdentification(spec, measurement, fit, candidates, numbers, checks,
-                                   plan_file, tuple(notes), conditions=conditions)
+                                   plan_file, hold, tuple(notes), conditions=conditions)
 
 
 # -- helpers -------------------------------------------------------------------------------------

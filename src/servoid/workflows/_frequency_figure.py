@@ -13,11 +13,13 @@ from ..report import new_figure, save_figure
 __all__ = ["plot_frequency"]
 
 
-def plot_frequency(measurement: Any, fit: Any, numbers: Any, path: Path,
+def plot_frequency(measurement: Any, fit: Any, numbers: Any, hold: bool, path: Path,
                    overwrite: bool = False) -> None:
     """Save the measured lines (±2σ total and noise), the detection lines and the model.
 
-    The detection lines are drawn at the gain a line of their output power
+    With ``hold`` the continuous model was fitted to the lines with the
+    zero-order hold divided out; it is drawn times the hold, as the
+    recorded lines see it.  The detection lines are drawn at the gain a line of their output power
     would show against the mean input power per excited line,
     ``sqrt(power/input_power)``, so their distance below the FRF is their
     level below the output.
@@ -52,8 +54,12 @@ def plot_frequency(measurement: Any, fit: Any, numbers: Any, path: Path,
                           label="even detection lines")
     grid = np.geomspace(max(f[0], 1e-6), f[-1], 600)
     gm = fit.model.freqresp(2 * np.pi * grid)
+    if hold and measurement.dt is not None:
+        wt2 = np.pi * grid * measurement.dt
+        gm = gm * np.exp(-1j * wt2) * np.sinc(wt2 / np.pi)
     ax_m.semilogx(grid, 20 * np.log10(np.abs(gm)), color="C4", lw=1.4,
-                  label=f"ML model ({fit.n_poles} poles, {fit.n_zeros} zeros)")
+                  label=f"ML model ({fit.n_poles} poles, {fit.n_zeros} zeros"
+                        + (", × ZOH)" if hold else ")"))
     model_phase = np.degrees(np.unwrap(np.angle(gm)))
     # the model's phase shares the lines' branch at the lowest line
     shift = 360.0 * round((phase[0] - model_phase[0]) / 360.0)
