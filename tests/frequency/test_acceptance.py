@@ -12,7 +12,6 @@ import math
 
 import numpy as np
 import pytest
-from scipy import stats
 
 from servoid import OptionError
 from servoid.bench import simulate_lti

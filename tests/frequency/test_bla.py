@@ -74,7 +74,7 @@ def test_bla_of_a_wiener_hammerstein_system_is_its_closed_form():
 def test_distortion_variance_matches_the_scatter_over_realisations():
     plan = _plan(m=6)
     runs = 60
-    g, total, nl = [], [], []
+    g, total = [], []
     for s in range(runs):
         u = random_multisine(plan, rng=100 + s).values
         _, y = _wiener_hammerstein(u, seed=500 + s, noise=0.0)

@@ -94,7 +94,7 @@ def test_identify_without_a_plan_uses_the_lpm(tmp_path):
         "identify": {"method": "frequency", "domain": "z", "n_poles": 2, "n_zeros": 1,
                      "delay_samples": 1, "f_max": 30.0},
     }, exp_file)
-    code, payload = _cli(["identify", str(exp_file), "--out", str(tmp_path / "out"), "--json"])
+    code, _ = _cli(["identify", str(exp_file), "--out", str(tmp_path / "out"), "--json"])
     assert code == 0
     results = json.loads((tmp_path / "out" / "results.json").read_text(encoding="utf-8"))
     assert results["measurement"]["method"] == "lpm"

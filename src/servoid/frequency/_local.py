@@ -53,6 +53,7 @@ joint residuals, and ``Ĝ = Ĝ_yr/Ĝ_ur`` with, to first order,
 from __future__ import annotations
 
 import math
+
 import numpy as np
 from numpy.typing import NDArray
 

@@ -20,7 +20,7 @@ __all__ = ["lpm_lines"]
 
 
 @numba.njit(cache=True, nogil=True)
-def lpm_lines(x, z, lines, starts, n, degree, c_inv, theta0, h, cov, ok):  # type: ignore[no-untyped-def]  # noqa: E501  # pragma: no cover
+def lpm_lines(x, z, lines, starts, n, degree, c_inv, theta0, h, cov, ok):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Local polynomial fits for each line.
 
     ``x``: input (or reference) spectrum; ``z``: (n_out, K) output

@@ -212,7 +212,7 @@ class FrfMeasurement:
         functions read it as they read any measured response.
         """
         var, dof = self.variance_of(variance)
-        n_avg = 1 if not math.isfinite(dof) else max(int(round(dof)) + 1, 1)
+        n_avg = 1 if not math.isfinite(dof) else max(round(dof) + 1, 1)
         return FrequencyResponseData(
             frequency=self.frequency, response=self.response, variance=var, n_averages=n_avg,
             dt=self.dt, method=self.method, input_name=self.input_name,

@@ -43,6 +43,7 @@ detection lines and where each realisation begins.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import os
@@ -158,7 +159,7 @@ class MultisinePlan:
         ks = tuple(as_int("excited harmonic", k) for k in self.excited)
         if not ks:
             raise DataError("excited must name at least one harmonic")
-        if any(b <= a for a, b in zip(ks, ks[1:], strict=False)):
+        if any(b <= a for a, b in itertools.pairwise(ks)):
             raise DataError("excited harmonics must be strictly increasing")
         if ks[-1] > (n - 1) // 2:
             raise DataError(f"excited harmonic {ks[-1]} lies at or above the Nyquist line "
@@ -325,7 +326,7 @@ def plan_multisine(
     periods: int | None = None,
     rng: RngLike | None = None,
 ) -> MultisinePlan:
-    """Plan a multisine test from the band, resolution, transient and time.
+    """Plan a multisine test: band, resolution, transient, time.
 
     Parameters
     ----------
@@ -412,7 +413,7 @@ def plan_multisine(
         m = 1 if realisations is None else as_int("realisations", realisations)
     else:
         budget = as_float("test_time", test_time, positive=True, unit=" s")
-        whole = int(math.floor(budget / (n * dt) + _GRID_TOL))
+        whole = math.floor(budget / (n * dt) + _GRID_TOL)
         fit = whole // (p_tr + p)
         m = fit if realisations is None else as_int("realisations", realisations)
         if fit < 1 or m > fit:

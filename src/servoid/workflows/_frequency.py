@@ -150,10 +150,10 @@ class FrequencyIdentification(Displayed):
 
     def __str__(self) -> str:
         m, fit = self.measurement, self.fit
-        lines = [f"{m.method} frequency response of {m.output_name} from {m.input_name} "
-                 f"({m.n_lines} lines); ML model: {fit.n_poles} poles, {fit.n_zeros} zeros "
-                 f"({fit.domain}), cost {fit.cost:.4g} (expected {fit.expected_cost:.4g}, "
-                 f"p = {fit.p_value:.2g})"]
+        lines = [(f"{m.method} frequency response of {m.output_name} from {m.input_name} "
+                  f"({m.n_lines} lines); ML model: {fit.n_poles} poles, {fit.n_zeros} zeros "
+                  f"({fit.domain}), cost {fit.cost:.4g} (expected {fit.expected_cost:.4g}, "
+                  f"p = {fit.p_value:.2g})")]
         lines += [f"  {n.label:<34} {_num(n.value):>10}  95 % {_interval(n)}"
                   for n in self.numbers]
         lines += [f"  acceptance {c.name}: {'pass' if c.passed else 'FAIL'} ({c.limit}; "
@@ -213,9 +213,9 @@ class FrequencyIdentification(Displayed):
         body = Section(
             "Frequency response and model",
             paragraphs=(
-                f"{how}, {m.n_lines} lines; {fit.n_lines} independent lines fitted by "
-                f"{'sample ' if math.isfinite(fit.dof) else ''}maximum likelihood "
-                f"(start: {fit.start}).",
+                (f"{how}, {m.n_lines} lines; {fit.n_lines} independent lines fitted by "
+                 f"{'sample ' if math.isfinite(fit.dof) else ''}maximum likelihood "
+                 f"(start: {fit.start})."),
                 *self.notes,
             ),
             figures=(Figure.from_file(files["frequency.png"],
