@@ -213,7 +213,7 @@ def acceptance_numbers(
 
 def judge(numbers: tuple[SpecNumber, ...], limits: Mapping[str, float | None],
           ) -> tuple[AcceptanceCheck, ...]:
-    """Apply ``<number>_min`` / ``<number>_max`` limits under :data:`RULE`.
+    """Judge the numbers against their limits (:data:`RULE`).
 
     Parameters
     ----------

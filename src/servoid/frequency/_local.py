@@ -83,7 +83,7 @@ def estimate_lpm(
     f_min: float | None = None,
     f_max: float | None = None,
 ) -> FrfMeasurement:
-    """Frequency response and noise variance by the local polynomial method.
+    """FRF and noise variance by the local polynomial method.
 
     Parameters
     ----------

@@ -31,7 +31,7 @@ _KINDS: tuple[VarianceKind, ...] = ("total", "noise")
 
 @dataclass(frozen=True, eq=False)
 class DistortionLevels:
-    """Nonlinear distortion seen on the detection lines of a multisine.
+    """Nonlinear distortion on the detection lines of a multisine.
 
     Levels are in dB relative to the output: the mean power per
     detection line (the noise part removed) over the mean output power

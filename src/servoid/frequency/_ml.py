@@ -86,7 +86,7 @@ _MAX_NFEV = 2000
 
 @dataclass(frozen=True, eq=False)
 class MlFit:
-    """A transfer function fitted by frequency-domain maximum likelihood.
+    """A transfer function fitted by frequency-domain ML.
 
     Attributes
     ----------
@@ -190,7 +190,7 @@ def fit_ml(
     f_min: float | None = None,
     f_max: float | None = None,
 ) -> MlFit:
-    """Fit a transfer function to a measured FRF by maximum likelihood.
+    """Fit a transfer function to an FRF by maximum likelihood.
 
     Parameters
     ----------
