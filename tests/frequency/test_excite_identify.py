@@ -12,15 +12,25 @@ import contextlib
 import io
 import json
 import math
+from dataclasses import replace
+from types import MappingProxyType
 
 import numpy as np
 import pytest
 
+from servoid import ServoidError
 from servoid.bench import simulate_lti
 from servoid.cli import main
-from servoid.data import Experiment, read_csv, write_csv, write_experiment_spec
+from servoid.data import (
+    Experiment,
+    load_experiment_spec,
+    read_csv,
+    write_csv,
+    write_experiment_spec,
+)
 from servoid.models import TransferFunction, c2d, resonance_peak
 from servoid.signals import read_plan
+from servoid.workflows import get_method, identify
 
 WN = 2 * np.pi * 8.0
 PLANT = TransferFunction([WN**2], [1.0, 0.8 * WN, WN**2])  # ζ = 0.4: 2.70 dB at 6.60 Hz
@@ -115,3 +125,17 @@ def test_bla_without_a_plan_is_refused_with_the_fix(tmp_path):
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(out):
         code = main(["identify", str(exp_file), "--out", str(tmp_path / "o")])
     assert code != 0 and "servoid excite random-multisine" in out.getvalue()
+
+
+@pytest.mark.parametrize("acceptance, match", [
+    ({"bandwith_min": 5.0},
+     r"unknown key\(s\) in \[identify\] acceptance: bandwith_min; valid keys are bandwidth_min"),
+    ({"bandwidth_min": "fast"}, r"bandwidth_min"),
+    (5.0, r"\[identify\] acceptance must be a table of limits"),
+])
+def test_bad_acceptance_tables_are_refused_naming_the_key(tmp_path, acceptance, match):
+    experiment = get_method("frequency").example(tmp_path, 0)
+    spec = load_experiment_spec(experiment)
+    bad = replace(spec, identify=MappingProxyType({**spec.identify, "acceptance": acceptance}))
+    with pytest.raises(ServoidError, match=match):
+        identify(bad, write=False)
