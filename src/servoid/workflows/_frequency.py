@@ -249,6 +249,9 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                                    reference=options["reference"], start=options["start"],
                                    **band)
     elif estimator == "lrm":
+        if options["reference"] is not None:
+            raise OptionError("[identify] estimator = \"lrm\" is open loop; for a closed-loop "
+                              "record (reference) use estimator = \"lpm\" or \"bla\"")
         measurement = estimate_lrm(exp, input=options["input"], output=options["output"],
                                    degree=options["degree"], **band)
     else:
