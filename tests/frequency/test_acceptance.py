@@ -94,3 +94,20 @@ def test_judge_refuses_unknown_keys_and_fails_a_number_not_computed():
         judge((), {"bandwith_min": 1.0})
     (check,) = judge((_num("bandwidth", 1, 2),), {"phase_lag_max": 30.0})
     assert not check.passed and "phase_frequency" in check.reason
+
+
+def test_the_distortion_number_of_a_linear_plant_is_its_noise_level_at_most():
+    plan = plan_multisine(DT, 0.2, 25.0, period=256, lines="random-odd", rng=2, realisations=4,
+                          periods=2)
+    u = random_multisine(plan, rng=3).values
+    exp = simulate_lti(PLANT, u, DT, noise_std=0.05, rng=4)
+    frm = estimate_bla(exp, plan)
+    nums = {n.name: n for n in acceptance_numbers(fit_ml(frm, 2, 0))}
+    d = nums["distortion"]
+    # a linear plant: the detection lines hold the noise (or a level below it, by chance);
+    # the interval runs from the number to its upper bound, both finite
+    assert math.isfinite(d.ci_low) and d.ci_low <= d.value <= d.ci_high
+    assert d.value <= frm.distortion.noise_db + 3.0  # no distortion above the noise
+    (ok,) = judge((d,), {"distortion_max": d.ci_high + 1.0})
+    (bad,) = judge((d,), {"distortion_max": d.value - 1.0})
+    assert ok.passed and not bad.passed

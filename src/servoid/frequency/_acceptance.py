@@ -17,8 +17,10 @@ line for a peak) as a cross-check: the two agree to the line spacing when
 the model passes its cost test.
 
 The nonlinear distortion's number is the largest of the detection lines'
-odd, even and total levels (dB below the output), with its one-sided
-95 % upper bound: its interval runs from the level to that bound.
+odd, even and total levels (dB below the output, the noise removed), with
+its one-sided 95 % upper bound: its interval runs from the level to that
+bound.  Where the lines hold no more than the noise, the number is the
+noise level (no lower distortion can be shown).
 
 :func:`judge` applies limits under the rule the fleet uses: a number
 passes a limit only when its whole interval lies inside it; an interval
@@ -304,17 +306,20 @@ def _peak_frequency(model: Any) -> float:
 
 
 def _distortion_number(d: DistortionLevels) -> SpecNumber:
+    """The worst level with its one-sided bound (at least the noise level: no less is shown)."""
     pairs = [(v, u) for v, u in ((d.odd_db, d.odd_upper_db), (d.even_db, d.even_upper_db),
                                  (d.total_db, d.total_upper_db)) if v is not None]
+    label = "nonlinear distortion [dB re output]"
     if not pairs:
-        return SpecNumber("distortion", "nonlinear distortion [dB re output]", math.nan,
-                          math.nan, math.nan, math.nan, "dB")
-    value = max(v for v, _ in pairs)
-    upper = max((u for _, u in pairs if u is not None), default=math.nan)
-    # one-sided: from the level (the noise level when nothing rises above it) to its bound
-    low = value if math.isfinite(value) else d.noise_db
-    return SpecNumber("distortion", "nonlinear distortion [dB re output]", value, math.nan,
-                      low, upper, "dB")
+        return SpecNumber("distortion", label, math.nan, math.nan, math.nan, math.nan, "dB")
+    level = max(v for v, _ in pairs)
+    upper = max((u for _, u in pairs if u is not None and math.isfinite(u)), default=math.nan)
+    # nothing above the noise: the distortion is shown to be at most the noise level
+    value = level if math.isfinite(level) else d.noise_db
+    if not math.isfinite(value):
+        return SpecNumber("distortion", label, math.nan, math.nan, math.nan, math.nan, "dB")
+    high = max(upper, value) if math.isfinite(upper) else value
+    return SpecNumber("distortion", label, value, math.nan, value, high, "dB")
 
 
 def _limit_text(low: float, high: float, unit: str) -> str:
