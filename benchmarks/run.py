@@ -47,6 +47,7 @@ SUITES: dict[str, str] = {
     "greybox-ode": "bench_greybox_ode",  # two-state ODE, 1e4 samples; Python path ~1 min
     "narx": "bench_narx",  # term selection, 1e5 samples × 105 candidates, vs sysidentpy FROLS
     "integrator": "bench_integrator",  # every simulator kernel through its public call
+    "frequency": "bench_frequency",  # LPM of 1e6 samples, ML fit on 1e4 lines, vs numpy/scipy
 }
 
 

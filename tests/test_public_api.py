@@ -12,7 +12,7 @@ import servoid
 PACKAGES = ["servoid", "servoid.data", "servoid.signals", "servoid.models", "servoid.estimate",
             "servoid.validate", "servoid.report", "servoid.workflows", "servoid.cli",
             "servoid.closedloop", "servoid.bench", "servoid.datasets",
-            "servoid.nonlinear", "servoid.integrate", "servoid.plants", "servoid.plants.ehsa",
+            "servoid.nonlinear", "servoid.integrate", "servoid.frequency", "servoid.plants", "servoid.plants.ehsa",
             "servoid.plants.pneumatic", "servoid.plants.rigid", "servoid.plants.ema"]
 
 

@@ -60,6 +60,7 @@ from servoid import (
     signals,
     validate,
 )
+from servoid import frequency as fq
 from servoid import workflows as wf
 from servoid.plants import ehsa, rigid
 from servoid.plants import pneumatic as pneu
@@ -878,6 +879,27 @@ CASES = [
     case("multisine-phases", signals.multisine, 1000, 1e-3, 1.0, 10.0, phases="sorted",
          error=OptionError,
          match=r"phases must be one of 'schroeder', 'random', 'zero'; got 'sorted'"),
+    case("plan-multisine-random-odd-no-rng", signals.plan_multisine, 1e-3, 1.0, 100.0,
+         period=1000, error=OptionTypeError, match=r"random-odd.*needs rng="),
+    case("plan-multisine-period-and-resolution", signals.plan_multisine, 1e-3, 1.0, 100.0,
+         period=1000, resolution=1.0, lines="odd", error=DataError,
+         match=r"give exactly one of period and resolution"),
+    case("plan-multisine-test-time-short", signals.plan_multisine, 1e-3, 1.0, 100.0,
+         period=1000, lines="odd", test_time=1.0, error=DataError,
+         match=r"test_time = 1 s holds 1 period.*coarser resolution"),
+    case("plan-multisine-no-line", signals.plan_multisine, 1e-3, 0.1, 0.5, period=1000,
+         lines="odd", error=DataError, match=r"no odd harmonic of 1/\(N·dt\) = 1 Hz"),
+    case("random-multisine-not-a-plan", signals.random_multisine, {"period": 100}, rng=0,
+         error=OptionTypeError, match=r"plan must be a MultisinePlan, got dict"),
+    case("lpm-half-width-small", fq.estimate_lpm, EXP, half_width=2, error=DataError,
+         match=r"no degree of freedom is left for the noise; use half_width >= 3"),
+    case("bla-record-short", fq.estimate_bla, EXP,
+         signals.plan_multisine(DT, 1.0, 10.0, period=10 * N, lines="odd"), error=DataError,
+         match=r"fewer than one realisation of the plan"),
+    case("fit-ml-not-a-measurement", fq.fit_ml, EXP, 2, error=OptionTypeError,
+         match=r"frf must be an FrfMeasurement.*got Experiment"),
+    case("judge-unknown-limit", fq.judge, (), {"bandwith_min": 1.0}, error=OptionError,
+         match=r"unknown acceptance limit\(s\) bandwith_min; valid keys are bandwidth_min"),
     case("chirp-budget", signals.chirp, dt=1e-9, f0=1.0, f1=10.0, duration=1e3,
          error=DataError,
          match=r"the chirp would have 1,000,000,000,000 samples .*over the budget"),
@@ -1143,6 +1165,7 @@ def test_fixture_arrays_untouched():
 # -- the walk over the whole public surface ---------------------------------------------------
 
 WALKED = ["servoid", "servoid.data", "servoid.estimate", "servoid.models", "servoid.signals",
+          "servoid.frequency",
           "servoid.validate", "servoid.bench", "servoid.closedloop", "servoid.workflows",
           "servoid.datasets", "servoid.nonlinear", "servoid.plants", "servoid.plants.ehsa",
           "servoid.plants.pneumatic", "servoid.plants.rigid", "servoid.plants.ema"]

@@ -390,6 +390,9 @@ USAGE = [
          "argument --register/-n: invalid int", base=None, code=2),
     case("prbs-no-dt", "excite prbs -n 7 --out {out}/s.csv", "required: --dt", base=None,
          code=2),
+    case("random-multisine-no-size", "excite random-multisine --f-min 1 --f-max 10 --dt 0.001 "
+         "--out {out}/s.csv", "one of the arguments --period --resolution is required",
+         base=None, code=2),
     case("chirp-method", "excite chirp --duration 1 --f0 1 --f1 10 --dt 0.001 --method cubic "
          "--out {out}/s.csv", "argument --method: invalid choice: 'cubic'", base=None, code=2),
     case("multisine-phases", "excite multisine --period 100 --f-min 1 --f-max 10 --dt 0.001 "
@@ -418,6 +421,12 @@ def excite(id: str, args: str, fragment: str, *, out: str = "{out}.csv", base: s
 
 
 EXCITE_CASES = [
+    excite("random-multisine-short-test", "random-multisine --f-min 1 --f-max 10 --period 1000 "
+           "--test-time 1", "--test-time = 1 s holds 1 period"),
+    excite("random-multisine-band", "random-multisine --f-min 50 --f-max 10 --period 1000",
+           "--f-min must be <= f_max (--f-max) = 10 Hz"),
+    excite("random-multisine-plan-exists", "random-multisine --f-min 1 --f-max 10 --period 1000",
+           "--overwrite", out="{in}/ms.csv", edits=(write("ms.plan.json", "{}"),)),
     excite("prbs-n31", "prbs -n 31", "raise --max-samples"),
     excite("prbs-n32", "prbs -n 32", "--register/-n must be in 2..31"),
     excite("prbs-n1", "prbs -n 1", "--register/-n must be in 2..31"),

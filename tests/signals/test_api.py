@@ -14,9 +14,13 @@ from servoid import signals
 EXPECTED = [
     "PRBS_TAPS",
     "ChirpMethod",
+    "CrestMethod",
     "Excitation",
     "ExcitationRole",
     "Harmonics",
+    "LineGrid",
+    "LineSet",
+    "MultisinePlan",
     "MultisineScale",
     "Phases",
     "Spectrum",
@@ -24,15 +28,19 @@ EXPECTED = [
     "chirp",
     "crest_factor",
     "multisine",
+    "plan_multisine",
     "power_spectrum",
     "prbs",
     "prbs_clock",
     "prbs_length",
     "prbs_register_for",
     "random_binary",
+    "random_multisine",
+    "read_plan",
     "steps",
 ]
-MODULES = ["_binary", "_checks", "_excitation", "_lfsr", "_spectrum", "_waveforms"]
+MODULES = ["_binary", "_checks", "_excitation", "_lfsr", "_multisine_design", "_spectrum",
+           "_waveforms"]
 
 
 def _isort_key(name: str) -> tuple[int, str]:

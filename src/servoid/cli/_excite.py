@@ -11,13 +11,15 @@ from ..data import RigFormat  # the format records only: no numerics
 
 __all__ = ["add_excite"]
 
-_KINDS = ("prbs", "multisine", "chirp")
+_KINDS = ("prbs", "multisine", "random-multisine", "chirp")
 # the signal designers' parameters → the flags that set them, for their error messages
 _WORDS = {"register length n": "--register/-n", "clock": "--clock", "periods": "--periods",
           "period": "--period", "dt": "--dt", "amplitude": "--amplitude", "offset": "--offset",
           "duration": "--duration", "f0": "--f0", "f1": "--f1", "f_min": "--f-min",
           "f_max": "--f-max", "max_samples": "--max-samples", "channel name": "--channel",
-          "unit": "--unit"}
+          "unit": "--unit", "resolution": "--resolution", "realisations": "--realisations",
+          "settling_time": "--settling-time", "test_time": "--test-time",
+          "per_decade": "--per-decade", "group": "--group"}
 _PHRASES = {"raise max_samples (--max-samples)": "raise --max-samples",
             "lengthen the period or widen the band": "lengthen --period or widen the band "
             "--f-min..--f-max",
@@ -56,6 +58,37 @@ def add_excite(commands: Any, json_flag: Callable[[argparse.ArgumentParser], Non
     ms.add_argument("--seed", type=int, default=0, help="seed for random phases (default: 0)")
     _common(ms, json_flag)
     ms.set_defaults(run=_run_multisine)
+
+    rm = kinds.add_parser(
+        "random-multisine", help="random-phase multisine test (M realisations × P periods) "
+        "with its plan file", description="Random-phase multisine test for the best linear "
+        "approximation: full, odd or random-odd lines (detection lines left empty), linear or "
+        "log grid, M realisations × P periods after the transient periods. Writes the plan "
+        "beside the file (<file>.plan.json), which servoid identify (method = \"frequency\") "
+        "reads.")
+    rm.add_argument("--f-min", type=float, required=True, help="lowest frequency [Hz]")
+    rm.add_argument("--f-max", type=float, required=True, help="highest frequency [Hz]")
+    size = rm.add_mutually_exclusive_group(required=True)
+    size.add_argument("--period", type=int, help="samples per period")
+    size.add_argument("--resolution", type=float, help="line spacing [Hz]")
+    rm.add_argument("--lines", choices=("full", "odd", "random-odd"), default="random-odd",
+                    help="excited lines (default: random-odd)")
+    rm.add_argument("--grid", choices=("linear", "log"), default="linear",
+                    help="line spacing (default: linear)")
+    rm.add_argument("--per-decade", type=int, default=20, help="lines per decade of a log grid")
+    rm.add_argument("--group", type=int, default=4,
+                    help="random-odd: one line left out of each group of this many odd lines")
+    rm.add_argument("--realisations", type=int, default=None,
+                    help="M (default: as many as --test-time allows, else 1)")
+    rm.add_argument("--periods", type=int, default=2, help="measured periods P (default: 2)")
+    rm.add_argument("--settling-time", type=float, default=None,
+                    help="time to settle after a new realisation [s] (default: one period)")
+    rm.add_argument("--test-time", type=float, default=None, help="time for the whole test [s]")
+    rm.add_argument("--crest", choices=("none", "clip"), default="clip",
+                    help="crest-factor optimisation (default: clip)")
+    rm.add_argument("--seed", type=int, default=0, help="seed of lines and phases (default: 0)")
+    _common(rm, json_flag)
+    rm.set_defaults(run=_run_random_multisine)
 
     ch = kinds.add_parser("chirp", help="swept sine", description="Swept sine from f0 to f1.")
     ch.add_argument("--duration", type=float, required=True, help="length [s]")
@@ -101,6 +134,36 @@ def _run_multisine(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
                        offset=args.offset, periods=args.periods, phases=args.phases, rng=rng,
                        max_samples=args.max_samples)
     return _write(ex, args)
+
+
+def _run_random_multisine(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    from .._atomic import check_writable
+    from ..signals import plan_multisine, random_multisine
+
+    _check_out(args)
+    plan_path = args.out.with_name(args.out.stem + ".plan.json")
+    check_writable(plan_path, args.overwrite)
+    with in_flags(_WORDS, _PHRASES):
+        plan = plan_multisine(args.dt, args.f_min, args.f_max, period=args.period,
+                              resolution=args.resolution, lines=args.lines, grid=args.grid,
+                              per_decade=args.per_decade, group=args.group,
+                              settling_time=args.settling_time, test_time=args.test_time,
+                              realisations=args.realisations, periods=args.periods,
+                              rng=args.seed)
+        ex = random_multisine(plan, rng=args.seed + 1, amplitude=args.amplitude,
+                              offset=args.offset, scale="peak", crest=args.crest,
+                              max_samples=args.max_samples)
+    info, text = _write(ex, args)
+    plan.write(plan_path, overwrite=args.overwrite)
+    info.update({"plan_file": str(plan_path), "realisations": plan.realisations,
+                 "periods": plan.periods, "transient_periods": plan.transient_periods,
+                 "period_samples": plan.period, "resolution_hz": plan.resolution,
+                 "excited_lines": len(plan.excited), "detection_lines": len(plan.detection)})
+    text += (f"\n{plan.realisations} realisation(s) × ({plan.transient_periods} transient + "
+             f"{plan.periods} measured) periods of {plan.period} samples, "
+             f"{len(plan.excited)} excited and {len(plan.detection)} detection lines "
+             f"{plan.resolution:.4g} Hz apart\nplan written to {plan_path}")
+    return info, text
 
 
 def _run_chirp(args: argparse.Namespace) -> tuple[dict[str, Any], str]:

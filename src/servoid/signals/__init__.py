@@ -5,12 +5,24 @@ record (period, excited band, amplitude, clock), which converts to an
 :class:`~servoid.data.Experiment` with :meth:`Excitation.to_experiment`.
 :func:`prbs_clock` and :func:`prbs_register_for` apply the PRBS design
 rules of models-spec §3.1; :func:`power_spectrum` and :func:`crest_factor`
-check a design.
+check a design. :func:`plan_multisine` plans a test of M random-phase
+multisine realisations × P periods (full, odd or random-odd lines with
+detection lines), :func:`random_multisine` draws it and
+:func:`read_plan` reads the plan file written beside the DAQ file.
 """
 
 from ._binary import prbs, prbs_clock, prbs_length, prbs_register_for, random_binary
 from ._excitation import Excitation, ExcitationRole
 from ._lfsr import PRBS_TAPS
+from ._multisine_design import (
+    CrestMethod,
+    LineGrid,
+    LineSet,
+    MultisinePlan,
+    plan_multisine,
+    random_multisine,
+    read_plan,
+)
 from ._spectrum import Spectrum, SpectrumMethod, crest_factor, power_spectrum
 from ._waveforms import ChirpMethod, Harmonics, MultisineScale, Phases, chirp, multisine, steps
 
@@ -22,9 +34,13 @@ from ._checks import MAX_SAMPLES as MAX_SAMPLES
 __all__ = [
     "PRBS_TAPS",
     "ChirpMethod",
+    "CrestMethod",
     "Excitation",
     "ExcitationRole",
     "Harmonics",
+    "LineGrid",
+    "LineSet",
+    "MultisinePlan",
     "MultisineScale",
     "Phases",
     "Spectrum",
@@ -32,11 +48,14 @@ __all__ = [
     "chirp",
     "crest_factor",
     "multisine",
+    "plan_multisine",
     "power_spectrum",
     "prbs",
     "prbs_clock",
     "prbs_length",
     "prbs_register_for",
     "random_binary",
+    "random_multisine",
+    "read_plan",
     "steps",
 ]

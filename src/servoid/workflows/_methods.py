@@ -49,6 +49,11 @@ _LISTED: tuple[tuple[str, str, str], ...] = (
      "measured frequency response (Welch H1 with coherence, or averaged over excitation "
      "periods with its variance), the spec numbers, and optionally a continuous transfer "
      "function fitted to it"),
+    ("frequency", "_frequency:FREQUENCY",
+     "frequency response with its variance (BLA of a multisine test with noise and "
+     "nonlinear-distortion variances, or the local polynomial method), a transfer function "
+     "by maximum likelihood with its order from the cost test, and the acceptance numbers "
+     "with 95 % intervals"),
     ("two-stage", "_closedloop_any:TWO_STAGE",
      "plant from a closed-loop record with an unknown controller: a FIR r → u gives the "
      "noise-free input, then OE (or BJ) from it to y"),
