@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import __version__
 from .._errors import DataError, OptionError, OptionTypeError
+from .._version import __version__
 from ..data import Experiment, ExperimentSpec
 from ..frequency import (
     LIMIT_KEYS,
