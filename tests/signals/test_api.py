@@ -13,16 +13,19 @@ from servoid import signals
 
 EXPECTED = [
     "PRBS_TAPS",
+    "AmplitudeRule",
     "ChirpMethod",
     "Excitation",
     "ExcitationRole",
     "Harmonics",
+    "Limit",
     "MultisineScale",
     "Phases",
     "Spectrum",
     "SpectrumMethod",
     "chirp",
     "crest_factor",
+    "largest_amplitude",
     "multisine",
     "power_spectrum",
     "prbs",
@@ -32,7 +35,7 @@ EXPECTED = [
     "random_binary",
     "steps",
 ]
-MODULES = ["_binary", "_checks", "_excitation", "_lfsr", "_spectrum", "_waveforms"]
+MODULES = ["_binary", "_checks", "_excitation", "_lfsr", "_limits", "_spectrum", "_waveforms"]
 
 
 def _isort_key(name: str) -> tuple[int, str]:

@@ -27,7 +27,7 @@ __all__ = ["AmplitudeRule", "Limit", "largest_amplitude"]
 
 @dataclass(frozen=True)
 class Limit:
-    """One limited quantity of a test and its peak per unit amplitude.
+    """One limited quantity of a test, peak per unit amplitude.
 
     Parameters
     ----------
@@ -124,7 +124,7 @@ class AmplitudeRule:
 
 
 def largest_amplitude(limits: Sequence[Limit], *, margin: float = 1.0) -> AmplitudeRule:
-    """Return the largest amplitude that keeps every quantity within its limit.
+    """Return the largest amplitude within every limit.
 
     Parameters
     ----------

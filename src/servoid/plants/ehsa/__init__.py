@@ -12,7 +12,9 @@ exist.  This subpackage holds all of it:
   (:func:`simulate_ehsa`, stepped by :func:`servoid.integrate.rk4_step`);
 * the loop: :class:`FeedbackLoop` (``H = c·G0/(1 + F·G0)``);
 * the virtual bench: :class:`EhsaBench`, :func:`run`, :func:`digitize`,
-  :func:`write_bench_files`, :func:`write_virtual_fleet`;
+  :func:`write_bench_files`, :func:`write_virtual_fleet`, and the test it
+  can run: :func:`excitation_limits` (load pressure within
+  :data:`PRESSURE_FRACTION` of the supply, valve, velocity, stroke);
 * physical identification from closed-loop records:
   :func:`identify_closed_loop` (two-step indirect, one-step output error,
   direct), the structure test :func:`compare_structures`, the nonlinear
@@ -38,6 +40,7 @@ if TYPE_CHECKING:
     from ._bench_files import RigFormat, experiment_document, truth_document, write_bench_files
     from ._demo import DemoResult, run_demo
     from ._fleet import FLEET_LIMITS, FLEET_SCATTER, VirtualFleet, write_virtual_fleet
+    from ._limits import PRESSURE_FRACTION, PlannedTest, excitation_limits, within_limits
     from ._linear import (
         ReducedEhsa,
         StabilityMargins,
@@ -70,6 +73,7 @@ _WHERE = {
     "FLEET_SCATTER": "_fleet",
     "NONLINEAR_DEFAULTS": "_nonlinear",
     "NONLINEAR_PARAMETERS": "_nonlinear_model",
+    "PRESSURE_FRACTION": "_limits",
     "REFERENCES": "_bench_config",
     "SET_A": "_paper",
     "SET_B": "_params",
@@ -91,6 +95,7 @@ _WHERE = {
     "NonlinearRefinement": "_nonlinear_check",
     "PaperConsistency": "_paper",
     "PaperSetA": "_paper",
+    "PlannedTest": "_limits",
     "PlantStructure": "_structures",
     "PoleInfo": "_result",
     "ReducedEhsa": "_linear",
@@ -104,6 +109,7 @@ _WHERE = {
     "compare_structures": "_structure_test",
     "default_dt_int": "_sim",
     "digitize": "_bench",
+    "excitation_limits": "_limits",
     "experiment_document": "_bench_files",
     "fit_direct": "_twostep",
     "fit_indirect": "_twostep",
@@ -124,6 +130,7 @@ _WHERE = {
     "simulate_ehsa": "_sim",
     "truth_document": "_bench_files",
     "validate_nonlinear_ehsa": "_nonlinear_check",
+    "within_limits": "_limits",
     "write_bench_files": "_bench_files",
     "write_virtual_fleet": "_fleet",
 }
@@ -138,6 +145,7 @@ __all__ = [
     "NONLINEAR_DEFAULTS",
     "NONLINEAR_PARAMETERS",
     "PLANT",
+    "PRESSURE_FRACTION",
     "REFERENCES",
     "SET_A",
     "SET_B",
@@ -159,6 +167,7 @@ __all__ = [
     "NonlinearRefinement",
     "PaperConsistency",
     "PaperSetA",
+    "PlannedTest",
     "PlantStructure",
     "PoleInfo",
     "ReducedEhsa",
@@ -172,6 +181,7 @@ __all__ = [
     "compare_structures",
     "default_dt_int",
     "digitize",
+    "excitation_limits",
     "experiment_document",
     "fit_direct",
     "fit_indirect",
@@ -192,6 +202,7 @@ __all__ = [
     "simulate_ehsa",
     "truth_document",
     "validate_nonlinear_ehsa",
+    "within_limits",
     "write_bench_files",
     "write_virtual_fleet",
 ]

@@ -20,7 +20,7 @@ stroke             ``H`` (and the offset's ``c/F·offset``)      the half-stroke
 with ``H = c·G/(1 + F·G)`` the closed loop.  The load pressure is the one
 the usual rule ``a ≲ v_max/(F·K)`` (models-spec §3.1) misses: a PRBS step
 accelerates the load, and for the 1500 kg of Set B a ±1 mm PRBS needs
-about 36 MPa from a 21 MPa supply.
+about 35 MPa from a 21 MPa supply.
 
 **The stated fraction of supply.**  :data:`PRESSURE_FRACTION` = 1/3: up to
 ``|P_L| = P_s/3`` the valve's flow gain ``√(1 ∓ P_L/P_s)`` stays within
@@ -48,7 +48,7 @@ from ...signals import AmplitudeRule, Excitation, Limit, largest_amplitude
 from ._linear import full_order_plant
 from ._params import EhsaParameters
 
-__all__ = ["PRESSURE_FRACTION", "PlannedTest", "excitation_limits"]
+__all__ = ["PRESSURE_FRACTION", "PlannedTest", "excitation_limits", "within_limits"]
 
 #: Largest load pressure a test may ask for, as a fraction of the supply (module notes).
 PRESSURE_FRACTION = 1.0 / 3.0
@@ -86,6 +86,19 @@ class PlannedTest:
         return self.rule.amplitude
 
     @property
+    def suggested_amplitude(self) -> float:
+        """The largest amplitude rounded down to two significant digits [m].
+
+        The default test of the bench and the demo: within every limit,
+        and a number a test plan can state.
+        """
+        a = self.rule.amplitude
+        if not math.isfinite(a):
+            return self.amplitude
+        scale = 10.0 ** (math.floor(math.log10(a)) - 1)
+        return math.floor(a / scale * (1.0 + 1e-12)) * scale
+
+    @property
     def feasible(self) -> bool:
         """True when the planned amplitude keeps every quantity within its limit."""
         return not self.rule.exceeded(self.amplitude)
@@ -120,6 +133,7 @@ class PlannedTest:
         return {
             "amplitude": self.amplitude,
             "largest_amplitude": self.largest_amplitude,
+            "suggested_amplitude": self.suggested_amplitude,
             "binding": self.rule.binding,
             "feasible": self.feasible,
             "pressure_fraction": self.pressure_fraction,
@@ -172,7 +186,9 @@ def excitation_limits(
     >>> from servoid.plants.ehsa import SET_B
     >>> plan = excitation_limits(SET_B, prbs(11, clock=10, amplitude=1e-3, dt=1e-3))
     >>> plan.feasible, round(plan.load_pressure / 1e6), plan.rule.binding
-    (False, 36, 'load pressure')
+    (False, 35, 'load pressure')
+    >>> round(plan.suggested_amplitude * 1e3, 3)
+    0.19
     """
     p = as_instance("params", params, EhsaParameters, "an EhsaParameters (e.g. SET_B)")
     ex = as_instance("excitation", excitation, Excitation, "a servoid.signals.Excitation")
@@ -200,6 +216,46 @@ def excitation_limits(
               note="end stops"),
     ]
     return PlannedTest(ex.amplitude, largest_amplitude(limits), fraction, supply)
+
+
+def within_limits(
+    params: EhsaParameters,
+    excitation: Excitation,
+    *,
+    pressure_fraction: float = PRESSURE_FRACTION,
+) -> Excitation:
+    """Return the excitation, scaled down to a test the actuator can run.
+
+    The default test of the bench and the demo: a design whose planned
+    amplitude asks more than :func:`excitation_limits` allows is scaled
+    about its offset to :attr:`PlannedTest.suggested_amplitude`; a
+    feasible one is returned as it is.
+
+    Parameters
+    ----------
+    params : EhsaParameters
+        The actuator.
+    excitation : Excitation
+        The planned position command [m].
+    pressure_fraction : float
+        Largest load pressure as a fraction of ``P_s − P_T``.
+
+    Returns
+    -------
+    Excitation
+        A test within every limit.
+
+    Examples
+    --------
+    >>> from servoid.signals import prbs
+    >>> from servoid.plants.ehsa import SET_B
+    >>> within_limits(SET_B, prbs(11, clock=10, amplitude=1e-3, dt=1e-3)).amplitude * 1e3
+    0.19
+    """
+    plan = excitation_limits(params, excitation, pressure_fraction=pressure_fraction)
+    if plan.feasible:
+        return excitation
+    return excitation.with_amplitude(plan.suggested_amplitude)
 
 
 def _peaks(p: EhsaParameters, r: NDArray[np.float64], dt: float) -> dict[str, float]:
