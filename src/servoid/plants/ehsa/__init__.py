@@ -17,7 +17,8 @@ exist.  This subpackage holds all of it:
   :data:`PRESSURE_FRACTION` of the supply, valve, velocity, stroke);
 * physical identification from closed-loop records:
   :func:`identify_closed_loop` (two-step indirect, one-step output error,
-  direct), the structure test :func:`compare_structures`, the nonlinear
+  direct), the structure test :func:`compare_structures`, the flow-law
+  check :func:`check_flow_law`, the nonlinear
   refinement :func:`refine_nonlinear_ehsa`;
 * the workflow ``[identify] method = "closedloop"``
   (:class:`ClosedLoopIdentification`) and the demo (:func:`run_demo`).
@@ -40,6 +41,7 @@ if TYPE_CHECKING:
     from ._bench_files import RigFormat, experiment_document, truth_document, write_bench_files
     from ._demo import DemoResult, run_demo
     from ._fleet import FLEET_LIMITS, FLEET_SCATTER, VirtualFleet, write_virtual_fleet
+    from ._flow_check import FLOW_LEVEL, FlowLawCheck, check_flow_law
     from ._limits import PRESSURE_FRACTION, PlannedTest, excitation_limits, within_limits
     from ._linear import (
         ReducedEhsa,
@@ -71,6 +73,7 @@ _WHERE = {
     "FIDELITIES": "_bench_config",
     "FLEET_LIMITS": "_fleet",
     "FLEET_SCATTER": "_fleet",
+    "FLOW_LEVEL": "_flow_check",
     "NONLINEAR_DEFAULTS": "_nonlinear",
     "NONLINEAR_PARAMETERS": "_nonlinear_model",
     "PRESSURE_FRACTION": "_limits",
@@ -90,6 +93,7 @@ _WHERE = {
     "EhsaTruth": "_bench",
     "FeedbackLoop": "_loop",
     "Fidelity": "_bench_config",
+    "FlowLawCheck": "_flow_check",
     "NestedTest": "_structure_test",
     "NonlinearEhsa": "_nonlinear_model",
     "NonlinearRefinement": "_nonlinear_check",
@@ -105,6 +109,7 @@ _WHERE = {
     "StructureFit": "_structure_test",
     "StructureTest": "_structure_test",
     "VirtualFleet": "_fleet",
+    "check_flow_law": "_flow_check",
     "closed_loop_bandwidth": "_linear",
     "compare_structures": "_structure_test",
     "default_dt_int": "_sim",
@@ -142,6 +147,7 @@ __all__ = [
     "FIDELITIES",
     "FLEET_LIMITS",
     "FLEET_SCATTER",
+    "FLOW_LEVEL",
     "NONLINEAR_DEFAULTS",
     "NONLINEAR_PARAMETERS",
     "PLANT",
@@ -162,6 +168,7 @@ __all__ = [
     "EhsaTruth",
     "FeedbackLoop",
     "Fidelity",
+    "FlowLawCheck",
     "NestedTest",
     "NonlinearEhsa",
     "NonlinearRefinement",
@@ -177,6 +184,7 @@ __all__ = [
     "StructureFit",
     "StructureTest",
     "VirtualFleet",
+    "check_flow_law",
     "closed_loop_bandwidth",
     "compare_structures",
     "default_dt_int",

@@ -49,6 +49,7 @@ from ...workflows._registry import FigureWriter, Method, Option, TableSchema
 from ...workflows._summary import Displayed, ParameterValue, RecordSummary, summary_of
 from ...workflows._verdict import count_check, interval_check, spec_conditions, validation_checks
 from ._api import APPROACHES, identify_closed_loop
+from ._flow_check import check_flow_law
 from ._loop import FeedbackLoop, reduced_plant
 from ._nonlinear import NONLINEAR_DEFAULTS
 from ._nonlinear_check import refine_after_linear
@@ -82,6 +83,7 @@ class ClosedLoopIdentification(Displayed):
     validation_data: Experiment | None = None
     structure_test: Any = None
     refinement: Any = None
+    flow_law: Any = None
     conditions: tuple[Conditions, ...] = ()
     digests: dict[str, str] = field(default_factory=dict, repr=False)
 
@@ -112,6 +114,13 @@ class ClosedLoopIdentification(Displayed):
                 checks.append(Check("structure test", pvalue_text(p), "pass",
                                     f"no richer structure explains the data significantly better "
                                     f"than the {test.base} model (level {100 * test.level:.3g} %)"))
+        flow = self.flow_law
+        if flow is not None:
+            outcome = "fail" if flow.biased else "pass"
+            meaning = (flow.verdict if flow.seen else
+                       "the residual does not follow the valve's flow law (first order in the "
+                       f"load pressure, level {100 * flow.level:.3g} %)")
+            checks.append(Check("flow law", f"z = {flow.z:+.1f}", outcome, meaning))
         if covariance:
             checks.append(interval_check(covariance))
         flags = [str(n) for n in primary.notes()]
@@ -184,6 +193,7 @@ class ClosedLoopIdentification(Displayed):
             },
             "structure_test": self.structure_test.to_dict() if self.structure_test else None,
             "nonlinear_refinement": self.refinement.to_dict() if self.refinement else None,
+            "flow_law": self.flow_law.to_dict() if self.flow_law else None,
             "notes": list(self.notes),
             "verdict": self.verdict().to_dict(),
             "summary": self.summary().to_dict(),
@@ -341,6 +351,11 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
             notes.append("the reduced model is rejected by the data (structure test): its "
                          f"intervals understate the error; {structure_test.preferred} is "
                          "preferred (see the structure test)")
+    flow_law = None
+    if "one-step" in results:
+        flow_law = check_flow_law(results["one-step"], estimation)
+        if flow_law is not None and flow_law.seen:
+            notes.append(flow_law.verdict)
     refinement = None
     if options["refine"] is not False:
         names = NONLINEAR_DEFAULTS if options["refine"] is True else tuple(options["refine"])
@@ -354,6 +369,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     return ClosedLoopIdentification(spec, loop, results, validations, primary, truth,
                                     notes=tuple(notes), validation_data=validation_data,
                                     structure_test=structure_test, refinement=refinement,
+                                    flow_law=flow_law,
                                     conditions=spec_conditions(spec, estimation,
                                                                (validation_data,)))
 
