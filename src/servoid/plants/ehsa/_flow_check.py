@@ -17,7 +17,9 @@ of a loaded actuator), so the departure is one extra input to the plant,
 and one extra output direction ``z = ∂ŷ/∂γ = −G/(1 + F·G)·(|u|·ÿ)``, both
 computed from the identified model and the test (``ŷ``, ``ÿ`` and ``u``
 simulated from r).  The residual of the output-error fit is regressed on
-the fit's own gradient (∂ŷ/∂K, ∂ŷ/∂ω_hp, ∂ŷ/∂δ_hp), z and a constant:
+the fit's own gradient (∂ŷ/∂K, ∂ŷ/∂ω_hp, ∂ŷ/∂δ_hp), z, ŷ itself (an
+error of the loop's DC gain, :mod:`._dc_gain`) and a constant
+(:func:`._first_order.first_order_fit`):
 the coefficient of z estimates γ (a score test of γ = 0, with the same
 coloured-residual sandwich covariance as the one-step intervals), and the
 coefficients of the gradient are how far the reduced parameters move when
@@ -39,28 +41,19 @@ first-order correction puts every parameter within 2σ of the truth
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-from numpy.typing import NDArray
-
-from ..._errors import DataError
 from ..._lazy import stats
-from ...bench._analog import discretise, realise
-from ...closedloop._coloured import sandwich
-from ...data import Experiment, ExperimentSet, as_segments
-from ...models import TransferFunction
+from ...data import Experiment, ExperimentSet
+from ._first_order import FirstOrderFit, first_order_fit
 from ._loop import PARAMETER_NAMES
 from ._result import ClosedLoopResult
 
-__all__ = ["FLOW_LEVEL", "FlowLawCheck", "check_flow_law"]
+__all__ = ["FLOW_LEVEL", "FlowLawCheck", "check_flow_law", "flow_law_of"]
 
 #: Two-sided level of the test of γ = 0 (the flow law seen).
 FLOW_LEVEL = 0.01
-#: Relative step of the finite-difference gradient of ŷ.
-_STEP = 1e-6
 _LABELS = {"K": "K", "omega_hp": "ω_hp", "delta_hp": "δ_hp"}
 
 
@@ -162,7 +155,6 @@ def check_flow_law(
     result: ClosedLoopResult,
     data: Experiment | ExperimentSet,
     *,
-    output: str | None = None,
     level: float = FLOW_LEVEL,
 ) -> FlowLawCheck | None:
     """Estimate the valve flow law's effect on a reduced one-step fit.
@@ -174,8 +166,6 @@ def check_flow_law(
         K, ω_hp, δ_hp with standard deviations).
     data : Experiment or ExperimentSet
         The estimation record(s) it was fitted to.
-    output : str, optional
-        The output channel, when there are several.
     level : float
         Two-sided level of the test of γ = 0.
 
@@ -190,80 +180,18 @@ def check_flow_law(
     DataError
         The residuals do not match the records.
     """
-    if (result.approach != "one-step" or result.structure != "reduced" or result.loop is None
-            or not result.loop.is_static):
-        return None
-    c, f = float(result.loop.c), float(result.loop.F)  # type: ignore[arg-type]
-    e = np.asarray(result.source.residuals, dtype=float)
-    segments = as_segments(data)
-    lag = result.advance
-    sizes = [seg.n_samples - lag for seg in segments]
-    skip, rest = divmod(sum(sizes) - e.size, len(sizes))
-    if rest or skip < 0:
-        raise DataError(f"the fit's {e.size} residuals do not match records of "
-                        f"{[seg.n_samples for seg in segments]} samples")
-    hold = "zoh" if result.intersample == "zoh" else "foh"
-    theta = np.asarray(result.estimate.parameters, dtype=float)
-    dt = segments[0].dt
-    rows: list[NDArray[np.float64]] = []
-    for i, seg in enumerate(segments):
-        r = seg.signal("r")[:, 0]
-        r = r - r[0]  # at rest at its first level (the level and offset are the constant)
-        y_hat, acc = _paths(theta, c, f, r, dt, hold)
-        g_num, loop = _loop_polys(theta, f)
-        z = -_simulate(g_num, loop, np.abs(c * r - f * y_hat) * acc, dt, hold)
-        cols = []
-        for j in range(3):
-            step = theta.copy()
-            step[j] += _STEP * abs(theta[j]) if theta[j] else _STEP
-            cols.append((_paths(step, c, f, r, dt, hold)[0] - y_hat) / (step[j] - theta[j]))
-        block = np.column_stack([*cols, z, np.ones(r.size)])
-        rows.append(block[skip: seg.n_samples - lag])
-        if i == 0:
-            peak_acc = float(np.max(np.abs(acc)))
-        else:
-            peak_acc = max(peak_acc, float(np.max(np.abs(acc))))
-    x = np.vstack(rows)
-    scale = np.linalg.norm(x, axis=0)
-    scale[scale == 0.0] = 1.0
-    beta, *_ = np.linalg.lstsq(x / scale, e, rcond=None)
-    beta = beta / scale
-    resid = e - x @ beta
-    cov, _ = sandwich([x], [resid])
-    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    gamma, gamma_std = float(beta[3]), float(std[3])
-    reduced_std = np.asarray(result.estimate.std, dtype=float)
+    fit = first_order_fit(result, data)
+    return None if fit is None else flow_law_of(fit, level=level)
+
+
+def flow_law_of(fit: FirstOrderFit, *, level: float = FLOW_LEVEL) -> FlowLawCheck:
+    """Return the flow-law check of a first-order regression (:func:`check_flow_law`)."""
     return FlowLawCheck(
-        gamma=gamma, gamma_std=gamma_std, pressure_ratio=2.0 * gamma * peak_acc,
-        parameters=tuple(float(v) for v in theta + beta[:3]),  # type: ignore[arg-type]
-        std=tuple(float(s) for s in std[:3]),  # type: ignore[arg-type]
-        reduced=tuple(float(v) for v in theta),  # type: ignore[arg-type]
-        reduced_std=tuple(float(s) for s in reduced_std),  # type: ignore[arg-type]
-        level=level,
+        gamma=fit.coefficient("gamma"), gamma_std=fit.std("gamma"),
+        pressure_ratio=2.0 * fit.coefficient("gamma") * fit.peak_acceleration,
+        parameters=fit.corrected(), std=fit.corrected_std(),
+        reduced=fit.reduced, reduced_std=fit.reduced_std, level=level,
     )
-
-
-def _loop_polys(theta: Sequence[float], f: float) -> tuple[NDArray[np.float64],
-                                                           NDArray[np.float64]]:
-    k, w, d = (float(v) for v in theta)
-    g_num = np.array([k * w * w])
-    g_den = np.array([1.0, 2.0 * d * w, w * w, 0.0])
-    return g_num, g_den + np.pad(f * g_num, (g_den.size - 1, 0))
-
-
-def _paths(theta: Sequence[float], c: float, f: float, r: NDArray[np.float64], dt: float,
-           hold: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """ŷ and ÿ of the reduced loop driven by r."""
-    g_num, loop = _loop_polys(theta, f)
-    y = _simulate(c * g_num, loop, r, dt, hold)
-    acc = _simulate(np.polymul(c * g_num, [1.0, 0.0, 0.0]), loop, r, dt, hold)
-    return y, acc
-
-
-def _simulate(num: NDArray[np.float64], den: NDArray[np.float64], x: NDArray[np.float64],
-              dt: float, hold: str) -> NDArray[np.float64]:
-    model = discretise(realise(TransferFunction(num, den)), dt, hold)  # type: ignore[arg-type]
-    return np.asarray(model.simulate(x), dtype=float)
 
 
 def _percent(x: float) -> str:
