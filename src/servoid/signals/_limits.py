@@ -150,6 +150,9 @@ def largest_amplitude(limits: Sequence[Limit], *, margin: float = 1.0) -> Amplit
     >>> round(rule.amplitude * 1e3, 3), rule.binding
     (0.233, 'pressure')
     """
+    if isinstance(limits, Limit) or not isinstance(limits, Sequence) or isinstance(limits, str):
+        raise DataError("limits must be a list of one or more servoid.signals.Limit records, "
+                        f"got {type(limits).__name__}")
     limits = tuple(limits)
     if not limits or not all(isinstance(lim, Limit) for lim in limits):
         raise DataError("limits must be one or more servoid.signals.Limit records")

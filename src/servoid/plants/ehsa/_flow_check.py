@@ -44,6 +44,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from ..._checks import type_error
 from ..._lazy import stats
 from ...data import Experiment, ExperimentSet
 from ._first_order import FirstOrderFit, first_order_fit
@@ -180,6 +181,9 @@ def check_flow_law(
     DataError
         The residuals do not match the records.
     """
+    if not isinstance(result, ClosedLoopResult):
+        raise type_error("result", result, "a ClosedLoopResult (a one-step fit of the reduced "
+                         "structure, e.g. from fit_one_step)")
     fit = first_order_fit(result, data)
     return None if fit is None else flow_law_of(fit, level=level)
 

@@ -151,7 +151,7 @@ def excitation_limits(
     *,
     pressure_fraction: float = PRESSURE_FRACTION,
 ) -> PlannedTest:
-    """Return what an excitation asks of the actuator and the largest it may ask.
+    """Return what a test asks of the actuator and what it may ask.
 
     The quantities of the module table are simulated on the excitation at
     unit amplitude (the command held over each sample, read at eight
@@ -224,7 +224,7 @@ def within_limits(
     *,
     pressure_fraction: float = PRESSURE_FRACTION,
 ) -> Excitation:
-    """Return the excitation, scaled down to a test the actuator can run.
+    """Return the excitation scaled to a test the actuator can run.
 
     The default test of the bench and the demo: a design whose planned
     amplitude asks more than :func:`excitation_limits` allows is scaled
