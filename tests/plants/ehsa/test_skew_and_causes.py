@@ -72,10 +72,14 @@ def test_the_note_names_the_cause():
     plain = SimpleNamespace(flags=())
     lag = rejection_note(_test("reduced+lag"), None, plain)
     assert "a missing dynamic" in lag and "(tau_v = 1 ms ± 100 µs)" in lag and "Read the reduced+lag estimates: K = 1 ± 0.1" in lag
-    flow = SimpleNamespace(biased=True, z=40.0, pressure_ratio=0.28)
+    flow = SimpleNamespace(biased=True, z=40.0, pressure_ratio=0.28, gamma=0.04)
     both = rejection_note(_test("reduced+lag"), flow, plain)
-    assert both.index("the valve's flow law") < both.index("a missing dynamic")
+    assert both.index("the valve's flow law (z = +40.0; the load pressure reaches about 28 %") \
+        < both.index("a missing dynamic")
     assert "its numbers are not the physical ones" in both and "refine = true" in both
+    other = SimpleNamespace(biased=True, z=-6.0, pressure_ratio=-0.3, gamma=-0.08)
+    assert "a nonlinearity other than the valve's flow law" in rejection_note(
+        _test("reduced+skew"), other, plain)
     residual_only = rejection_note(_test("reduced", lr=False), None, plain)
     assert "no richer linear structure explains it" in residual_only
     poor = rejection_note(_test("full-order"), None,

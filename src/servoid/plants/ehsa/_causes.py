@@ -59,13 +59,21 @@ def rejection_note(test: Any, flow_law: Any, result: ClosedLoopResult) -> str:
     read = ""
     lr_rejects = any(t.rejected for t in test.tests)
     if flow_law is not None and flow_law.biased:
-        causes.append(f"a nonlinearity: the valve's flow law (z = {flow_law.z:+.1f}; the load "
-                      f"pressure reaches about {100 * flow_law.pressure_ratio:.2g} % of the "
-                      "supply)")
-        read = ("a richer linear structure takes the flow law up in its extra parameter, so "
-                "its numbers are not the physical ones either: read the flow-law values (see "
-                "the flow-law note) or refine with the nonlinear EHSA (`[identify] refine = "
-                "true`)")
+        if flow_law.gamma > 0:
+            causes.append(f"a nonlinearity: the valve's flow law (z = {flow_law.z:+.1f}; the "
+                          f"load pressure reaches about {100 * flow_law.pressure_ratio:.2g} % of "
+                          "the supply)")
+            read = ("a richer linear structure takes the flow law up in its extra parameter, "
+                    "so its numbers are not the physical ones either: read the flow-law values "
+                    "(see the flow-law note) or refine with the nonlinear EHSA (`[identify] "
+                    "refine = true`)")
+        else:
+            causes.append(f"a nonlinearity other than the valve's flow law (the residual follows "
+                          f"|u|·ÿ with the opposite sign, z = {flow_law.z:+.1f}: friction, a "
+                          "dead zone, a saturation)")
+            read = ("a richer linear structure takes the nonlinearity up in its extra "
+                    "parameter, so its numbers are not the physical ones either: refine with "
+                    "the nonlinear EHSA (`[identify] refine = true`)")
     if lr_rejects and test.preferred in _LINEAR:
         extra = next((t for t in test.tests if t.larger == test.preferred), None)
         detail = ""

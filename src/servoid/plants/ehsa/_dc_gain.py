@@ -85,8 +85,8 @@ class DcGainCheck:
     tolerances : Tolerances
         The loop's stated tolerances.
     parameters : tuple of float
-        K, ω_hp, δ_hp with the DC gain (and the flow law) taken from the
-        data, to first order.
+        K, ω_hp, δ_hp with the DC gain taken from the data, to first order
+        (the reduced values less ``s·a``).
     reduced, reduced_std : tuple of float
         The reduced fit's K, ω_hp, δ_hp and σ.
     propagated_std : tuple of float
@@ -137,7 +137,8 @@ class DcGainCheck:
         moved = ", ".join(f"{_LABELS[n]} {s:+.1f}σ" for n, s in
                           zip(PARAMETER_NAMES, self.shifts, strict=True))
         return (f"{head}: beyond the tolerance, so c, F or a channel's calibration is not what "
-                f"the experiment file says, and the reduced fit, forced through c/F, absorbs "
+                "the experiment file says (or a nonlinearity, friction or a dead zone, changes "
+                f"the loop's static gain), and the reduced fit, forced through c/F, absorbs "
                 f"the difference ({moved}). With the DC gain taken from the data: {corrected} "
                 "(right when c or a channel gain is off; an F off by a fraction moves K by the "
                 "same fraction). Check c and F, the reference and position sensitivities and "
@@ -186,9 +187,14 @@ def check_dc_gain(fit: FirstOrderFit, dc_gain: float,
     var = var + s**2 * (tol.c**2 + 2.0 * tol.gain**2)
     k_row = np.array([fit.reduced[0], 0.0, 0.0])
     var = var + (k_row - s) ** 2 * tol.F**2
+    error = fit.coefficient("gain")
+    # the reduced fit forced through c/F sits at θ + s·a (θ the truth): take s·a back
+    corrected = np.asarray(fit.reduced, dtype=float) - s * error
     return DcGainCheck(
-        error=fit.coefficient("gain"), error_std=fit.std("gain"), dc_gain=float(dc_gain),
-        tolerances=tol, parameters=fit.corrected(), reduced=fit.reduced,
+        error=error, error_std=fit.std("gain"), dc_gain=float(dc_gain),
+        tolerances=tol,
+        parameters=tuple(float(v) for v in corrected),  # type: ignore[arg-type]
+        reduced=fit.reduced,
         reduced_std=fit.reduced_std,
         propagated_std=tuple(float(v) for v in np.sqrt(var)),  # type: ignore[arg-type]
         level=level,

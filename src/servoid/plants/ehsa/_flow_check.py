@@ -134,6 +134,10 @@ class FlowLawCheck:
         if not self.biased:
             return (f"{head}: {cause}. Modelled to first order it moves {moved}, within the "
                     "reduced model's intervals")
+        if self.gamma < 0:
+            return (f"{head}: {cause}. It moves {moved}: beyond the reduced model's 95 % "
+                    "intervals, which describe the noise only. Refine with the nonlinear EHSA "
+                    "(`[identify] refine = true`)")
         return (f"{head}: {cause}. Modelled to first order it moves {moved}: beyond the reduced "
                 f"model's 95 % intervals, which describe the noise only. With the flow law: "
                 f"{corrected}. Lower the amplitude (the load pressure, and with it the effect, "
