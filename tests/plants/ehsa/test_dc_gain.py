@@ -6,8 +6,8 @@ import warnings
 
 import numpy as np
 import pytest
-
 from merritt_rig import Rig, record
+
 from servoid._errors import DataError
 from servoid.data import Experiment
 from servoid.plants.ehsa import FeedbackLoop, fit_one_step, loop_from_table

@@ -5,8 +5,8 @@ from __future__ import annotations
 import warnings
 
 import pytest
-
 from merritt_rig import Rig, peak_load_pressure
+
 from servoid._errors import DataError, ServoidWarning
 from servoid.plants.ehsa import (
     PRESSURE_FRACTION,

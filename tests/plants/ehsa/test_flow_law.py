@@ -12,8 +12,8 @@ import warnings
 
 import numpy as np
 import pytest
-
 from merritt_rig import Rig, peak_load_pressure, record
+
 from servoid.data import Experiment
 from servoid.plants.ehsa import FeedbackLoop, check_flow_law, fit_one_step
 

@@ -7,8 +7,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-
 from merritt_rig import Rig, record
+
 from servoid._errors import ModelError, ServoidWarning
 from servoid.data import Experiment
 from servoid.plants.ehsa import FeedbackLoop, compare_structures, fit_one_step
