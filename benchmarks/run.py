@@ -32,6 +32,7 @@ SUITES: dict[str, str] = {
     "ehsa": "bench_ehsa",
     "closedloop": "bench_closedloop",
     "closedloop-coverage": "bench_closedloop_coverage",  # 240 rig runs (~2 min; 8 under --quick)
+    "ehsa-validity": "bench_ehsa_validity",  # Merritt flow law, 4 rigs × 100 seeds (~8 min)
     "pneumatic": "bench_pneumatic",
     "multistep": "bench_multistep",
     "signals": "bench_signals",

@@ -13,11 +13,13 @@ from servoid import signals
 
 EXPECTED = [
     "PRBS_TAPS",
+    "AmplitudeRule",
     "ChirpMethod",
     "CrestMethod",
     "Excitation",
     "ExcitationRole",
     "Harmonics",
+    "Limit",
     "LineGrid",
     "LineSet",
     "MultisinePlan",
@@ -27,6 +29,7 @@ EXPECTED = [
     "SpectrumMethod",
     "chirp",
     "crest_factor",
+    "largest_amplitude",
     "multisine",
     "plan_multisine",
     "power_spectrum",
@@ -41,6 +44,7 @@ EXPECTED = [
 ]
 MODULES = ["_binary", "_checks", "_excitation", "_lfsr", "_multisine_design", "_spectrum",
            "_waveforms"]
+MODULES = ["_binary", "_checks", "_excitation", "_lfsr", "_limits", "_spectrum", "_waveforms"]
 
 
 def _isort_key(name: str) -> tuple[int, str]:

@@ -5,10 +5,12 @@ record (period, excited band, amplitude, clock), which converts to an
 :class:`~servoid.data.Experiment` with :meth:`Excitation.to_experiment`.
 :func:`prbs_clock` and :func:`prbs_register_for` apply the PRBS design
 rules of models-spec §3.1; :func:`power_spectrum` and :func:`crest_factor`
-check a design. :func:`plan_multisine` plans a test of M random-phase
-multisine realisations × P periods (full, odd or random-odd lines with
-detection lines), :func:`random_multisine` draws it and
-:func:`read_plan` reads the plan file written beside the DAQ file.
+check a design; :func:`largest_amplitude` applies the amplitude rule, the
+largest amplitude a system's :class:`Limit` records allow.
+:func:`plan_multisine` plans a test of M random-phase multisine
+realisations × P periods (full, odd or random-odd lines with detection
+lines), :func:`random_multisine` draws it and :func:`read_plan` reads the
+plan file written beside the DAQ file.
 """
 
 from ._binary import prbs, prbs_clock, prbs_length, prbs_register_for, random_binary
@@ -23,6 +25,7 @@ from ._multisine_design import (
     random_multisine,
     read_plan,
 )
+from ._limits import AmplitudeRule, Limit, largest_amplitude
 from ._spectrum import Spectrum, SpectrumMethod, crest_factor, power_spectrum
 from ._waveforms import ChirpMethod, Harmonics, MultisineScale, Phases, chirp, multisine, steps
 
@@ -33,11 +36,13 @@ from ._checks import MAX_SAMPLES as MAX_SAMPLES
 
 __all__ = [
     "PRBS_TAPS",
+    "AmplitudeRule",
     "ChirpMethod",
     "CrestMethod",
     "Excitation",
     "ExcitationRole",
     "Harmonics",
+    "Limit",
     "LineGrid",
     "LineSet",
     "MultisinePlan",
@@ -47,6 +52,7 @@ __all__ = [
     "SpectrumMethod",
     "chirp",
     "crest_factor",
+    "largest_amplitude",
     "multisine",
     "plan_multisine",
     "power_spectrum",

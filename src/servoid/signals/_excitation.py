@@ -109,6 +109,36 @@ class Excitation:
         """Signal length N·dt [s]."""
         return self.n_samples * self.dt
 
+    def with_amplitude(self, amplitude: float) -> Excitation:
+        """Return the design scaled about its offset to a new amplitude.
+
+        Parameters
+        ----------
+        amplitude : float
+            New peak deviation from ``offset`` [signal unit], > 0.
+
+        Returns
+        -------
+        Excitation
+            The same design (band, period, clock, phases) at `amplitude`;
+            ``description["amplitude"]`` follows.
+
+        Examples
+        --------
+        >>> from servoid.signals import prbs
+        >>> prbs(5, amplitude=2.0, dt=1e-3).with_amplitude(0.5).values.max()
+        np.float64(0.5)
+        """
+        amplitude = as_float("amplitude", amplitude, positive=True)
+        if self.amplitude == 0.0:
+            raise DataError("an excitation of amplitude 0 has no shape to scale; design it "
+                            "again with the amplitude wanted")
+        values = self.offset + (self.values - self.offset) * (amplitude / self.amplitude)
+        description = dict(self.description)
+        if "amplitude" in description:
+            description["amplitude"] = amplitude
+        return replace(self, values=values, amplitude=amplitude, description=description)
+
     def to_experiment(
         self, name: str = "r", role: ExcitationRole = "r", unit: str = ""
     ) -> Experiment:

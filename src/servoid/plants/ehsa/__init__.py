@@ -12,10 +12,13 @@ exist.  This subpackage holds all of it:
   (:func:`simulate_ehsa`, stepped by :func:`servoid.integrate.rk4_step`);
 * the loop: :class:`FeedbackLoop` (``H = c·G0/(1 + F·G0)``);
 * the virtual bench: :class:`EhsaBench`, :func:`run`, :func:`digitize`,
-  :func:`write_bench_files`, :func:`write_virtual_fleet`;
+  :func:`write_bench_files`, :func:`write_virtual_fleet`, and the test it
+  can run: :func:`excitation_limits` (load pressure within
+  :data:`PRESSURE_FRACTION` of the supply, valve, velocity, stroke);
 * physical identification from closed-loop records:
   :func:`identify_closed_loop` (two-step indirect, one-step output error,
-  direct), the structure test :func:`compare_structures`, the nonlinear
+  direct), the structure test :func:`compare_structures`, the flow-law
+  check :func:`check_flow_law`, the nonlinear
   refinement :func:`refine_nonlinear_ehsa`;
 * the workflow ``[identify] method = "closedloop"``
   (:class:`ClosedLoopIdentification`) and the demo (:func:`run_demo`).
@@ -38,6 +41,8 @@ if TYPE_CHECKING:
     from ._bench_files import RigFormat, experiment_document, truth_document, write_bench_files
     from ._demo import DemoResult, run_demo
     from ._fleet import FLEET_LIMITS, FLEET_SCATTER, VirtualFleet, write_virtual_fleet
+    from ._flow_check import FLOW_LEVEL, FlowLawCheck, check_flow_law
+    from ._limits import PRESSURE_FRACTION, PlannedTest, excitation_limits, within_limits
     from ._linear import (
         ReducedEhsa,
         StabilityMargins,
@@ -68,8 +73,10 @@ _WHERE = {
     "FIDELITIES": "_bench_config",
     "FLEET_LIMITS": "_fleet",
     "FLEET_SCATTER": "_fleet",
+    "FLOW_LEVEL": "_flow_check",
     "NONLINEAR_DEFAULTS": "_nonlinear",
     "NONLINEAR_PARAMETERS": "_nonlinear_model",
+    "PRESSURE_FRACTION": "_limits",
     "REFERENCES": "_bench_config",
     "SET_A": "_paper",
     "SET_B": "_params",
@@ -86,11 +93,13 @@ _WHERE = {
     "EhsaTruth": "_bench",
     "FeedbackLoop": "_loop",
     "Fidelity": "_bench_config",
+    "FlowLawCheck": "_flow_check",
     "NestedTest": "_structure_test",
     "NonlinearEhsa": "_nonlinear_model",
     "NonlinearRefinement": "_nonlinear_check",
     "PaperConsistency": "_paper",
     "PaperSetA": "_paper",
+    "PlannedTest": "_limits",
     "PlantStructure": "_structures",
     "PoleInfo": "_result",
     "ReducedEhsa": "_linear",
@@ -100,10 +109,12 @@ _WHERE = {
     "StructureFit": "_structure_test",
     "StructureTest": "_structure_test",
     "VirtualFleet": "_fleet",
+    "check_flow_law": "_flow_check",
     "closed_loop_bandwidth": "_linear",
     "compare_structures": "_structure_test",
     "default_dt_int": "_sim",
     "digitize": "_bench",
+    "excitation_limits": "_limits",
     "experiment_document": "_bench_files",
     "fit_direct": "_twostep",
     "fit_indirect": "_twostep",
@@ -124,6 +135,7 @@ _WHERE = {
     "simulate_ehsa": "_sim",
     "truth_document": "_bench_files",
     "validate_nonlinear_ehsa": "_nonlinear_check",
+    "within_limits": "_limits",
     "write_bench_files": "_bench_files",
     "write_virtual_fleet": "_fleet",
 }
@@ -135,9 +147,11 @@ __all__ = [
     "FIDELITIES",
     "FLEET_LIMITS",
     "FLEET_SCATTER",
+    "FLOW_LEVEL",
     "NONLINEAR_DEFAULTS",
     "NONLINEAR_PARAMETERS",
     "PLANT",
+    "PRESSURE_FRACTION",
     "REFERENCES",
     "SET_A",
     "SET_B",
@@ -154,11 +168,13 @@ __all__ = [
     "EhsaTruth",
     "FeedbackLoop",
     "Fidelity",
+    "FlowLawCheck",
     "NestedTest",
     "NonlinearEhsa",
     "NonlinearRefinement",
     "PaperConsistency",
     "PaperSetA",
+    "PlannedTest",
     "PlantStructure",
     "PoleInfo",
     "ReducedEhsa",
@@ -168,10 +184,12 @@ __all__ = [
     "StructureFit",
     "StructureTest",
     "VirtualFleet",
+    "check_flow_law",
     "closed_loop_bandwidth",
     "compare_structures",
     "default_dt_int",
     "digitize",
+    "excitation_limits",
     "experiment_document",
     "fit_direct",
     "fit_indirect",
@@ -192,6 +210,7 @@ __all__ = [
     "simulate_ehsa",
     "truth_document",
     "validate_nonlinear_ehsa",
+    "within_limits",
     "write_bench_files",
     "write_virtual_fleet",
 ]

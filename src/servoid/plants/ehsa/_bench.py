@@ -49,6 +49,7 @@ from ...data import Channel, Experiment, decimate
 from ...models import StateSpace, TransferFunction
 from ...signals import Excitation
 from ._bench_config import EhsaBench, Fidelity, noise_gain_shape
+from ._limits import PlannedTest, excitation_limits
 from ._linear import ReducedEhsa, full_order_closed_loop
 from ._params import EhsaParameters
 from ._sim import simulate_ehsa
@@ -257,10 +258,13 @@ def run(
     -----
     ServoidWarning
         Before the simulation: `f_s` cannot resolve the actuator's
-        hydraulic resonance (:meth:`EhsaBench.resolution_note`).  After
-        it: a channel clipped at the ADC range; the amplitude saturates the
-        spool (``a > v_max/(F·K)``); the converter's quantisation alone
-        exceeds the noise the SNR allows.
+        hydraulic resonance (:meth:`EhsaBench.resolution_note`); the
+        test asks more than the actuator can do (load pressure beyond
+        :data:`~servoid.plants.ehsa.PRESSURE_FRACTION` of the supply, spool
+        travel or rate, flapper travel, velocity, stroke:
+        :func:`~servoid.plants.ehsa.excitation_limits`).  After it: a
+        channel clipped at the ADC range; the converter's quantisation
+        alone exceeds the noise the SNR allows.
 
     Examples
     --------
@@ -278,7 +282,17 @@ def run(
     unresolved = bench.resolution_note()
     if unresolved:  # before the simulation, which is long at the rates that resolve it
         note_warning(notes, unresolved)
+    saturates = planned_test(bench, excitation).note()
+    if saturates:  # where a real actuator would saturate, before the simulation
+        model = ("shows it" if bench.fidelity == "nonlinear" else
+                 f"does not show it: the {bench.fidelity!r} model stays linear")
+        note_warning(notes, f"{saturates}; the bench {model}")
     return _run(bench, excitation, gen, seed, notes)
+
+
+def planned_test(bench: EhsaBench, excitation: Excitation) -> PlannedTest:
+    """Return what `excitation` asks of the bench's actuator (:func:`excitation_limits`)."""
+    return excitation_limits(bench.params, excitation)
 
 
 def digitize(
@@ -336,12 +350,6 @@ def _run(bench: EhsaBench, ex: Excitation, gen: np.random.Generator,
     s_cmd, s_pos = bench.command_sensitivity, bench.position_sensitivity
     assert s_cmd is not None and s_pos is not None  # resolved by EhsaBench
     dt_an = bench.dt_acq / m
-    if ex.amplitude > p.v_max / p.loop_gain:
-        note_warning(notes,
-            f"amplitude {ex.amplitude * 1e3:.3g} mm exceeds v_max/(F·K) = "
-            f"{p.v_max / p.loop_gain * 1e3:.3g} mm: the spool saturates and the response is "
-            f"rate-limited (the {bench.fidelity!r} model "
-            f"{'shows it' if bench.fidelity == 'nonlinear' else 'does not'}); lower the amplitude")
     v_cmd, _ = quantise(np.repeat(ex.values, q) * s_cmd, bench.bits, bench.lsb)
     command = v_cmd / s_cmd
     y_an = _actuator(bench, np.repeat(command, m), dt_an)

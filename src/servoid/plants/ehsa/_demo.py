@@ -2,8 +2,10 @@
 
 The Set-B electro-hydraulic servo actuator (1500 kg load, mechanical
 position feedback) is tested on the virtual bench with the PRBS of the
-models specification (§4: n = 11, 10 samples per bit, ±1 mm, 20 470 samples
-at 1 kHz, 30 dB SNR, fixed seed). The bench writes what a LabVIEW rig writes
+models specification (§4: n = 11, 10 samples per bit, 20 470 samples at
+1 kHz, 30 dB SNR, fixed seed) at the largest amplitude the actuator can run
+(:func:`~servoid.plants.ehsa.within_limits`: ±0.19 mm, where the spec's
+±1 mm would ask a load pressure of 35 MPa from a 21 MPa supply). The bench writes what a LabVIEW rig writes
 — a TDMS file in volts at 5 kHz and a matching experiment TOML — and
 :func:`~servoid.workflows.identify` runs the closed-loop workflow on those
 files exactly as on a real record: the two-step indirect approach and the
@@ -29,6 +31,7 @@ from ...workflows.kit import Displayed
 from ._bench import BenchRun, run
 from ._bench_config import EhsaBench
 from ._bench_files import write_bench_files
+from ._limits import within_limits
 from ._workflow import ClosedLoopIdentification
 
 __all__ = ["DemoResult", "run_demo"]
@@ -111,7 +114,9 @@ def run_demo(
         )
     seed = as_int("seed", seed, minimum=0)
     bench = EhsaBench(snr_db=snr_db)  # what can be refused is refused before the folder exists
-    excitation = prbs(11, clock=10, amplitude=1e-3, dt=bench.dt)
+    # the spec's PRBS scaled to a test the actuator can run (±0.19 mm for Set B: at ±1 mm the
+    # load would need 35 MPa from its 21 MPa supply)
+    excitation = within_limits(bench.params, prbs(11, clock=10, amplitude=1e-3, dt=bench.dt))
     # the outermost folder this call creates: on failure it goes, with what the call wrote
     created = next((p for p in (*reversed(out.parents), out) if not p.exists()), None)
     with hold_folder(out):  # one demo at a time in a folder

@@ -110,6 +110,9 @@ class StructureFit:
         The estimate θ̂ by name.
     reduced : dict of str to float
         K, omega_hp, delta_hp this θ̂ corresponds to.
+    reduced_std : dict of str to float
+        Their standard deviations (the fit's own, robust covariance),
+        empty when the fit carries none.
     """
 
     name: str
@@ -121,6 +124,7 @@ class StructureFit:
     independence_pvalue: float
     parameters: dict[str, float] = field(default_factory=dict)
     reduced: dict[str, float] = field(default_factory=dict)
+    reduced_std: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for JSON."""
@@ -134,6 +138,7 @@ class StructureFit:
             "independence_pvalue": self.independence_pvalue,
             "parameters": dict(self.parameters),
             "reduced": dict(self.reduced),
+            "reduced_std": dict(self.reduced_std),
         }
 
 
@@ -295,8 +300,10 @@ class StructureTest:
             parts = []
             for name, z in moved.items():
                 value, std = self.base_reduced[name]
-                parts.append(f"{name} {pref.reduced[name]:.5g} vs {value:.5g} ± {std:.2g} "
-                             f"({z:+.3g} σ)")
+                own = pref.reduced_std.get(name, math.nan)
+                spread = f" ± {own:.2g}" if math.isfinite(own) else ""
+                parts.append(f"{name} {pref.reduced[name]:.5g}{spread} vs {value:.5g} ± "
+                             f"{std:.2g} ({z:+.3g} σ)")
             text += f"; under {self.preferred} (lowest BIC): " + ", ".join(parts)
         return text
 
@@ -421,7 +428,8 @@ def compare_structures(
         rows.append(StructureFit(
             name, d, v, n * math.log(v) + 2 * d, n * math.log(v) + d * math.log(n),
             ra.whiteness_pvalue, ra.independence_pvalue,
-            {k: float(x) for k, x in zip(est.names, theta, strict=True)}, red))
+            {k: float(x) for k, x in zip(est.names, theta, strict=True)}, red,
+            {k: s for k, (_, s) in _base_reduced(fits[name], structure).items()}))
 
     larger = [name for name in fits if name != base]
     share = level / (len(larger) + 1)

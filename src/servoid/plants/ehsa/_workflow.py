@@ -63,6 +63,10 @@ from ...workflows.kit import (
     validation_section,
 )
 from ._api import APPROACHES, identify_closed_loop
+from ._causes import rejection_note
+from ._dc_gain import Tolerances, check_dc_gain, with_tolerances
+from ._first_order import first_order_fit
+from ._flow_check import flow_law_of
 from ._loop import FeedbackLoop, reduced_plant
 from ._nonlinear import NONLINEAR_DEFAULTS
 from ._nonlinear_check import refine_after_linear
@@ -71,7 +75,7 @@ from ._onestep import DISCRETIZATIONS, fit_one_step
 from ._params import SET_B, SET_C
 from ._result import ClosedLoopResult
 from ._structure_test import compare_structures
-from ._structures import STRUCTURES
+from ._structures import STRUCTURES, skew_structure
 
 __all__ = ["LOOP", "METHOD", "METHODS", "ClosedLoopIdentification", "loop_from_table"]
 
@@ -96,6 +100,8 @@ class ClosedLoopIdentification(Displayed):
     validation_data: Experiment | None = None
     structure_test: Any = None
     refinement: Any = None
+    flow_law: Any = None
+    dc_gain: Any = None
     conditions: tuple[Conditions, ...] = ()
     digests: dict[str, str] = field(default_factory=dict, repr=False)
 
@@ -126,6 +132,17 @@ class ClosedLoopIdentification(Displayed):
                 checks.append(Check("structure test", pvalue_text(p), "pass",
                                     f"no richer structure explains the data significantly better "
                                     f"than the {test.base} model (level {100 * test.level:.3g} %)"))
+        flow = self.flow_law
+        if flow is not None:
+            outcome = "fail" if flow.biased else "pass"
+            meaning = (flow.verdict if flow.seen else
+                       "the residual does not follow the valve's flow law (first order in the "
+                       f"load pressure, level {100 * flow.level:.3g} %)")
+            checks.append(Check("flow law", f"z = {flow.z:+.1f}", outcome, meaning))
+        dc = self.dc_gain
+        if dc is not None:
+            checks.append(Check("DC gain", f"z = {dc.z:+.1f}", "fail" if dc.mismatch else "pass",
+                                dc.verdict))
         if covariance:
             checks.append(interval_check(covariance))
         flags = [str(n) for n in primary.notes()]
@@ -198,6 +215,8 @@ class ClosedLoopIdentification(Displayed):
             },
             "structure_test": self.structure_test.to_dict() if self.structure_test else None,
             "nonlinear_refinement": self.refinement.to_dict() if self.refinement else None,
+            "flow_law": self.flow_law.to_dict() if self.flow_law else None,
+            "dc_gain": self.dc_gain.to_dict() if self.dc_gain else None,
             "notes": list(self.notes),
             "verdict": self.verdict().to_dict(),
             "summary": self.summary().to_dict(),
@@ -301,12 +320,26 @@ def _gain(value: Any, where: str, name: str) -> float:
     return as_float(name, value, where=where)
 
 
+def _tolerance(value: Any, where: str, name: str) -> float:
+    return as_float(name, value, nonneg=True, where=where)
+
+
+def _tolerances(loop: Mapping[str, Any]) -> Tolerances:
+    return Tolerances(loop["c_tolerance"], loop["F_tolerance"], loop["gain_tolerance"])
+
+
 #: ``[loop]`` of the EHSA's closed-loop study: the loop H = c·G0/(1 + F·G0) it runs in.
 LOOP = TableSchema("loop", (
     Option("c", None, optional(_gain), "forward gain of the loop (required)"),
     Option("F", None, optional(_feedback),
            "feedback: a gain, or {num = [...], den = [...]} (continuous; discrete with "
            "dt = <s>) (required)"),
+    Option("c_tolerance", 0.0, _tolerance,
+           "relative tolerance of c (e.g. 0.003); checked against the DC gain the data carry "
+           "and propagated into the one-step intervals"),
+    Option("F_tolerance", 0.0, _tolerance, "relative tolerance of F, likewise"),
+    Option("gain_tolerance", 0.0, _tolerance,
+           "relative tolerance of each measured channel's gain (reference and position)"),
 ), help="the known loop H = c·G0/(1 + F·G0)")
 
 
@@ -346,15 +379,28 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                    for a, r in results.items()}
     notes += _disagreement(results)
     primary = options["approach"][-1]
+    flow_law = dc_gain = None
+    first_order = (first_order_fit(results["one-step"], estimation) if "one-step" in results
+                   else None)
+    if first_order is not None:
+        flow_law = flow_law_of(first_order)
+        if flow_law.seen:
+            notes.append(flow_law.verdict)
+        dc_gain = check_dc_gain(first_order, loop.c / float(loop.F),  # type: ignore[arg-type]
+                                _tolerances(options["[loop]"]))
+        if dc_gain.mismatch:
+            notes.append(dc_gain.verdict)
     structure_test = None
     if options["structure_test"] and "one-step" in results:
         with stage("testing the model structure (richer models fitted beside it)"):
             structure_test = _structure_test(spec, estimation, loop, results["one-step"],
                                              options["discretization"])
         if structure_test.rejected:
-            notes.append("the reduced model is rejected by the data (structure test): its "
-                         f"intervals understate the error; {structure_test.preferred} is "
-                         "preferred (see the structure test)")
+            notes.append(rejection_note(structure_test, flow_law, results["one-step"]))
+    if dc_gain is not None and dc_gain.tolerances.any:
+        results["one-step"] = with_tolerances(results["one-step"], dc_gain)
+        notes.append(f"one-step: the intervals include the loop's stated tolerances (DC gain "
+                     f"±{100 * dc_gain.tolerances.dc:.3g} %)")
     refinement = None
     if options["refine"] is not False:
         names = NONLINEAR_DEFAULTS if options["refine"] is True else tuple(options["refine"])
@@ -368,6 +414,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     return ClosedLoopIdentification(spec, loop, results, validations, primary, truth,
                                     notes=tuple(notes), validation_data=validation_data,
                                     structure_test=structure_test, refinement=refinement,
+                                    flow_law=flow_law, dc_gain=dc_gain,
                                     conditions=spec_conditions(spec, estimation,
                                                                (validation_data,)))
 
@@ -406,16 +453,20 @@ def _structure_test(spec: ExperimentSpec, estimation: Any, loop: FeedbackLoop,
     """Fit the richer structures from the reduced estimate and test the reduced one."""
     theta = reduced.estimate.parameters
     fits: dict[str, Any] = {"reduced": reduced}
-    for name in ("reduced+lag", "full-order"):
-        structure = STRUCTURES[name]
+    extra = {}
+    if loop.is_static:  # a channel skew: a delay outside the loop, written as a plant
+        extra["reduced+skew"] = skew_structure(float(loop.F))  # type: ignore[arg-type]
+    catalogue = {**STRUCTURES, **extra}
+    for name in ("reduced+lag", "full-order", *extra):
+        structure = catalogue[name]
         start = (*theta[:3], *structure.null)  # the nested point: the reduced fit itself
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ServoidWarning)
-            fits[name] = fit_one_step(estimation, loop, start, structure=name,
+            fits[name] = fit_one_step(estimation, loop, start, structure=structure,
                                       **_rig_options(spec, discretization))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ServoidWarning)  # the verdict is the note
-        return compare_structures(fits, estimation)
+        return compare_structures(fits, estimation, structures=extra)
 
 
 def _refine_rig_options(spec: ExperimentSpec) -> dict[str, Any]:
