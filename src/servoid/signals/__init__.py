@@ -16,6 +16,7 @@ plan file written beside the DAQ file.
 from ._binary import prbs, prbs_clock, prbs_length, prbs_register_for, random_binary
 from ._excitation import Excitation, ExcitationRole
 from ._lfsr import PRBS_TAPS
+from ._limits import AmplitudeRule, Limit, largest_amplitude
 from ._multisine_design import (
     CrestMethod,
     LineGrid,
@@ -25,7 +26,6 @@ from ._multisine_design import (
     random_multisine,
     read_plan,
 )
-from ._limits import AmplitudeRule, Limit, largest_amplitude
 from ._spectrum import Spectrum, SpectrumMethod, crest_factor, power_spectrum
 from ._waveforms import ChirpMethod, Harmonics, MultisineScale, Phases, chirp, multisine, steps
 

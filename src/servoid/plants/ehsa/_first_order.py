@@ -32,8 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._errors import DataError
-from ...bench._analog import discretise, realise
-from ...closedloop._coloured import sandwich
+from ...bench import discretise, realise
+from ...closedloop import sandwich
 from ...data import Experiment, ExperimentSet, as_segments
 from ...models import TransferFunction
 from ._result import ClosedLoopResult

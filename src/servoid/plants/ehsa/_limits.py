@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 
 from ..._checks import as_float, as_instance
 from ..._errors import DataError
-from ...bench._analog import discretise, realise
+from ...bench import discretise, realise
 from ...models import TransferFunction
 from ...signals import AmplitudeRule, Excitation, Limit, largest_amplitude
 from ._linear import full_order_plant
