@@ -193,7 +193,7 @@ BASE = _doc()
 SCHEMA_ERRORS = [
     (_with(BASE, 1, "extra"), OptionError,
      (r"unknown key\(s\) in the top level: 'extra'; valid keys: data, channels, preprocess, "
-     r"split, validation, rig, loop, identify, report")),
+     r"split, validation, rig, loop, acceptance, identify, report")),
     (_without(BASE, "data"), FileFormatError,
      r"the top level is missing the required key\(s\) data"),
     (_without(BASE, "channels"), FileFormatError, r"missing the required key\(s\) channels"),

@@ -65,6 +65,7 @@ Schema::
                               # through the same anti-alias filter and ADC as y
 
     [loop]                    # free-form: what is known about the feedback loop
+    [acceptance]              # free-form: the limits a method's acceptance numbers must meet
     [identify]                # free-form: which models to fit
     [report]                  # free-form: e.g. the output folder
 
@@ -183,8 +184,9 @@ class ExperimentSpec:
     files : tuple of str
         Every estimation file (``file`` is the first); several make an
         estimation set.
-    loop, identify, report : mapping
-        Free-form read-only tables.
+    loop, acceptance, identify, report : mapping
+        Free-form read-only tables (a method that reads ``[loop]`` or
+        ``[acceptance]`` declares and checks their keys).
     base_dir : pathlib.Path
         Folder that relative paths start from (not compared).
     source : pathlib.Path or None
@@ -206,6 +208,7 @@ class ExperimentSpec:
     jitter: float | None = None
     csv: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     loop: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    acceptance: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     identify: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     report: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     base_dir: Path = field(default=Path("."), compare=False)
@@ -349,6 +352,7 @@ class ExperimentSpec:
             jitter=jitter,
             csv=MappingProxyType(csv_options),
             loop=_free(origin, "loop", table.get("loop", {})),
+            acceptance=_free(origin, "acceptance", table.get("acceptance", {})),
             identify=_free(origin, "identify", table.get("identify", {})),
             report=_free(origin, "report", table.get("report", {})),
             base_dir=Path(base_dir),

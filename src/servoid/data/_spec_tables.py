@@ -22,7 +22,7 @@ from ._formats import RIG_FORMATS, format_of
 DetrendSpec = Literal["none", "mean", "linear"]
 _DETRENDS: tuple[DetrendSpec, ...] = ("none", "mean", "linear")
 _TOP_KEYS = ("data", "channels", "preprocess", "split", "validation", "rig", "loop",
-             "identify", "report")
+             "acceptance", "identify", "report")
 _DATA_KEYS = ("file", "format", "group", "time", "dt", "max_bytes", "jitter", "delimiter",
               "decimal", "time_unit", "columns", "skip_columns", "skip_rows")
 _CSV_KEYS = RIG_FORMATS["csv"].options
@@ -45,7 +45,7 @@ _REQUIRED_HINTS = {"data": "a [data] table with file = \"<rig file>\"",
                    "role = \"y\"",
                    "file": "file = \"<rig file>\" (relative to the experiment file)",
                    "order": "order = <1..10>", "cutoff": "cutoff = <Hz>"}
-_FREE_KEYS = ("loop", "identify", "report")
+_FREE_KEYS = ("loop", "acceptance", "identify", "report")
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,7 @@ for a multisine test with its plan file, :func:`~servoid.frequency.estimate_lpm`
 :func:`~servoid.frequency.estimate_lrm` for any other record), fits a transfer
 function to it by (sample) maximum likelihood with the order chosen by the cost-function
 test, reads the acceptance numbers from the fitted model with their 95 % intervals and
-judges them against ``[identify.acceptance]`` under the fleet's rule.
+judges them against the experiment file's ``[acceptance]`` table under the fleet's rule.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DataError, OptionError, OptionTypeError
+from .._errors import DataError, OptionError
 from .._version import __version__
 from ..data import Experiment, ExperimentSpec
 from ..frequency import (
@@ -43,7 +43,7 @@ from ..signals import MultisinePlan, read_plan
 from ._common import spec_inputs
 from ._frequency_figure import plot_frequency
 from ._options import boolean, choice, integer, number, optional, text
-from ._registry import FigureWriter, Method, Option
+from ._registry import FigureWriter, Method, Option, TableSchema
 from ._summary import Displayed, ParameterValue, RecordSummary, summary_of
 from ._verdict import count_check, record_conditions
 
@@ -276,7 +276,8 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     numbers = acceptance_numbers(fit, level_db=options["level_db"],
                                  phase_frequency=options["phase_frequency"],
                                  distortion=measurement.distortion)
-    checks = judge(numbers, options["acceptance"])
+    limits = {k: v for k, v in options["[acceptance]"].items() if v is not None}
+    checks = judge(numbers, limits)
     notes = []
     if options["n_poles"] is None:
         notes.append(f"order chosen by the cost-function test among 1..{options['max_poles']} "
@@ -335,19 +336,6 @@ def _truth_notes(numbers: tuple[SpecNumber, ...], truth: Mapping[str, float]) ->
     return out
 
 
-def _acceptance(value: Any, where: str, name: str) -> dict[str, float]:
-    """``[identify.acceptance]``: ``<number>_min`` / ``<number>_max`` limits."""
-    if not isinstance(value, Mapping):
-        raise OptionTypeError(f"{where} {name} must be a table of limits ({', '.join(LIMIT_KEYS)}"
-                              f"), got {value!r}")
-    unknown = sorted(set(value) - set(LIMIT_KEYS))
-    if unknown:
-        raise OptionError(f"unknown key(s) in {where} {name}: {', '.join(unknown)}; valid keys "
-                          f"are {', '.join(LIMIT_KEYS)}")
-    check = number()
-    return {k: check(v, f"{where} {name}", k) for k, v in value.items()}
-
-
 def _f(x: float) -> float:
     return float(x) if x is not None else math.nan
 
@@ -371,6 +359,16 @@ def _example(folder: Path, seed: int = 0) -> Path:
 
     return multisine_test(folder, seed)
 
+
+#: ``[acceptance]``: the limits of the acceptance numbers, judged under the fleet's rule.
+ACCEPTANCE = TableSchema(
+    "acceptance",
+    tuple(Option(key, None, optional(number()),
+                 f"{'lowest' if key.endswith('_min') else 'highest'} "
+                 f"{key.rsplit('_', 1)[0].replace('_', ' ')} the interval may reach")
+          for key in LIMIT_KEYS),
+    help="acceptance limits: pass only when the number's 95 % interval lies inside",
+)
 
 FREQUENCY = Method(
     name="frequency",
@@ -409,11 +407,8 @@ FREQUENCY = Method(
         Option("level_db", -3.0, number(), "bandwidth level below the low-frequency gain [dB]"),
         Option("phase_frequency", None, optional(number(positive=True, unit="Hz")),
                "frequency of the phase-lag number [Hz]"),
-        Option("acceptance", {}, _acceptance,
-               "acceptance limits [identify.acceptance]: <number>_min / <number>_max for "
-               "bandwidth, phase_lag, resonance_frequency, resonance_peak, dc_gain, distortion"),
     ),
     run=run,
-    tables=(),
+    tables=(ACCEPTANCE,),
     example=_example,
 )

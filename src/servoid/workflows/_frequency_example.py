@@ -40,8 +40,8 @@ def multisine_test(folder: Path, seed: int = 0) -> Path:
     write_experiment_spec({
         "data": {"file": "record.csv"},
         "channels": {"u": {"role": "u", "unit": "V"}, "y": {"role": "y", "unit": "mm"}},
+        "acceptance": {"bandwidth_min": 5.0, "resonance_peak_max": 6.0},
         "identify": {"method": "frequency", "n_poles": 2, "n_zeros": 0,
-                     "phase_frequency": 5.0,
-                     "acceptance": {"bandwidth_min": 5.0, "resonance_peak_max": 6.0}},
+                     "phase_frequency": 5.0},
     }, path, overwrite=True)
     return path
