@@ -115,9 +115,10 @@ def simulate_lti(
         u_fast = np.repeat(uu, os_) if intersample == "zoh" else _linear(uu, os_)
         hold = "zoh" if intersample == "zoh" else "foh"
     shift = _delay_steps(plant, fast_dt, "dt/oversample")
+    u_plant = u_fast  # the input the rig logs is the one it applies, not the plant's delayed one
     if shift:  # the analog input reaches the plant `shift` fast steps late, from rest
-        u_fast = np.concatenate([np.zeros(shift), u_fast[:-shift]])
-    y_fast = _run(_undelayed(plant), u_fast, fast_dt, hold)
+        u_plant = np.concatenate([np.zeros(shift), u_fast[:-shift]])
+    y_fast = _run(_undelayed(plant), u_plant, fast_dt, hold)
     u_log = uu[::os_] if intersample == "fast" else uu
     if anti_alias is not None:
         aa = realise(butterworth(4, _cutoff(anti_alias, dt)))
