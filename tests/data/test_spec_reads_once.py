@@ -11,7 +11,7 @@ import os
 
 import numpy as np
 
-from servoid.data import Experiment, _spec, load_experiment_spec, write_csv
+from servoid.data import Experiment, _prepare, load_experiment_spec, write_csv
 
 
 def _setup(tmp_path, n=400):
@@ -26,13 +26,13 @@ def _setup(tmp_path, n=400):
 
 def _count_reads(monkeypatch):
     calls = []
-    real = _spec.read_experiment
+    real = _prepare.read_experiment
 
     def spy(*args, **kw):
         calls.append(args[0])
         return real(*args, **kw)
 
-    monkeypatch.setattr(_spec, "read_experiment", spy)
+    monkeypatch.setattr(_prepare, "read_experiment", spy)
     return calls
 
 

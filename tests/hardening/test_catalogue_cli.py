@@ -438,6 +438,8 @@ EXCITE_CASES = [
            out="{out}.txt"),
     excite("prbs-no-extension", "prbs -n 7", "from its extension, one of 'csv', 'tdms'",
            out="{in}/signal"),
+    excite("prbs-mat", "prbs -n 7", "from its extension, one of 'csv', 'tdms'; got 'mat'",
+           out="{out}.mat"),
     excite("prbs-missing-folder", "prbs -n 7", "does not exist", out="{in}/no/such/s.csv"),
     excite("prbs-exists", "prbs -n 7", "--overwrite", out="{in}/data.csv"),
     excite("prbs-exists-tdms", "prbs -n 7", "--overwrite", out="{in}/ehsa.tdms", base="tdms"),

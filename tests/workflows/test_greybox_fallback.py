@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import importlib.util
 import re
-import shutil
 import warnings
 from pathlib import Path
 
@@ -57,7 +56,7 @@ def case(tmp_path):
 
 
 def test_the_fall_back_is_announced_before_the_fit(case, monkeypatch):
-    caught: list[warnings.WarningMessage] = []
+    caught: list[warnings.WarningMessage]  # bound by catch_warnings below
     labels: list[str] = []
 
     def fit_ode(*args, **kwargs):  # stands for the slow fit: what was said before it?

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import Any
 
 from .._progress import stage
+from ..data import RigFormat  # the format records only: no numerics
 from ._flags import at_least, finite, folder_out, in_flags, out_path, positive
 
 __all__ = ["BENCH_FIDELITIES", "PNEUMATIC_TEST_NAMES", "add_bench"]
@@ -86,7 +87,7 @@ def add_bench(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
                       help="ADC/DAC resolution, 8..24 (default: %(default)s)")
     ehsa.add_argument("--seed", type=int, default=0,
                       help="noise seed (default: %(default)s)")
-    ehsa.add_argument("--format", choices=("tdms", "csv"), default="tdms",
+    ehsa.add_argument("--format", choices=RigFormat.writable(first="tdms"), default="tdms",
                       help="rig file format (default: %(default)s)")
     ehsa.add_argument("--out", type=out_path, required=True,
                       help="output folder for ehsa.tdms|csv, ehsa.toml and truth.json")
@@ -202,7 +203,7 @@ def _add_pneumatic(rigs: Any, json_flag: Callable[[argparse.ArgumentParser], Non
                     help="signal-to-noise ratio of every sensor channel at --facq [dB] "
                     "(default: %(default)g)")
     pn.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
-    pn.add_argument("--format", choices=("tdms", "csv"), default="tdms",
+    pn.add_argument("--format", choices=RigFormat.writable(first="tdms"), default="tdms",
                     help="rig file format (default: %(default)s)")
     pn.add_argument("--duration", type=float, default=None,
                     help="record length of every test [s] (default: 2 s valve, 4 s others)")

@@ -6,6 +6,7 @@ import argparse
 from collections.abc import Callable
 from typing import Any
 
+from ..data import RigFormat  # the format records only: no numerics
 from ._flags import in_flags, out_path
 
 __all__ = ["add_excite"]
@@ -72,7 +73,8 @@ def _common(p: argparse.ArgumentParser, json_flag: Callable[[argparse.ArgumentPa
     p.add_argument("--offset", type=float, default=0.0, help="operating point (default: 0)")
     p.add_argument("--channel", default="r", help="channel name in the file (default: r)")
     p.add_argument("--unit", default="V", help="unit of the channel (default: V)")
-    p.add_argument("--out", type=out_path, required=True, help="output file, .csv or .tdms")
+    suffixes = " or ".join(RigFormat.named(n).suffixes[0] for n in RigFormat.writable())
+    p.add_argument("--out", type=out_path, required=True, help=f"output file, {suffixes}")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     p.add_argument("--max-samples", type=int, default=200_000_000,
                    help="refuse a longer signal (default: %(default)s, 1.6 GB as float64)")
@@ -118,20 +120,19 @@ def _check_out(args: argparse.Namespace) -> None:
     from .._errors import OptionError
 
     check_writable(args.out, args.overwrite)
-    suffix = args.out.suffix.lower().lstrip(".")
-    if suffix not in ("csv", "tdms"):
+    fmt = RigFormat.find(args.out)
+    if fmt is None or fmt.writer is None:
+        writable = ", ".join(repr(n) for n in RigFormat.writable())
         raise OptionError(f"--out {args.out}: the file type comes from its extension, one of "
-                          f"'csv', 'tdms'; got {suffix!r}")
+                          f"{writable}; got {args.out.suffix.lower().lstrip('.')!r}")
 
 
 def _write(ex: Any, args: argparse.Namespace) -> tuple[dict[str, Any], str]:
-    from ..data import write_csv, write_tdms
     from ..signals import crest_factor
 
     with in_flags(_WORDS, _PHRASES):
         exp = ex.to_experiment(name=args.channel, role="r", unit=args.unit)
-        writer = write_csv if args.out.suffix.lower() == ".csv" else write_tdms
-        writer(exp, args.out, overwrite=args.overwrite)
+        RigFormat.of(args.out).write(exp, args.out, overwrite=args.overwrite)
     info = {
         "kind": ex.kind,
         "file": str(args.out),

@@ -58,6 +58,9 @@ def add_fleet(commands: Any, json_flag: Callable[[argparse.ArgumentParser], None
     fleet.add_argument("--overwrite", action="store_true",
                        help="replace files in the results folder that an earlier servoid "
                        "fleet did not write there (the inputs never)")
+    fleet.add_argument("--allow-code", action="store_true",
+                       help="let records whose method runs Python code (method = \"greybox\") "
+                       "run it; every such record is identified again on each run")
     fleet.add_argument("--quiet", action="store_true", help="no progress on stderr")
     json_flag(fleet)
     fleet.set_defaults(run=_run_fleet)
@@ -90,7 +93,7 @@ def _run_fleet(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
                        progress=not (args.quiet or args.json), overwrite=args.overwrite,
                        security=security, insecure=args.insecure, dashboard=args.dashboard,
                        verbose=bool(getattr(args, "verbose", False)),
-                       allow_duplicates=args.allow_duplicates)
+                       allow_duplicates=args.allow_duplicates, allow_code=args.allow_code)
     if result.interrupted:
         print(str(result), file=sys.stderr)
         raise KeyboardInterrupt

@@ -24,6 +24,7 @@ from .._errors import (
 from .._files import check_input_file
 from .._warn import warn
 from ._experiment import ROLES, Channel, Experiment, _check_time
+from ._formats import DEFAULT_MAX_BYTES
 
 __all__ = ["DEFAULT_MAX_BYTES", "TIME_UNITS", "MissingChannel", "RolesArg", "build_experiment",
            "check_file_size", "check_max_bytes", "check_reader_options", "check_time_unit",
@@ -31,9 +32,6 @@ __all__ = ["DEFAULT_MAX_BYTES", "TIME_UNITS", "MissingChannel", "RolesArg", "bui
 
 RolesArg = Mapping[str, str | Sequence[str]] | None
 
-#: Default memory budget of the readers [bytes]: 2 GiB, 2.7e8 doubles (a MAT variable, a
-#: TDMS channel, a CSV file's text).
-DEFAULT_MAX_BYTES = 2**31
 
 #: Units a time column or vector may be given in, with their scale to seconds.
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}

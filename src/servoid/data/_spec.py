@@ -5,6 +5,11 @@ file's folder. Every table and key is checked; an unknown key raises
 :class:`OptionError` listing the valid ones, a value of the wrong type or
 range raises :class:`FileFormatError` naming the table and key.
 
+:class:`ExperimentSpec` is plain data: the file's tables, checked when
+built.  Reading, calibration and preprocessing are one step of their own,
+:func:`servoid.data.prepare`; which keys a rig-file format takes is its
+:class:`~servoid.data.RigFormat`'s to say.
+
 Schema::
 
     [data]                    # required
@@ -81,20 +86,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from .._atomic import atomic_path
 from .._checks import as_bool, as_path, type_error
-from .._errors import ChannelError, FileFormatError, OptionError, ServoidError, check_option
-from ._columns import MissingChannel, existing_file
-from ._csv import header_names
-from ._distinct import check_distinct
-from ._experiment import Channel, Experiment, ExperimentSet
-from ._io import FORMATS, Format, format_of, read_experiment
-from ._preprocess import decimate, lowpass, split
-from ._preprocess import detrend as _detrend
+from .._errors import FileFormatError, OptionError, check_option
+from ._columns import existing_file
+from ._formats import FORMATS, RIG_FORMATS, Format, format_of
 from ._spec_tables import (
     _DATA_KEYS,
     _FREE_KEYS,
@@ -108,22 +106,28 @@ from ._spec_tables import (
     ValidationSpec,
     _channels,
     _check_keys,
-    _check_like,
     _csv_options,
     _file_list,
+    _format_keys,
     _free,
     _integer,
-    _like,
+    _names,
     _optional,
     _positive,
     _preprocess,
+    _real,
     _rig,
     _split,
     _string,
+    _text,
     _thaw,
     _validation,
+    _whole,
 )
 from ._toml import _emit_document, read_toml
+
+if TYPE_CHECKING:
+    from ._experiment import Experiment, ExperimentSet
 
 __all__ = [
     "ChannelSpec",
@@ -136,46 +140,25 @@ __all__ = [
     "write_experiment_spec",
 ]
 
-# The readers' advice in Python keywords → the experiment file's keys, for their messages.
-_READER_WORDS = {
-    "pass dt [s] or time=<column name>": "set [data] time = \"<column name>\" (the time "
-    "column), or [data] dt [s] when the file has none",
-    "pass dt [s] or time=<vector name>": "set [data] time = \"<vector name>\" (the time "
-    "vector), or [data] dt [s] when the file has none",
-    "the file has no time information, pass dt [s]": "the file has no time information, set "
-    "[data] dt [s]",
-    "pass group= one of:": "set [data] group to one of:",
-    "(pass group= one of them)": "(set [data] group to one of them)",
-    "pass time= a channel of time stamps": "set [data] time to a channel of time stamps",
-    "pass variables= to choose": "map only vectors of one length in [channels]",
-    "(pass variables=)": "(as [channels.<name>] source)",
-    "pass max_bytes= a larger budget": "raise [data] max_bytes",
-    "pass max_bytes= to read": "raise [data] max_bytes to read",
-    "pass max_bytes= if it is real": "raise [data] max_bytes if it is real",
-    "pass delimiter=": "set [data] delimiter = ",
-    "(pass jitter=)": "([data] jitter = <fraction of the step>)",
-    "pass decimal=": "set [data] decimal = ",
-    "pass skip_rows=": "set [data] skip_rows = ",
-    "skip_rows=": "[data] skip_rows = ",
-    "skip_columns=[": "[data] skip_columns = [",
-    "skip_columns=": "[data] skip_columns",
-    "columns=[": "[data] columns = [",
-    "columns=": "[data] columns",
-}
+#: The tables an ExperimentSpec holds, with their types, checked on construction.
+_TABLES = (("preprocess", PreprocessSpec), ("split", SplitSpec),
+           ("validation", ValidationSpec), ("rig", RigSpec))
 
 
 @dataclass(frozen=True)
 class ExperimentSpec:
     """A validated TOML experiment file.
 
-    Build it with :func:`load_experiment_spec` or :meth:`from_dict`.
+    Build it with :func:`load_experiment_spec` or :meth:`from_dict`; read
+    its records with :func:`~servoid.data.prepare`.  Built directly, every
+    field is checked as the file's keys are.
 
     Parameters
     ----------
     file : str
         The rig file as written, relative to ``base_dir`` unless absolute.
     format : {"csv", "tdms", "mat"}
-        Its format.
+        Its format (a name of :data:`~servoid.data.RIG_FORMATS`).
     channels : tuple of ChannelSpec
         The channels to load, in order.
     group, time : str or None
@@ -229,10 +212,76 @@ class ExperimentSpec:
     source: Path | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
+        set_ = object.__setattr__  # frozen: each field is stored once, checked
+        _text("ExperimentSpec", "file", self.file)
+        if not isinstance(self.format, str):
+            raise type_error("ExperimentSpec format", self.format, "a format name")
+        check_option("ExperimentSpec format", self.format, FORMATS)
         if not self.files:
-            object.__setattr__(self, "files", (self.file,))
-        elif self.files[0] != self.file:
-            raise FileFormatError(f"files must start with file {self.file!r}, got {self.files!r}")
+            set_(self, "files", (self.file,))
+        else:
+            set_(self, "files", _names("ExperimentSpec", "files", self.files))
+            if self.files[0] != self.file:
+                raise FileFormatError(f"files must start with file {self.file!r}, got "
+                                      f"{self.files!r}")
+        if isinstance(self.channels, (str, bytes)) or not isinstance(
+                self.channels, (tuple, list)) or not all(
+                isinstance(c, ChannelSpec) for c in self.channels):
+            raise type_error("ExperimentSpec channels", self.channels, "a tuple of ChannelSpec")
+        set_(self, "channels", tuple(self.channels))
+        names = [c.name for c in self.channels]
+        if not names or len(set(names)) != len(names):
+            raise FileFormatError(f"ExperimentSpec channels must name at least one channel, "
+                                  f"each once; got {names}")
+        for key in ("group", "time"):
+            if getattr(self, key) is not None:
+                _text("ExperimentSpec", key, getattr(self, key))
+        for key in ("dt", "jitter"):
+            if getattr(self, key) is not None:
+                set_(self, key, _real("ExperimentSpec", key, getattr(self, key), positive=True))
+        if self.max_bytes is not None:
+            _whole("ExperimentSpec", "max_bytes", self.max_bytes, 1)
+        for key, kind in _TABLES:
+            if not isinstance(getattr(self, key), kind):
+                raise type_error(f"ExperimentSpec {key}", getattr(self, key),
+                                 f"a {kind.__name__}")
+        for key in ("csv", *_FREE_KEYS):
+            value = getattr(self, key)
+            if not isinstance(value, Mapping):
+                raise type_error(f"ExperimentSpec {key}", value, "a mapping")
+            if not isinstance(value, MappingProxyType):
+                set_(self, key, MappingProxyType(dict(value)))
+        unknown = [k for k in self.csv if k not in RIG_FORMATS["csv"].options]
+        if unknown:
+            raise OptionError(f"ExperimentSpec csv holds unknown option(s) {', '.join(unknown)}; "
+                              f"valid: {', '.join(RIG_FORMATS['csv'].options)}")
+        given = {**self.csv, **({"group": self.group} if self.group is not None else {})}
+        _format_keys(f"{self._origin}: [data]", self.format, given)
+        set_(self, "base_dir", as_path("base_dir", self.base_dir))
+        if self.source is not None:
+            set_(self, "source", as_path("source", self.source))
+        self._check_combination()
+
+    def _check_combination(self) -> None:
+        """Refuse tables that contradict each other, naming the file and the fix."""
+        origin = self._origin
+        if self.validation.files and self.split != SplitSpec():
+            raise FileFormatError(
+                f"{origin}: [split] and [validation] file both say what the validation data "
+                "are; with a separate validation record the whole [data] is for estimation: "
+                "remove [split]"
+            )
+        if len(self.files) > 1 and not self.validation.files:
+            raise FileFormatError(
+                f"{origin}: [data] names {len(self.files)} estimation files but no validation "
+                "record; add [validation] file = \"<record>\""
+            )
+        if self.rig.reference == "command" and self.preprocess.lowpass is not None:
+            raise FileFormatError(
+                f"{origin}: [preprocess] lowpass would filter the logged command that [rig] "
+                "reference = \"command\" declares a staircase, and no model of the rig covers "
+                "that filter; remove lowpass (decimation keeps the command exact)"
+            )
 
     @classmethod
     def from_dict(
@@ -276,45 +325,21 @@ class ExperimentSpec:
         except OptionError as exc:
             raise OptionError(f"{where}: {exc}") from None
         group = _optional(where, "group", data.get("group"), _string)
-        if group is not None and fmt != "tdms":
-            raise FileFormatError(f"{where}: group applies to TDMS files only, this is {fmt}: "
-                                  "remove group")
         time = _optional(where, "time", data.get("time"), _string)
         dt = _optional(where, "dt", data.get("dt"), _positive)
         max_bytes = _optional(where, "max_bytes", data.get("max_bytes"),
                               lambda w, k, v: _integer(w, k, v, 1))
         jitter = _optional(where, "jitter", data.get("jitter"), _positive)
         csv_options = _csv_options(where, data)
-        if csv_options and fmt != "csv":
-            raise FileFormatError(f"{where}: {', '.join(csv_options)} apply to CSV files only, "
-                                  f"this is {fmt}")
+        _format_keys(where, fmt, {**csv_options, **({"group": group} if group else {})})
         channels = _channels(origin, table["channels"])
-        validation = _validation(origin, table.get("validation", {}), fmt)
-        split_table = table.get("split", {})
-        if validation.files and split_table:
-            raise FileFormatError(
-                f"{origin}: [split] and [validation] file both say what the validation data "
-                "are; with a separate validation record the whole [data] is for estimation: "
-                "remove [split]"
-            )
-        if len(files) > 1 and not validation.files:
-            raise FileFormatError(
-                f"{origin}: [data] names {len(files)} estimation files but no validation "
-                "record; add [validation] file = \"<record>\""
-            )
-        preprocess = _preprocess(origin, table.get("preprocess", {}))
-        rig = _rig(origin, table.get("rig", {}))
-        if rig.reference == "command" and preprocess.lowpass is not None:
-            raise FileFormatError(
-                f"{origin}: [preprocess] lowpass would filter the logged command that [rig] "
-                "reference = \"command\" declares a staircase, and no model of the rig covers "
-                "that filter; remove lowpass (decimation keeps the command exact)"
-            )
         return cls(
             file=file,
             files=files,
-            validation=validation,
-            rig=rig,
+            validation=_validation(origin, table.get("validation", {}), fmt),
+            preprocess=_preprocess(origin, table.get("preprocess", {})),
+            rig=_rig(origin, table.get("rig", {})),
+            split=_split(origin, table.get("split", {})),
             format=fmt,
             channels=channels,
             group=group,
@@ -323,8 +348,6 @@ class ExperimentSpec:
             max_bytes=max_bytes,
             jitter=jitter,
             csv=MappingProxyType(csv_options),
-            preprocess=preprocess,
-            split=_split(origin, table.get("split", {})),
             loop=_free(origin, "loop", table.get("loop", {})),
             identify=_free(origin, "identify", table.get("identify", {})),
             report=_free(origin, "report", table.get("report", {})),
@@ -420,151 +443,9 @@ class ExperimentSpec:
         ChannelError
             A listed source channel is not in the file.
         """
-        path = self.data_path if path is None else Path(path)
-        exp = self._prepared(path)
-        if detrend and self.preprocess.detrend != "none":
-            exp = _detrend(exp, self.preprocess.detrend)
-        return exp
+        from ._prepare import read_record
 
-    def _missing(self, path: Path, source: str, available: tuple[str, ...]) -> ChannelError:
-        """The error for a channel the rig file lacks, in the experiment file's words."""
-        names = ", ".join(available) or "no numeric channels"
-        if source == self.time and all(c.source != source for c in self.channels):
-            return ChannelError(f"{self._origin}: [data] time = {source!r}: no such channel in "
-                                f"{path}; it has: {names}")
-        spec = next((c for c in self.channels if c.source == source), None)
-        if spec is None:  # not a channel of [channels]: say what the file has
-            return ChannelError(f"{self._origin}: {source!r} is not in {path}; it has: {names}")
-        hint = ""
-        if "columns" in self.csv:
-            hint = " (only the columns listed in [data] columns are read: add it there)"
-        elif "skip_columns" in self.csv:
-            hint = " (check [data] skip_columns)"
-        elif self.format == "tdms" and "/" not in source:
-            hint = " (a channel of another group is named 'group/channel')"
-        return ChannelError(
-            f"channel {source!r} (servoid channel {spec.name!r}) is not in {path}"
-            f"{' group ' + repr(self.group) if self.group else ''}; the file has: {names}{hint}"
-        )
-
-    @property
-    def _origin(self) -> str:
-        """The experiment file, as error messages name it."""
-        return os.fspath(self.source) if self.source is not None else "experiment spec"
-
-    def _check_lowpass(self, exp: Experiment, path: Path) -> None:
-        """Refuse a cutoff the record cannot carry, naming ``[preprocess] lowpass``."""
-        cutoff = self.preprocess.lowpass
-        assert cutoff is not None
-        nyquist = 0.5 / exp.dt
-        where = f"{self._origin}: [preprocess] lowpass = {cutoff:g} Hz"
-        if cutoff >= nyquist:
-            raise FileFormatError(
-                f"{where} must lie below the Nyquist frequency {nyquist:g} Hz of {path} "
-                f"(dt = {exp.dt:g} s; the filter runs before decimation): lower lowpass, or "
-                "remove it"
-            )
-        lowest = 1.0 / exp.duration
-        if cutoff < lowest:
-            raise FileFormatError(
-                f"{where} is below 1/(N·dt) = {lowest:.3g} Hz, the lowest frequency the "
-                f"{exp.duration:.3g} s record {path} resolves: the filter would return little "
-                "more than the mean; raise lowpass, or remove it and set [preprocess] detrend "
-                "= \"mean\" or \"linear\" to remove the mean or a trend"
-            )
-
-    def _decimated(self, exp: Experiment, path: Path) -> Experiment:
-        """Decimate; a logged command (``[rig] reference = "command"``) is subsampled."""
-        q = self.preprocess.decimate
-        if self.rig.reference != "command":
-            return decimate(exp, q)
-        commands = [ch for ch in exp.channels if ch.role == "r"]
-        for ch in commands:
-            values = ch.values
-            blocks = values[: values.size - values.size % q].reshape(-1, q)
-            if np.any(blocks != blocks[:, :1]):
-                k = int(np.argmax(np.any(blocks != blocks[:, :1], axis=1)))
-                raise FileFormatError(
-                    f"{path}: [rig] reference = \"command\" declares {ch.name!r} a DAC command "
-                    f"held over each decimated period, but it changes within samples "
-                    f"{k * q}…{k * q + q - 1} (decimate = {q}): the command is not held at the "
-                    "decimated rate, or is not aligned to it; declare reference = \"readback\" "
-                    "to filter it like the output"
-                )
-        others = decimate(exp.drop(*(ch.name for ch in commands)), q) if len(commands) < len(
-            exp.channels) else None
-        channels = []
-        for ch in exp.channels:
-            if ch.role == "r":
-                channels.append(ch.with_values(ch.values[::q]))
-            else:
-                assert others is not None
-                channels.append(others.channel(ch.name))
-        return exp.replace_channels(channels, dt=exp.dt * q)
-
-    def _prepared(self, path: Path) -> Experiment:
-        """The record calibrated and preprocessed, not detrended; the last one is kept.
-
-        A workflow reads the record for the split and again, whole, for the
-        feedback test: an unchanged file (same size and modification time)
-        is read and preprocessed once.  The spec holds at most one record.
-        """
-        try:
-            st = path.stat()
-            key = (str(path), st.st_mtime_ns, st.st_size)
-        except OSError:
-            key = None  # the reader says what is wrong with the path
-        last = self.__dict__.get("_last_prepared")
-        if key is not None and last is not None and last[0] == key:
-            return last[1]  # type: ignore[no-any-return]
-        exp = self._read_and_prepare(path)
-        if key is not None:
-            object.__setattr__(self, "_last_prepared", (key, exp))
-        return exp
-
-    def _read_and_prepare(self, path: Path) -> Experiment:
-        """Read the rig file, calibrate its channels and preprocess them (no detrend)."""
-        try:
-            raw = read_experiment(path, self.format, **self._reader_options(path))
-        except MissingChannel as exc:
-            raise self._missing(path, exc.name, exc.available) from None
-        except ServoidError as exc:  # the readers advise Python keywords: name the TOML keys
-            text = str(exc)
-            for old, new in _READER_WORDS.items():
-                text = text.replace(old, new)
-            if text == str(exc):
-                raise
-            raise _like(exc, text) from None
-        channels = []
-        for ch in self.channels:
-            try:
-                src = raw.channel(ch.source)
-            except ChannelError:
-                raise self._missing(path, ch.source, raw.names) from None
-            calibrated = ch.gain * src.values + ch.offset
-            unit = ch.unit
-            if unit is None:
-                unit = src.unit if (ch.gain == 1.0 and ch.offset == 0.0) else ""
-            channels.append(Channel(ch.name, ch.role, calibrated, unit))
-        if path == self.data_path and len(self.files) == 1:
-            name = self.source.stem if self.source is not None else Path(self.file).stem
-        else:
-            name = path.stem
-        exp = Experiment(tuple(channels), raw.dt, t0=raw.t0, name=name, notes=raw.notes)
-        pre = self.preprocess
-        if pre.lowpass is not None:
-            self._check_lowpass(exp, path)
-            exp = lowpass(exp, pre.lowpass, zero_phase=True)
-        if pre.decimate > 1:
-            if exp.n_samples <= pre.decimate:
-                raise FileFormatError(
-                    f"{self._origin}: [preprocess] decimate = {pre.decimate} needs at least "
-                    f"{pre.decimate + 1} samples, but {path} has {exp.n_samples}: lower "
-                    "decimate (the decimated record must still hold enough samples to fit and "
-                    "validate), or remove it"
-                )
-            exp = self._decimated(exp, path)
-        return exp
+        return read_record(self, path, detrend=detrend)
 
     def split_data(self, exp: Experiment | None = None) -> tuple[Experiment, Experiment]:
         """Estimation and validation parts as set in ``[split]``.
@@ -579,155 +460,29 @@ class ExperimentSpec:
         tuple of Experiment
             ``(estimation, validation)``.
         """
-        given = exp is not None
-        exp = self.load(detrend=False) if exp is None else exp
-        spl = self.split
-        self._check_split(exp, f"the record {exp.name!r}" if given else str(self.data_path))
-        if spl.skip_periods and spl.period is not None:
-            exp = exp.slice(spl.skip_periods * spl.period)
-        at: float | int = spl.index if spl.index is not None else (spl.fraction or 0.5)
-        estimation, validation = split(exp, at, period=spl.period)
-        if given:  # the caller's record is already preprocessed
-            return estimation, validation
-        estimation, (validation,) = self._detrended(estimation, (validation,))
-        return estimation, validation
+        from ._prepare import split_record
 
-    def _check_split(self, exp: Experiment, label: str) -> None:
-        """Refuse a ``[split]`` that leaves a part too short, naming its key and the fix.
-
-        Mirrors :func:`~servoid.data.split`: each part needs 2 samples, or
-        with ``period`` a whole period; ``index`` and ``period`` count samples
-        after decimation, ``index`` also after the skipped periods.
-        """
-        spl = self.split
-        n, q = exp.n_samples, self.preprocess.decimate
-        after = f" (after [preprocess] decimate = {q})" if q > 1 else ""
-        record = f"{label} has {n} samples{after}"
-        where = f"{self._origin}: [split]"
-        longer = ("record a longer test, or name a separate validation record with "
-                  "[validation] file" + (" (and remove [split])" if spl != SplitSpec() else ""))
-        period = spl.period
-        if period is not None:
-            whole = n // period
-            if whole < 2:
-                raise FileFormatError(
-                    f"{where} period = {period} samples: {record}, {whole} whole period(s); the "
-                    "split needs at least 2 (one to estimate, one to validate): check period "
-                    f"(it counts samples{' after decimation' if q > 1 else ''}), or {longer}"
-                )
-            if whole - spl.skip_periods < 2:
-                raise FileFormatError(
-                    f"{where} skip_periods = {spl.skip_periods} drops "
-                    f"{spl.skip_periods * period} samples ({spl.skip_periods} period(s) of "
-                    f"{period}), but {record}, {whole} whole period(s): at least 2 must be "
-                    f"left to split; lower skip_periods to at most {whole - 2}"
-                )
-            n -= spl.skip_periods * period
-            if spl.skip_periods:
-                record = f"{record}, {n} after skip_periods = {spl.skip_periods}"
-            low, high = period, n - period  # the split point keeps a whole period each side
-        else:
-            if n < 4:
-                raise FileFormatError(
-                    f"{self._origin}: {record}: too few to split into estimation and "
-                    f"validation parts of at least 2 samples each; {longer}"
-                )
-            low, high = 2, n - 2
-        if spl.index is not None:
-            index = spl.index
-            if period is not None:
-                index = index // period * period
-            if not low <= index <= high:
-                raise FileFormatError(
-                    f"{where} index = {spl.index} leaves a part with fewer than "
-                    f"{'a whole period' if period is not None else '2 samples'}: {record}; "
-                    f"choose index in {low}..{high} (it counts samples after decimation and "
-                    "skipped periods), or give fraction instead"
-                )
-            return
-        fraction = spl.fraction or 0.5
-        index = round(fraction * n)
-        if period is not None:
-            index = index // period * period
-        if not low <= index <= high:
-            key = "fraction" if spl.fraction is not None else "fraction (default 0.5)"
-            raise FileFormatError(
-                f"{where} {key} splits at sample {index} and leaves a part with fewer than "
-                f"{'a whole period' if period is not None else '2 samples'}: {record}; choose "
-                f"fraction between {low / n:.3g} and {high / n:.3g}"
-            )
+        return split_record(self, exp)
 
     def records(self) -> tuple[Experiment | ExperimentSet, tuple[Experiment, ...]]:
-        """Estimation data and validation records as the file describes.
+        """Estimation data and validation records: :func:`~servoid.data.prepare`'s.
 
-        With ``[validation] file`` every ``[data]`` file is estimation data
-        (several make an :class:`ExperimentSet`) and each validation file
-        is read with the same channels, calibration and preprocessing;
-        otherwise the one ``[data]`` file is split by ``[split]``.  A
-        ``"mean"`` detrend takes the means of the estimation data and
-        subtracts the same values from the validation data, so a model is
-        never helped by knowing the validation record's operating point.
+        Kept for one release; ``prepare(spec)`` also says what was read,
+        with each file's SHA-256.
 
         Returns
         -------
         tuple
             ``(estimation, validations)``.
         """
-        if not self.validation.files:
-            estimation, validation = self.split_data()
-            return estimation, (validation,)
-        parts = tuple(self.load(p, detrend=False) for p in self.data_paths)
-        validations = tuple(self.load(p, detrend=False) for p in self.validation_paths)
-        for v in validations:
-            _check_like(parts[0], v)
-        check_distinct(self._origin, self.data_paths, parts, self.validation_paths,
-                       validations)
-        est_parts, validations = self._detrended(parts, validations)
-        est = est_parts[0] if len(est_parts) == 1 else ExperimentSet(est_parts)
-        return est, validations
+        from ._prepare import prepare
 
-    def _detrended(
-        self, estimation: Experiment | tuple[Experiment, ...], validations: tuple[Experiment, ...]
-    ) -> tuple[Any, tuple[Experiment, ...]]:
-        kind = self.preprocess.detrend
-        single = isinstance(estimation, Experiment)
-        parts = (estimation,) if single else tuple(estimation)
-        if kind == "none":
-            return (parts[0] if single else parts), validations
-        if kind == "linear":  # a drift belongs to its record: each loses its own line
-            parts = tuple(_detrend(p, "linear") for p in parts)
-            return (parts[0] if single else parts), tuple(_detrend(v, "linear")
-                                                          for v in validations)
-        names = [ch.name for ch in parts[0].channels if ch.role != "side"]
-        total = sum(p.n_samples for p in parts)
-        means = {n: float(sum(p[n].sum() for p in parts) / total) for n in names}
-        parts = tuple(_detrend(p, "offset", offsets=means) for p in parts)
-        validations = tuple(_detrend(v, "offset", offsets=means) for v in validations)
-        return (parts[0] if single else parts), validations
+        return prepare(self).records
 
-    def _reader_options(self, path: Path) -> dict[str, Any]:
-        options: dict[str, Any] = {"dt": self.dt}
-        if self.format == "csv":
-            options["time"] = self.time if self.time is not None else "time"
-            options.update(self.csv)
-            if "columns" not in self.csv and "skip_columns" not in self.csv:
-                # Only the mapped columns are converted (memory on a wide logger file),
-                # when each is in the header once; else the reader reads all and says why.
-                needed = list(dict.fromkeys(c.source for c in self.channels))
-                names = header_names(path, delimiter=self.csv.get("delimiter", ","),
-                                     skip_rows=self.csv.get("skip_rows", 0))
-                if names is not None and all(names.count(n) == 1 for n in needed):
-                    options["columns"] = needed
-        elif self.format == "tdms":  # only the channels mapped are read
-            options.update(group=self.group, time=self.time,
-                           channels=list(dict.fromkeys(c.source for c in self.channels)))
-        else:
-            options.update(time=self.time, variables=sorted({c.source for c in self.channels}))
-        if self.max_bytes is not None:
-            options["max_bytes"] = self.max_bytes
-        if self.jitter is not None:
-            options["jitter"] = self.jitter
-        return options
+    @property
+    def _origin(self) -> str:
+        """The experiment file, as error messages name it."""
+        return os.fspath(self.source) if self.source is not None else "experiment spec"
 
 
 def load_experiment_spec(path: str | os.PathLike[str]) -> ExperimentSpec:

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, Literal
 
-from .._checks import file_name_problem
-from .._errors import FileFormatError, OptionError, ServoidError, check_option
+from .._checks import file_name_problem, type_error
+from .._errors import DataError, FileFormatError, OptionError, ServoidError, check_option
 from ._experiment import ROLES, Experiment, Role
-from ._io import format_of
+from ._formats import RIG_FORMATS, format_of
 
 DetrendSpec = Literal["none", "mean", "linear"]
 _DETRENDS: tuple[DetrendSpec, ...] = ("none", "mean", "linear")
@@ -25,7 +25,7 @@ _TOP_KEYS = ("data", "channels", "preprocess", "split", "validation", "rig", "lo
              "identify", "report")
 _DATA_KEYS = ("file", "format", "group", "time", "dt", "max_bytes", "jitter", "delimiter",
               "decimal", "time_unit", "columns", "skip_columns", "skip_rows")
-_CSV_KEYS = ("delimiter", "decimal", "time_unit", "columns", "skip_columns", "skip_rows")
+_CSV_KEYS = RIG_FORMATS["csv"].options
 _CSV_TEXT_KEYS = ("delimiter", "decimal", "time_unit")
 #: The values the CSV reader takes (``read_csv``), checked when the file is loaded.
 _CSV_TEXT_VALUES = {"decimal": (".", ","), "time_unit": ("s", "ms", "us", "µs")}
@@ -79,6 +79,26 @@ class ChannelSpec:
     unit: str | None = None
     limits: tuple[float, float] | None = None
 
+    def __post_init__(self) -> None:
+        _text("ChannelSpec", "name", self.name)
+        _text("ChannelSpec", "source", self.source)
+        check_option("ChannelSpec role", self.role, ROLES)
+        _set(self, "gain", _real("ChannelSpec", "gain", self.gain))
+        if self.gain == 0:
+            raise DataError("ChannelSpec gain must be non-zero, got 0.0")
+        _set(self, "offset", _real("ChannelSpec", "offset", self.offset))
+        if self.unit is not None and not isinstance(self.unit, str):
+            raise type_error("ChannelSpec unit", self.unit, "a string or None")
+        if self.limits is not None:
+            if isinstance(self.limits, (str, bytes)) or not isinstance(self.limits, (
+                    tuple, list)) or len(self.limits) != 2:
+                raise type_error("ChannelSpec limits", self.limits, "(low, high) or None")
+            lo, hi = (_real("ChannelSpec", "limits", v) for v in self.limits)
+            if not lo < hi:
+                raise DataError(f"ChannelSpec limits must be (low, high) with low < high, got "
+                                f"{self.limits!r}")
+            _set(self, "limits", (lo, hi))
+
 
 @dataclass(frozen=True)
 class PreprocessSpec:
@@ -97,6 +117,12 @@ class PreprocessSpec:
     lowpass: float | None = None
     decimate: int = 1
     detrend: DetrendSpec = "none"
+
+    def __post_init__(self) -> None:
+        if self.lowpass is not None:
+            _set(self, "lowpass", _real("PreprocessSpec", "lowpass", self.lowpass, positive=True))
+        _whole("PreprocessSpec", "decimate", self.decimate, 1)
+        check_option("PreprocessSpec detrend", self.detrend, _DETRENDS)
 
 
 @dataclass(frozen=True)
@@ -120,6 +146,21 @@ class SplitSpec:
     period: int | None = None
     skip_periods: int = 0
 
+    def __post_init__(self) -> None:
+        if self.fraction is not None:
+            _set(self, "fraction", _real("SplitSpec", "fraction", self.fraction))
+            if not 0 < self.fraction < 1:
+                raise DataError(f"SplitSpec fraction must lie in (0, 1), got {self.fraction!r}")
+            if self.index is not None:
+                raise DataError("SplitSpec takes fraction or index, not both")
+        if self.index is not None:
+            _whole("SplitSpec", "index", self.index, 2)
+        if self.period is not None:
+            _whole("SplitSpec", "period", self.period, 2)
+        _whole("SplitSpec", "skip_periods", self.skip_periods, 0)
+        if self.skip_periods and self.period is None:
+            raise DataError("SplitSpec skip_periods needs period")
+
 
 @dataclass(frozen=True)
 class RigSpec:
@@ -141,6 +182,17 @@ class RigSpec:
     anti_alias_order: int | None = None
     anti_alias_cutoff: float | None = None
     reference: RigReference | None = None
+
+    def __post_init__(self) -> None:
+        if (self.anti_alias_order is None) != (self.anti_alias_cutoff is None):
+            raise DataError("RigSpec takes anti_alias_order and anti_alias_cutoff together, got "
+                            f"{self.anti_alias_order!r} and {self.anti_alias_cutoff!r}")
+        if self.anti_alias_order is not None:
+            _whole("RigSpec", "anti_alias_order", self.anti_alias_order, 1, 10)
+            _set(self, "anti_alias_cutoff",
+                 _real("RigSpec", "anti_alias_cutoff", self.anti_alias_cutoff, positive=True))
+        if self.reference is not None:
+            check_option("RigSpec reference", self.reference, _RIG_REFERENCES)
 
     @property
     def is_declared(self) -> bool:
@@ -176,6 +228,70 @@ class ValidationSpec:
     files: tuple[str, ...] = ()
     initial: str = "auto"
     transient: int = 0
+
+    def __post_init__(self) -> None:
+        _set(self, "files", _names("ValidationSpec", "files", self.files))
+        check_option("ValidationSpec initial", self.initial, _INITIALS)
+        _whole("ValidationSpec", "transient", self.transient, 0)
+
+
+# -- construction checks (a table built in Python) ---------------------------------------------
+
+
+def _set(obj: object, key: str, value: Any) -> None:
+    """Store a checked field of a frozen table in its canonical type (a float, a tuple)."""
+    object.__setattr__(obj, key, value)
+
+
+def _text(owner: str, key: str, value: Any) -> str:
+    if not isinstance(value, str):
+        raise type_error(f"{owner} {key}", value, "a string")
+    if not value:
+        raise DataError(f"{owner} {key} must be a non-empty string")
+    return value
+
+
+def _real(owner: str, key: str, value: Any, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise type_error(f"{owner} {key}", value, "a number")
+    try:
+        number = float(value)
+    except OverflowError:
+        number = math.inf
+    if not math.isfinite(number) or (positive and number <= 0):
+        raise DataError(f"{owner} {key} must be a finite number{' > 0' if positive else ''}, "
+                        f"got {value!r}")
+    return number
+
+
+def _whole(owner: str, key: str, value: Any, minimum: int, maximum: int = 2**63 - 1) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise type_error(f"{owner} {key}", value, "an integer")
+    if not minimum <= value <= maximum:
+        raise DataError(f"{owner} {key} must be an integer in {minimum}..{maximum}, got {value}")
+    return value
+
+
+def _names(owner: str, key: str, value: Any) -> tuple[str, ...]:
+    if isinstance(value, (str, bytes)) or not isinstance(value, (tuple, list)):
+        raise type_error(f"{owner} {key}", value, "a tuple of file names")
+    for v in value:
+        _text(owner, key, v)
+    return tuple(value)
+
+
+def _format_keys(where: str, fmt: str, given: Mapping[str, Any]) -> None:
+    """Refuse ``[data]`` keys that only another format takes (``group`` on a CSV file)."""
+    own = RIG_FORMATS[fmt].options
+    for other in RIG_FORMATS.values():
+        keys = [k for k in other.options if k in given and k not in own]
+        if not keys:
+            continue
+        if len(other.options) == 1:
+            raise FileFormatError(f"{where}: {keys[0]} applies to {other.label} files only, "
+                                  f"this is {fmt}: remove {keys[0]}")
+        raise FileFormatError(f"{where}: {', '.join(keys)} apply to {other.label} files only, "
+                              f"this is {fmt}")
 
 
 # -- validation --------------------------------------------------------------------------------

@@ -20,6 +20,7 @@ import numpy as np
 from ..report import Check, Conditions, Figure, Page, Section, Table, Verdict
 from ..report._figures import fit_titles
 from ..report._text import plain
+from ..workflows._methods import method_of
 from ..workflows._registry import toml_value
 from ._limits import RULE
 from ._stats import OUTLIER_Z
@@ -116,7 +117,7 @@ def fleet_verdict(result: FleetResult) -> Verdict:
          _serials([r["serial"] for r in missing]))), "Units")
     spec = result.spec
     method = ("each record's own [identify]" if spec.identify is None else
-              f"method = {toml_value(spec.identify.get('method', 'arx'))}")
+              f"method = {toml_value(method_of(spec.identify))}")
     tested = (f"{len(rows)} units of the fleet file, each record identified ({method}) and "
               "its parameters held against the acceptance limits"
               + (f" ({', '.join(lim.parameter for lim in spec.limits)})" if spec.limits

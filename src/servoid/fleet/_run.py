@@ -31,6 +31,7 @@ from .._errors import DataError, OptionError, OptionTypeError
 from .._lock import FolderLock, hold_folder, ledger, sha256_file, write_ledger
 from .._progress import Progress, stage
 from .._words import option
+from ..workflows._methods import method_of
 from ._cluster import check_scheduler, connect, dashboard_link, quiet_dask, start_local
 from ._result import FleetResult, assemble
 from ._spec import FleetRecord, FleetSpec, load_fleet_spec
@@ -66,6 +67,7 @@ def run_fleet(
     dashboard: bool = False,
     verbose: bool = False,
     allow_duplicates: bool = False,
+    allow_code: bool = False,
 ) -> FleetResult:
     """Identify every record of a fleet and write its table, summary and report.
 
@@ -110,6 +112,12 @@ def run_fleet(
     allow_duplicates : bool
         Accept records whose data are byte-identical copies of another's
         (otherwise refused: a copy would count as a second unit).
+    allow_code : bool
+        Let a record whose method runs the user's Python code (``method =
+        "greybox"``) run it, as ``servoid identify --allow-code`` does;
+        without it such a record fails, naming the flag.  The code is not
+        among the inputs a stored outcome is keyed by, so with it every
+        record is identified again (as with ``force``).
 
     Returns
     -------
@@ -118,6 +126,7 @@ def run_fleet(
         the batch (the files then hold the records finished so far).
     """
     _check_flags(workers, verbose, dashboard, allow_duplicates)
+    allow_code = as_bool("allow_code", allow_code)
     if scheduler is not None:
         if dashboard:
             raise OptionError("dashboard=True (--dashboard) shows the local cluster; a "
@@ -135,14 +144,15 @@ def run_fleet(
         with hold_folder(folder, subfolders=("records",)) as lock:  # one fleet run owns it
             _refuse_foreign(folder, overwrite, lock)
             return _run_locked(spec, folder, lock, scheduler=scheduler, workers=workers,
-                               force=force, progress=progress, security=security,
-                               dashboard=dashboard, verbose=verbose,
-                               allow_duplicates=allow_duplicates)
+                               force=force or allow_code, progress=progress,
+                               security=security, dashboard=dashboard, verbose=verbose,
+                               allow_duplicates=allow_duplicates, allow_code=allow_code)
 
 
 def _run_locked(spec: FleetSpec, folder: Path, lock: FolderLock, *, scheduler: str | None,
                 workers: int | None, force: bool, progress: bool, security: Any,
-                dashboard: bool, verbose: bool, allow_duplicates: bool) -> FleetResult:
+                dashboard: bool, verbose: bool, allow_duplicates: bool,
+                allow_code: bool = False) -> FleetResult:
     """:func:`run_fleet` in a folder it holds."""
     store = folder / "records"
     made = [] if store.exists() else [store]  # removed if the records are refused below
@@ -151,7 +161,8 @@ def _run_locked(spec: FleetSpec, folder: Path, lock: FolderLock, *, scheduler: s
     # unless the store looks complete (a re-run that may need no worker at all)
     early = force or sum(1 for _ in store.glob("*.json")) < len(spec.records)
     pool = _Pool(scheduler, workers, len(spec.records) if early else 0, security=security,
-                 dashboard=dashboard, verbose=verbose)
+                 dashboard=dashboard, verbose=verbose,
+                 methods=() if spec.identify is None else (method_of(spec.identify),))
     try:
         try:
             keys = _keys(spec, allow_duplicates)
@@ -170,12 +181,11 @@ def _run_locked(spec: FleetSpec, folder: Path, lock: FolderLock, *, scheduler: s
                 bar.update(ok=stored["status"] == "ok", skipped=True)
         interrupted = False
         checked = _check_limit_names(spec, outcomes.values())
-        runs = _execute(spec, todo, pool)
+        runs = _execute(spec, todo, pool, allow_code)
         try:
             if not checked and todo and spec.limits:  # one record first: limits must name its params
                 i = todo.pop(0)
-                outcomes[i] = _keep(store, keys[i], identify_record(str(spec.records[i].path),
-                                                                     spec.identify))
+                outcomes[i] = _keep(store, keys[i], _one(spec, i, allow_code))
                 bar.update(ok=outcomes[i]["status"] == "ok")
                 checked = _check_limit_names(spec, outcomes.values())
             for i, outcome in runs:
@@ -261,17 +271,25 @@ def _check_copies(records: Sequence[FleetRecord], data: Sequence[str | None]) ->
             "--allow-duplicates, allow_duplicates=True, when repeating a record is intended)")
 
 
-def _execute(spec: FleetSpec, todo: Sequence[int],
-             pool: _Pool) -> Iterator[tuple[int, dict[str, Any]]]:
+def _execute(spec: FleetSpec, todo: Sequence[int], pool: _Pool,
+             allow_code: bool = False) -> Iterator[tuple[int, dict[str, Any]]]:
     """Yield (index, outcome) as records finish."""
     if not todo:
         return
     client = pool.client(len(todo))
     if client is None:
         for i in todo:
-            yield i, identify_record(str(spec.records[i].path), spec.identify)
+            yield i, _one(spec, i, allow_code)
         return
-    yield from _dask(client, spec, todo)
+    yield from _dask(client, spec, todo, allow_code)
+
+
+def _one(spec: FleetSpec, i: int, allow_code: bool) -> dict[str, Any]:
+    """Identify record ``i`` in this process."""
+    path = str(spec.records[i].path)
+    if allow_code:
+        return identify_record(path, spec.identify, allow_code=True)
+    return identify_record(path, spec.identify)
 
 
 class _Pool:
@@ -286,8 +304,10 @@ class _Pool:
     """
 
     def __init__(self, scheduler: str | None, workers: int | None, n_records: int, *,
-                 security: Any = None, dashboard: bool = False, verbose: bool = False) -> None:
+                 security: Any = None, dashboard: bool = False, verbose: bool = False,
+                 methods: Sequence[str] = ()) -> None:
         self.scheduler = scheduler
+        self.methods = tuple(methods)  # whose compiled kernels the workers load first
         self.workers = workers or os.cpu_count() or 1
         self.security, self.dashboard, self.verbose = security, dashboard, verbose
         self._cluster: Any = None
@@ -334,7 +354,8 @@ class _Pool:
             self._cluster, self._client = start_local(
                 n, dashboard=self.dashboard, verbose=self.verbose, config=_WORKER_CONFIG,
                 env=_WORKER_ENV)
-            self._client.run(_warm_up)  # compiled kernels loaded before the first record
+            # compiled kernels loaded before the first record
+            self._client.run(_warm_up, self.methods)
         except Exception as exc:  # noqa: BLE001 - reported by client() in the user's words
             self._error = exc
             self._shut()
@@ -367,22 +388,25 @@ class _Pool:
 _MAX_BATCH = 8
 
 
-def _warm_up() -> None:
-    """Import the identification and load its compiled kernels on a worker."""
-    from ..plants.ehsa import _kernels
-    from ..workflows import identify  # noqa: F401 - the import is the warm-up
+def _warm_up(methods: Sequence[str] = ()) -> None:
+    """Import the identification and load the methods' compiled kernels on a worker."""
+    from ..workflows import get_method, identify  # noqa: F401 - the import is the warm-up
 
-    _kernels.warm_up()
+    for name in methods:
+        warm = get_method(name).warm_up
+        if warm is not None:
+            warm()
 
 
-def _dask(client: Any, spec: FleetSpec,
-          todo: Sequence[int]) -> Iterator[tuple[int, dict[str, Any]]]:
+def _dask(client: Any, spec: FleetSpec, todo: Sequence[int],
+          allow_code: bool = False) -> Iterator[tuple[int, dict[str, Any]]]:
     from distributed import as_completed
 
     size = _batch_size(len(todo), _n_workers(client))
     batches = [list(todo[k:k + size]) for k in range(0, len(todo), size)]
     futures = {client.submit(identify_records, [str(spec.records[i].path) for i in batch],
-                             spec.identify, pure=False): batch for batch in batches}
+                             spec.identify, allow_code, pure=False): batch
+               for batch in batches}
     try:
         for future in as_completed(futures):
             batch = futures[future]

@@ -20,12 +20,9 @@ from typing import Any
 
 from .. import __version__
 from .._errors import DataError, ServoidError
-from ..workflows._summary import summarise
-from ._files import REGULAR_ONLY, file_problem, open_regular
+from ._files import REGULAR_ONLY, file_problem
 
 __all__ = ["identify_record", "identify_records", "record_hashes", "record_inputs", "record_key"]
-
-_CHUNK = 1 << 20
 
 
 def record_key(path: Path, identify: Mapping[str, Any] | None) -> str:
@@ -78,20 +75,26 @@ def record_inputs(path: Path) -> list[Path]:
     return _inputs(path)[0]
 
 
-def identify_records(paths: Sequence[str],
-                     identify: Mapping[str, Any] | None) -> list[dict[str, Any]]:
+def identify_records(paths: Sequence[str], identify: Mapping[str, Any] | None,
+                     allow_code: bool = False) -> list[dict[str, Any]]:
     """Identify several records in turn (one Dask task); see :func:`identify_record`."""
-    return [identify_record(path, identify) for path in paths]
+    return [identify_record(path, identify, allow_code=allow_code) for path in paths]
 
 
-def identify_record(path: str, identify: Mapping[str, Any] | None) -> dict[str, Any]:
+def identify_record(path: str, identify: Mapping[str, Any] | None, *,
+                    allow_code: bool = False) -> dict[str, Any]:
     """Identify one record as ``servoid identify`` would, writing nothing.
+
+    ``allow_code`` lets a method that runs the user's Python code run it
+    (``servoid identify --allow-code``).
 
     Returns
     -------
     dict
-        ``status`` ("ok" or "failed"), ``summary`` (a :class:`RecordSummary`
-        as a dict) or ``error`` (the message), ``warnings`` (their texts),
+        ``status`` ("ok" or "failed"), ``method``, ``summary`` (the result's
+        :class:`RecordSummary`, ``result.summary()``, as a dict: the row
+        comes from the result itself, not from its ``results.json``) or
+        ``error`` (the message), ``warnings`` (their texts),
         ``seconds`` (wall), ``cpu_seconds`` (the process's CPU time over the
         record, which other jobs on the machine do not inflate) and
         ``peak_rss_mb`` (the worker's memory high-water mark after this
@@ -99,6 +102,7 @@ def identify_record(path: str, identify: Mapping[str, Any] | None) -> dict[str, 
     """
     from ..data import load_experiment_spec
     from ..workflows import identify as run
+    from ..workflows._methods import method_of
 
     start, cpu = time.perf_counter(), time.process_time()
     out: dict[str, Any] = {"status": "failed", "summary": None, "error": "", "warnings": []}
@@ -108,9 +112,10 @@ def identify_record(path: str, identify: Mapping[str, Any] | None) -> dict[str, 
             spec = load_experiment_spec(path)
             if identify is not None:
                 spec = dataclasses.replace(spec, identify=MappingProxyType(dict(identify)))
-            result = run(spec, write=False)
-            out["summary"] = dataclasses.asdict(summarise(result.to_dict()))
-            out["method"] = spec.identify.get("method", "arx")
+            result = run(spec, write=False, allow_code=allow_code)
+            summary = result.summary()
+            out["summary"] = summary.to_dict()
+            out["method"] = summary.method or method_of(spec.identify)
             out["status"] = "ok"
         except ServoidError as exc:
             out["error"] = f"{type(exc).__name__}: {exc}"
@@ -152,8 +157,7 @@ def _inputs(path: Path) -> tuple[list[Path], Any]:
 
 
 def _digest(file: Path) -> bytes:
-    h = hashlib.sha256()
-    with open_regular(file) as f:
-        while chunk := f.read(_CHUNK):
-            h.update(chunk)
-    return h.digest()
+    """SHA-256 of a file: the run that identifies the record reads it from memory."""
+    from ..data import file_sha256
+
+    return bytes.fromhex(file_sha256(file))

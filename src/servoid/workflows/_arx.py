@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from functools import partial
 from typing import Any
 
 from ..data import ExperimentSpec
 from ..estimate import OrderSelection, fit_arx, select_arx_order
+from ._examples import open_loop
 from ._lti import IdentificationResult, OrderRow, lti_result, n_inputs, on_edge, order_grid
 from ._options import choice, integer, optional, orders, text
 from ._registry import Method, Option
@@ -45,7 +47,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     title = f"ARX (na = {o['na']}, nb = {_short(o['nb'])}, nk = {_short(o['nk'])})"
     return lti_result(spec, "arx", estimate, title, validations, options, orders=rows,
                       criterion=options["criterion"] if grid else "", edge=edge, truth=truth,
-                      estimation=estimation)
+                      estimation=estimation, how="linear least squares")
 
 
 def _rows(selection: OrderSelection) -> tuple[OrderRow, ...]:
@@ -75,4 +77,5 @@ METHOD = Method(
         HORIZON,
     ),
     run=run,
+    example=partial(open_loop, identify={"method": "arx"}),
 )

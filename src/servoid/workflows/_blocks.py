@@ -36,6 +36,7 @@ from ..nonlinear import (
 from ..report import Figure, Section, new_figure, save_figure
 from ._arx import HORIZON, OUTPUT, ROLE
 from ._common import keyed, parameter_table, warnings_as_notes
+from ._examples import open_loop
 from ._lti import IdentificationResult, lti_result, model_dict
 from ._options import boolean, choice, integer, number, optional
 from ._registry import FigureWriter, Method, Option
@@ -274,6 +275,7 @@ def _method(structure: str, summary: str) -> Method:
             HORIZON,
         ),
         run=partial(run, structure),
+        example=partial(open_loop, kind=structure, identify={"method": structure}),
     )
 
 

@@ -4,24 +4,25 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
+from functools import partial
 from typing import Any
 
 from .._checks import as_float, as_float_list
-from .._errors import DataError, OptionError
+from .._errors import DataError
 from ..closedloop import fit_cliv, fit_indirect_tf, fit_two_stage
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 from ..estimate import Estimate
 from ..models import TransferFunction
 from ._arx import HORIZON
+from ._examples import closed_loop
 from ._lti import IdentificationResult, lti_result
 from ._options import boolean, choice, integer, optional, text
 from ._pem import COVARIANCE, SEARCH, orders_text
-from ._registry import Method, Option
+from ._registry import Method, Option, TableSchema
 
-__all__ = ["CLIV", "INDIRECT", "TWO_STAGE", "controller_from_loop"]
+__all__ = ["CLIV", "INDIRECT", "LOOP", "TWO_STAGE", "controller_from_loop", "known_loop"]
 
 _OUTPUT = Option("output", None, optional(text()), "output channel when the data have several")
-_LOOP_KEYS = ("controller", "feedback")
 
 
 def _run_two_stage(spec: ExperimentSpec, options: Mapping[str, Any],
@@ -39,7 +40,8 @@ def _run_two_stage(spec: ExperimentSpec, options: Mapping[str, Any],
     note = (f"stage 1: a FIR of order {est.options['stage1_order']} from the reference explains "
             f"{100 * est.options['reference_explains']:.0f} % of the input's variance")
     return lti_result(spec, "two-stage", est, title, validations, options, truth=truth,
-                      notes=[note], closed_loop=True, records=estimation)
+                      notes=[note], closed_loop=True, records=estimation,
+                      how="the two-stage method (FIR r → u, then prediction error)")
 
 
 def _run_cliv(spec: ExperimentSpec, options: Mapping[str, Any],
@@ -51,14 +53,15 @@ def _run_cliv(spec: ExperimentSpec, options: Mapping[str, Any],
     est = _plant_input(est, estimation)
     title = f"plant by closed-loop IV ({orders_text(est.options, ('na', 'nb', 'nk'))})"
     return lti_result(spec, "cliv", est, title, validations, options, truth=truth,
-                      closed_loop=True, records=estimation)
+                      closed_loop=True, records=estimation,
+                      how="closed-loop instrumental variables (the reference as instrument)")
 
 
 def _run_indirect(spec: ExperimentSpec, options: Mapping[str, Any],
                   truth: Mapping[str, float] | None) -> IdentificationResult:
     estimation, validations = spec.records()
     dt = estimation.dt
-    controller, feedback = controller_from_loop(spec.loop, dt)
+    controller, feedback = known_loop(options["[loop]"], dt)
     est = fit_indirect_tf(estimation, controller, options["nb"], options["nf"], options["nk"],
                           feedback=feedback, structure=options["structure"],
                           refine=options["refine"], output=options["output"],
@@ -67,7 +70,8 @@ def _run_indirect(spec: ExperimentSpec, options: Mapping[str, Any],
     est = _plant_input(est, estimation)
     title = f"plant by the indirect approach ({orders_text(est.options, ('nb', 'nf', 'nk'))})"
     return lti_result(spec, "indirect", est, title, validations, options, truth=truth,
-                      closed_loop=True, records=estimation)
+                      closed_loop=True, records=estimation,
+                      how="the indirect approach (closed loop r → y with the known controller)")
 
 
 def _plant_input(est: Estimate, data: Experiment | ExperimentSet) -> Estimate:
@@ -83,28 +87,48 @@ def _plant_input(est: Estimate, data: Experiment | ExperimentSet) -> Estimate:
 def controller_from_loop(table: Mapping[str, Any], dt: float
                          ) -> tuple[TransferFunction | float, TransferFunction | float]:
     """The known controller and feedback of ``[loop]`` (discrete at ``dt``)."""
-    unknown = sorted(set(table) - set(_LOOP_KEYS))
-    if unknown:
-        raise OptionError(f"unknown key(s) in [loop]: {', '.join(unknown)}; method = "
-                          f"\"indirect\" reads {', '.join(_LOOP_KEYS)}")
-    if "controller" not in table:
+    return known_loop(LOOP.parse(table, "indirect"), dt)
+
+
+def known_loop(loop: Mapping[str, Any], dt: float
+               ) -> tuple[TransferFunction | float, TransferFunction | float]:
+    """The controller and feedback of a checked ``[loop]`` (:data:`LOOP`), discrete at ``dt``."""
+    if loop["controller"] is None:
         raise DataError("method = \"indirect\" needs the controller: add [loop] controller = "
                         "{num = [...], den = [...]} (discrete in q, at the data's dt) or a gain")
-    return (_discrete("controller", table["controller"], dt),
-            _discrete("feedback", table.get("feedback", 1.0), dt))
+    return _discrete(loop["controller"], dt), _discrete(loop["feedback"], dt)
 
 
-def _discrete(key: str, value: Any, dt: float) -> TransferFunction | float:
+def _transfer(value: Any, where: str, key: str) -> float | dict[str, Any]:
+    """A gain, or ``{num, den[, dt]}`` of a discrete transfer function, checked."""
     if isinstance(value, Mapping):
         extra = sorted(set(value) - {"num", "den", "dt"})
         if extra or "num" not in value or "den" not in value:
-            raise DataError(f"[loop] {key} must be a gain or {{num = [...], den = [...]}} "
-                            f"(descending powers of z, at the data's dt); got keys {sorted(value)}")
-        num = as_float_list(f"{key}.num", value["num"], min_length=1, where="[loop]")
-        den = as_float_list(f"{key}.den", value["den"], min_length=1, where="[loop]")
-        at = as_float(f"{key}.dt", value.get("dt", dt), positive=True, unit="s", where="[loop]")
-        return TransferFunction(num, den, dt=at)
-    return as_float(key, value, where="[loop]")
+            raise DataError(f"{where} {key} must be a gain or {{num = [...], den = [...]}} "
+                            f"(descending powers of z, at the data's dt); got keys "
+                            f"{sorted(value)}")
+        num = as_float_list(f"{key}.num", value["num"], min_length=1, where=where)
+        den = as_float_list(f"{key}.den", value["den"], min_length=1, where=where)
+        at = None if "dt" not in value else as_float(f"{key}.dt", value["dt"], positive=True,
+                                                     unit="s", where=where)
+        return {"num": num, "den": den, "dt": at}
+    return as_float(key, value, where=where)
+
+
+def _discrete(value: float | Mapping[str, Any], dt: float) -> TransferFunction | float:
+    if isinstance(value, Mapping):
+        return TransferFunction(value["num"], value["den"],
+                                dt=dt if value["dt"] is None else value["dt"])
+    return value
+
+
+#: ``[loop]`` of the methods that know the controller: u = C(q)·(r − F(q)·y).
+LOOP = TableSchema("loop", (
+    Option("controller", None, optional(_transfer),
+           "the controller C(q) from r − F·y to u: a gain or {num = [...], den = [...]} in "
+           "descending powers of z, at the data's dt (or dt = …) (required)"),
+    Option("feedback", 1.0, _transfer, "the feedback F(q) from y: a gain or {num, den}"),
+), help="the known loop")
 
 
 TWO_STAGE = Method(
@@ -126,6 +150,7 @@ TWO_STAGE = Method(
         HORIZON,
     ),
     run=_run_two_stage,
+    example=partial(closed_loop, identify={"method": "two-stage"}),
 )
 
 CLIV = Method(
@@ -142,6 +167,7 @@ CLIV = Method(
         HORIZON,
     ),
     run=_run_cliv,
+    example=partial(closed_loop, identify={"method": "cliv"}),
 )
 
 INDIRECT = Method(
@@ -159,5 +185,7 @@ INDIRECT = Method(
         HORIZON,
     ),
     run=_run_indirect,
-    tables=("loop", "validation"),
+    tables=(LOOP, "validation"),
+    example=partial(closed_loop, identify={"method": "indirect"},
+                    loop={"controller": {"num": [0.56, -0.5], "den": [1.0, -1.0]}}),
 )

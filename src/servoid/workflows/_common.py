@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import os
 import re
 import warnings
@@ -269,9 +268,7 @@ def _initial_text(report: ValidationReport) -> str:
 
 
 def sha256(path: Path) -> str:
-    """SHA-256 of a file, hex."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
+    """SHA-256 of a file, hex: read once per run (:func:`servoid.data.file_sha256`)."""
+    from ..data import file_sha256
+
+    return file_sha256(path)

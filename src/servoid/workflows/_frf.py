@@ -18,11 +18,12 @@ from ..data import Experiment, ExperimentSpec
 from ..estimate import estimate_frf, fit_frf
 from ..models import FrequencyResponseData, bandwidth, phase_lag, resonance_peak
 from ..report import Check, Conditions, Figure, Page, Section, Table, Verdict, plot_bode_bands
-from ._common import sha256, spec_inputs
-from ._lti import IdentificationResult, lti_result
+from ._common import spec_inputs
+from ._examples import open_loop
+from ._lti import IdentificationResult, lti_result, spec_value
 from ._options import choice, integer, number, optional, text
 from ._registry import FigureWriter, Method, Option
-from ._summary import Displayed
+from ._summary import Displayed, RecordSummary, summary_of
 from ._verdict import NO_PEAK, count_check, spec_conditions, spec_text
 
 __all__ = ["FRF", "FrfIdentification", "spec_numbers"]
@@ -47,6 +48,8 @@ class FrfIdentification(Displayed):
         Where the results were written.
     conditions : tuple of Conditions
         Rate, length, excitation and band of the record(s).
+    digests : dict
+        SHA-256 of the input files, each hashed once (see ``digest``).
     """
 
     spec: ExperimentSpec
@@ -56,6 +59,20 @@ class FrfIdentification(Displayed):
     folder: Path | None = None
     files: tuple[Path, ...] = field(default=())
     conditions: tuple[Conditions, ...] = ()
+    digests: dict[str, str] = field(default_factory=dict, repr=False)
+
+    def summary(self) -> RecordSummary:
+        """The spec numbers as the record's scalars (no interval: read from the measurement).
+
+        A fleet of FRF records trends them: ``bandwidth`` [Hz], ``phase_lag``
+        [deg], ``resonance_peak`` [dB] and ``resonance_frequency`` [Hz].
+        """
+        return summary_of("frf", [spec_value(k, v) for k, v in self.numbers.items()],
+                          self.verdict(), notes=self.notes)
+
+    def models(self) -> dict[str, Any]:
+        """The measured frequency response as ``"frd"``."""
+        return {"frd": self.frd}
 
     def verdict(self) -> Verdict:
         """The spec numbers and how far the measured response can be trusted."""
@@ -116,10 +133,11 @@ class FrfIdentification(Displayed):
         return {
             "servoid_version": __version__, "method": "frf",
             "experiment_file": str(self.spec.source) if self.spec.source else None,
-            "data_files": [{"path": str(p), "sha256": sha256(p)} for p in self.spec.data_paths],
+            "data_files": [{"path": str(p), "sha256": self.digest(p)}
+                           for p in self.spec.data_paths],
             "spec_numbers": {k: (None if math.isnan(v) else v) for k, v in self.numbers.items()},
             "measured_frf": self.frd.to_dict(), "notes": list(self.notes),
-            "verdict": self.verdict().to_dict(),
+            "verdict": self.verdict().to_dict(), "summary": self.summary().to_dict(),
         }
 
     def inputs(self) -> tuple[Path, ...]:
@@ -200,7 +218,9 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     return lti_result(spec, "frf", est, title, validations, options, measured=frd, truth=truth,
                       notes=notes, closed_loop=options["reference"] is not None,
                       records=estimation,
-                      spec_numbers={k: (numbers[k], fitted[k]) for k in numbers})
+                      spec_numbers={k: (numbers[k], fitted[k]) for k in numbers},
+                      how="frequency-domain least squares refined by maximum likelihood on the "
+                          "FRF")
 
 
 def _without_hold(frd: FrequencyResponseData) -> FrequencyResponseData:
@@ -314,4 +334,5 @@ FRF = Method(
         Option("horizon", 5, integer(minimum=1), "k of the k-step prediction fit [samples]"),
     ),
     run=run,
+    example=partial(open_loop, identify={"method": "frf"}),
 )

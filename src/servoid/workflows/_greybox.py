@@ -58,6 +58,7 @@ from ..estimate._ode_user import executed_sha256, load_function, parse_ref
 from ..report import Page
 from ._arx import OUTPUT
 from ._common import warnings_as_notes
+from ._examples import greybox_tank
 from ._lti import IdentificationResult, lti_result
 from ._options import boolean, choice, integer, number, optional
 from ._registry import Method, Option
@@ -381,4 +382,6 @@ GREYBOX = Method(
     ),
     run=run,
     tables=("validation",),
+    runs_code=True,
+    example=greybox_tank,
 )

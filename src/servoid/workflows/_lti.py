@@ -10,6 +10,7 @@ that into the console text, ``results.json`` and the report page.
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -43,14 +44,13 @@ from ._common import (
     DivergedRun,
     keyed,
     parameter_table,
-    sha256,
     spec_inputs,
     truth_from_spec,
     validation_section,
     warnings_as_notes,
 )
 from ._registry import FigureWriter
-from ._summary import Displayed
+from ._summary import Displayed, ParameterValue, RecordSummary, summary_of
 from ._verdict import (
     count_check,
     diverged_check,
@@ -60,9 +60,8 @@ from ._verdict import (
     validation_checks,
 )
 
-__all__ = ["IdentificationResult", "OrderRow", "gain_unit", "lti_result", "model_dict",
-           "fit_or_search", "n_inputs", "on_edge", "order_grid",
-           "outputs_of"]
+__all__ = ["IdentificationResult", "OrderRow", "fit_or_search", "gain_unit", "lti_result",
+           "model_dict", "n_inputs", "on_edge", "order_grid", "outputs_of", "spec_value"]
 
 
 @dataclass(frozen=True)
@@ -119,6 +118,15 @@ class IdentificationResult(Displayed):
         Orders whose chosen value sits on the edge of the searched grid.
     spec_numbers : mapping
         Spec number → (measured, fitted model) for a model fitted to an FRF.
+    how : str
+        How the method fits, for the report (``"linear least squares"``).
+    direct : bool
+        The method is the direct approach on closed-loop data (a noise
+        model of its own makes it consistent there): a record that looks
+        closed loop is then information, not a caution.
+    digests : dict
+        SHA-256 of the input files by real path, each hashed once (filled
+        by ``write_results``; see :meth:`digest`).
     """
 
     spec: ExperimentSpec
@@ -140,6 +148,9 @@ class IdentificationResult(Displayed):
     conditions: tuple[Conditions, ...] = ()
     edge: tuple[str, ...] = ()
     spec_numbers: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    how: str = ""
+    direct: bool = False
+    digests: dict[str, str] = field(default_factory=dict, repr=False)
 
     @property
     def validation(self) -> ValidationReport | DivergedRun:
@@ -193,9 +204,10 @@ class IdentificationResult(Displayed):
             "method": self.method,
             "experiment_file": str(self.spec.source) if self.spec.source else None,
             "data_file": str(self.spec.data_path),
-            "data_sha256": sha256(self.spec.data_path),
-            "data_files": [{"path": str(p), "sha256": sha256(p)} for p in self.spec.data_paths],
-            "validation_files": [{"path": str(p), "sha256": sha256(p)}
+            "data_sha256": self.digest(self.spec.data_path),
+            "data_files": [{"path": str(p), "sha256": self.digest(p)}
+                           for p in self.spec.data_paths],
+            "validation_files": [{"path": str(p), "sha256": self.digest(p)}
                                  for p in self.spec.validation_paths],
             "structure": self.title,
             "estimate": self.estimate.to_dict(),
@@ -214,7 +226,26 @@ class IdentificationResult(Displayed):
             "spec_numbers": {k: {"measured": _finite(m), "fitted": _finite(f)}
                              for k, (m, f) in self.spec_numbers.items()} or None,
             "verdict": self.verdict().to_dict(),
+            "summary": self.summary().to_dict(),
         }
+
+    def summary(self) -> RecordSummary:
+        """Parameters with σ and intervals, the first validation's fit and tests, the decision."""
+        first = self.validations[0]
+        return summary_of(
+            self.method, self.estimate.table(0.95), self.verdict(),
+            validation=first if isinstance(first, ValidationReport) else None, notes=self.notes,
+            diverged=[f"{v.experiment or 'the held-back part'} (sample {v.sample}, t = "
+                      f"{v.time:.6g} s)" for v in self.diverged],
+            extra=self._summary_extra())
+
+    def models(self) -> dict[str, Any]:
+        """The identified model as ``"G"`` (what :func:`load_results` rebuilds)."""
+        return {"G": self.estimate.model}
+
+    def _summary_extra(self) -> list[ParameterValue]:
+        """Scalars beside the parameters: the measured spec numbers of an FRF fit."""
+        return [spec_value(k, m) for k, (m, _) in self.spec_numbers.items()]
 
     # -- files ------------------------------------------------------------------------------
     def inputs(self) -> tuple[Path, ...]:
@@ -242,7 +273,8 @@ class IdentificationResult(Displayed):
         """The report page."""
         spec, est = self.spec, self.estimate
         o = est.options
-        data_files = ", ".join(f"{p.name} (sha256 {sha256(p)[:16]}…)" for p in spec.data_paths)
+        data_files = ", ".join(f"{p.name} (sha256 {self.digest(p)[:16]}…)"
+                               for p in spec.data_paths)
         val_files = ", ".join(p.name for p in spec.validation_paths)
         experiment = Section("Experiment", paragraphs=(
             f"Estimation data: {data_files}; input {', '.join(o.get('inputs', []))} "
@@ -340,9 +372,10 @@ class IdentificationResult(Displayed):
         checks += self._verdict_checks()
         if self.feedback is not None and self.feedback.has_feedback:
             p = f"p = {self.feedback.pvalue:.2g}"
-            if self.method == "bj":
+            if self.direct:
                 checks.append(Check("feedback test", p, "info",
-                                    "the record looks closed loop; BJ on (u, y) is the direct "
+                                    f"the record looks closed loop; {self.method.upper()} on "
+                                    "(u, y) is the direct "
                                     "approach, consistent when its noise model is right (see "
                                     "the residual whiteness)"))
             else:
@@ -456,6 +489,8 @@ def lti_result(
     extra: Mapping[str, Any] | None = None,
     records: Experiment | ExperimentSet | None = None,
     spec_numbers: Mapping[str, tuple[float, float]] | None = None,
+    how: str = "",
+    direct: bool = False,
 ) -> IdentificationResult:
     """Validate an estimate on each record and assemble the result.
 
@@ -477,7 +512,10 @@ def lti_result(
     :class:`IdentificationResult`) with its own fields in ``extra``.
     The test conditions (rate, length, excitation, band) are read from
     ``estimation`` (or ``records``, the estimation data of a method that
-    does not want the feedback test) and the validation records.
+    does not want the feedback test) and the validation records.  ``how``
+    says how the method fits (the report's Model section); ``direct``
+    marks the direct approach on closed-loop data (a noise model of its
+    own), for which a record that looks closed loop is no caution.
     """
     input_role = estimate.options.get("input", "u")
     feedback = None
@@ -488,7 +526,7 @@ def lti_result(
         feedback = _feedback(whole, estimate)
         if feedback is not None and feedback.has_feedback:
             closed_loop = True
-            all_notes.append(_feedback_note(method, feedback))
+            all_notes.append(_feedback_note(method, feedback, direct))
     if measured is None and estimation is not None:
         measured = _measured_frf(estimation, estimate, closed_loop)
     if not characteristics and modal:
@@ -531,7 +569,8 @@ def lti_result(
         spec, method, estimate, tuple(reports), title, tuple(orders), criterion,
         tuple(characteristics), measured, tuple(float(s) for s in singular_values), truth,
         tuple(all_notes), gain_unit(validations[0], estimate), feedback, conditions=conditions,
-        edge=tuple(edge), spec_numbers=dict(spec_numbers or {}), **(extra or {}))
+        edge=tuple(edge), spec_numbers=dict(spec_numbers or {}), how=how, direct=direct,
+        **(extra or {}))
 
 
 def _feedback(data: Experiment | ExperimentSet, estimate: Estimate) -> Any:
@@ -589,10 +628,11 @@ def _measured_frf(data: Experiment | ExperimentSet, estimate: Estimate,
         return None
 
 
-def _feedback_note(method: str, test: Any) -> str:
-    if method == "bj":
-        return (f"the record looks closed loop (feedback test p = {test.pvalue:.2g}); BJ on "
-                "(u, y) is the direct approach, consistent when its noise model is right — "
+def _feedback_note(method: str, test: Any, direct: bool) -> str:
+    if direct:
+        return (f"the record looks closed loop (feedback test p = {test.pvalue:.2g}); "
+                f"{method.upper()} on (u, y) is the direct approach, consistent when its noise "
+                "model is right — "
                 "check that the residuals are white")
     return (f"the record looks closed loop (feedback test p = {test.pvalue:.2g}): {method} on "
             "(u, y) is biased under feedback; use method = \"bj\" (direct, with a noise "
@@ -641,6 +681,24 @@ def model_dict(model: Any) -> dict[str, Any]:
         return {"type": "state_space", "dt": model.dt, "A": model.A, "B": model.B,
                 "C": model.C, "D": model.D, "poles": _complex_list(model.poles())}
     return {"type": type(model).__name__}
+
+
+#: An FRF's spec numbers as summary scalars: (name, unit) by the start of their key.
+_SPEC_SCALARS = (("bandwidth", "bandwidth", "Hz"), ("phase lag", "phase_lag", "deg"),
+                 ("resonance peak", "resonance_peak", "dB"),
+                 ("resonance frequency", "resonance_frequency", "Hz"))
+
+
+def spec_value(key: str, value: float) -> ParameterValue:
+    """A spec number (``"bandwidth (-3 dB) [Hz]"``) as a summary scalar without an interval.
+
+    Its name is a plain word a fleet file can use as a ``[limits.<name>]``
+    table and a column (``bandwidth``, ``phase_lag``, ``resonance_peak``,
+    ``resonance_frequency``); a number undefined in the measured band is NaN.
+    """
+    name, unit = next(((n, u) for start, n, u in _SPEC_SCALARS if key.startswith(start)),
+                      (re.sub(r"\W+", "_", key).strip("_"), ""))
+    return ParameterValue(name, float(value), math.nan, math.nan, math.nan, unit)
 
 
 # -- private ------------------------------------------------------------------------------
@@ -706,15 +764,7 @@ def _characteristics_table(rows: Sequence[Any], truth: Mapping[str, float] | Non
 def _model_text(result: IdentificationResult) -> str:
     est = result.estimate
     o = est.options
-    how = {"arx": "linear least squares", "oe": "prediction error (Gauss–Newton on the exact "
-           "gradient)", "armax": "prediction error (Gauss–Newton on the exact gradient)",
-           "bj": "prediction error (Gauss–Newton on the exact gradient)",
-           "tf": "refined instrumental variables (SRIVC)", "n4sid": "subspace projection",
-           "frf": "frequency-domain least squares refined by maximum likelihood on the FRF",
-           "two-stage": "the two-stage method (FIR r → u, then prediction error)",
-           "cliv": "closed-loop instrumental variables (the reference as instrument)",
-           "indirect": "the indirect approach (closed loop r → y with the known controller)"}
-    parts = [f"{result.title} by {how.get(result.method, result.method)} on {est.n_samples} "
+    parts = [f"{result.title} by {result.how or result.method} on {est.n_samples} "
              f"samples; residual variance {est.noise_variance:.4g}; status {est.status}."]
     if "condition" in o:
         parts.append(f"Scaled condition number {o['condition']:.3g} ({o.get('solver')} route).")

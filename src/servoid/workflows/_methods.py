@@ -15,12 +15,16 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Iterator, Mapping
+from typing import Any
 
 from .._errors import check_option
 from ..plants import PLANTS
 from ._registry import Method
 
-__all__ = ["METHODS", "get_method", "method_names"]
+__all__ = ["DEFAULT_METHOD", "METHODS", "get_method", "method_names", "method_of"]
+
+#: The method an ``[identify]`` table without ``method`` runs.
+DEFAULT_METHOD = "arx"
 
 #: name, "module:attribute" of its Method, summary — in the order ``servoid methods`` lists them
 _LISTED: tuple[tuple[str, str, str], ...] = (
@@ -77,6 +81,14 @@ _LISTED: tuple[tuple[str, str, str], ...] = (
 def method_names() -> tuple[str, ...]:
     """Names ``[identify] method`` accepts, in registry order."""
     return tuple(METHODS)
+
+
+def method_of(identify: Mapping[str, Any] | None) -> Any:
+    """The method an ``[identify]`` table names (:data:`DEFAULT_METHOD` without one), as given.
+
+    A value that names no method is left for :func:`get_method` to refuse.
+    """
+    return (identify or {}).get("method", DEFAULT_METHOD)
 
 
 def get_method(name: str) -> Method:

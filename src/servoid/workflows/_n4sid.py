@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from functools import partial
 from typing import Any
 
 from .._checks import as_int_list, as_str, type_error
@@ -10,6 +11,7 @@ from .._errors import DataError
 from ..data import ExperimentSpec
 from ..estimate import fit_n4sid, fit_oe, to_polynomial
 from ._arx import HORIZON, ROLE
+from ._examples import open_loop
 from ._lti import IdentificationResult, lti_result
 from ._options import boolean, choice, integer, optional
 from ._registry import Method, Option
@@ -43,7 +45,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                      "the parameters and intervals are the output-error ones")
     return lti_result(spec, "n4sid", estimate, title, validations, options,
                       singular_values=o["singular_values"], truth=truth, notes=notes,
-                      estimation=estimation)
+                      estimation=estimation, how="subspace projection")
 
 
 def _outputs(value: Any, where: str, name: str) -> str | list[str]:
@@ -84,4 +86,6 @@ N4SID = Method(
         HORIZON,
     ),
     run=run,
+    multi_output=True,
+    example=partial(open_loop, identify={"method": "n4sid"}),
 )

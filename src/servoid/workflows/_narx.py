@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +13,7 @@ from ..estimate import Estimate
 from ..report import Section, Table
 from ._arx import HORIZON, OUTPUT, ROLE
 from ._common import keyed, parameter_table, warnings_as_notes
+from ._examples import open_loop
 from ._lti import IdentificationResult, lti_result
 from ._options import choice, integer, number, optional, orders
 from ._registry import Method, Option
@@ -183,4 +185,6 @@ METHOD = Method(
         HORIZON,
     ),
     run=run,
+    example=partial(open_loop, kind="narx",
+                    identify={"method": "narx", "na": 1, "nb": 1, "degree": 2}),
 )

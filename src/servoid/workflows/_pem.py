@@ -9,6 +9,7 @@ from typing import Any
 from ..data import ExperimentSpec
 from ..estimate import Estimate, fit_armax, fit_bj, fit_oe
 from ._arx import HORIZON, OUTPUT, ROLE
+from ._examples import open_loop
 from ._lti import IdentificationResult, fit_or_search, lti_result, n_inputs, order_grid
 from ._options import choice, integer, number, orders
 from ._registry import Method, Option
@@ -20,6 +21,8 @@ _ORDERS = {"oe": ("nb", "nf", "nk"), "armax": ("na", "nb", "nc", "nk"),
            "bj": ("nb", "nc", "nd", "nf", "nk")}
 _FITS: dict[str, Callable[..., Estimate]] = {"oe": fit_oe, "armax": fit_armax, "bj": fit_bj}
 _TITLES = {"oe": "OE", "armax": "ARMAX", "bj": "BJ"}
+#: [identify] of each structure's example: a first-order noise model for its ARMA(1, 1) noise
+_EXAMPLE: dict[str, dict[str, Any]] = {"oe": {}, "armax": {"nc": 1}, "bj": {"nc": 1, "nd": 1}}
 
 
 COVARIANCE = Option(
@@ -62,7 +65,9 @@ def run(structure: str, spec: ExperimentSpec, options: Mapping[str, Any],
     title = f"{_TITLES[structure]} ({orders_text(estimate.options, keys)})"
     return lti_result(spec, structure, estimate, title, validations, options, orders=rows,
                       criterion=options["criterion"] if grid else "", edge=edge, truth=truth,
-                      estimation=estimation)
+                      estimation=estimation,
+                      how="prediction error (Gauss–Newton on the exact gradient)",
+                      direct=structure == "bj")  # BJ's own noise model: the direct approach
 
 
 def orders_text(options: Mapping[str, Any], keys: Sequence[str]) -> str:
@@ -97,6 +102,8 @@ def _method(structure: str, summary: str) -> Method:
             HORIZON,
         ),
         run=partial(run, structure),
+        example=partial(open_loop, identify={"method": structure, **_EXAMPLE[structure]},
+                        coloured=structure != "oe"),
     )
 
 

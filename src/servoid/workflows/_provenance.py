@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ._common import sha256
+from ._summary import input_digest
 
 __all__ = ["provenance", "set_command"]
 
@@ -26,20 +27,30 @@ def set_command(words: Sequence[str]) -> None:
     _COMMAND[:] = [str(w) for w in words]
 
 
-def provenance(result: Any, outputs: Mapping[str, Path]) -> tuple[tuple[str, str], ...]:
-    """Report metadata rows: generation time, command, seed, input and output hashes."""
+def provenance(result: Any, outputs: Mapping[str, Path],
+               output_sha256: Mapping[str, str] | None = None) -> tuple[tuple[str, str], ...]:
+    """Report metadata rows: generation time, command, seed, input and output hashes.
+
+    The inputs' hashes are the result's own (``result.digests``: each input
+    hashed once per run); the outputs' are ``output_sha256`` by name when
+    given (the writer hashes each output once), else computed here.
+    """
     now = dt.datetime.now(dt.UTC).replace(microsecond=0).isoformat().replace("+00:00", " UTC")
     command = shlex.join(_COMMAND) if _COMMAND else "Python API (servoid.workflows.identify)"
     rows = [("generated", now), ("command", command)]
     seed = _seed(result)
     if seed is not None:
         rows.append(("seed", str(seed)))
+    table = getattr(result, "digests", None)
     for path in result.inputs():
         if Path(path).is_file():
-            rows.append((f"input {Path(path).name}", sha256(path)[:16] + "…"))
+            rows.append((f"input {Path(path).name}",
+                         input_digest(table if isinstance(table, dict) else None, path)[:16]
+                         + "…"))
+    known = output_sha256 or {}
     for name, path in outputs.items():
         if path.is_file():
-            rows.append((f"output {name}", sha256(path)[:16] + "…"))
+            rows.append((f"output {name}", (known.get(name) or sha256(path))[:16] + "…"))
     return tuple(rows)
 
 

@@ -18,6 +18,7 @@ the SHA-256 recorded at the fit.
 from __future__ import annotations
 
 import hashlib
+import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -197,11 +198,12 @@ def rerender(results: str | Path, out: str | Path | None = None, *,
     if not isinstance(recorded, str) or not recorded:
         raise FileFormatError(f"{path} does not name its experiment file; {_FIX}")
     code = _code_files(data)
-    if data.get("method") == "greybox" and not allow_code:
+    method = _runs_code(data)
+    if method is not None and not allow_code:
         listed = " and ".join(sorted({str(f) for f, _ in code})) or \
             "the file its [identify] model names"
         raise OptionError(
-            f"{path} is a run of method = \"greybox\", whose model is Python code ({listed}), "
+            f"{path} is a run of method = \"{method}\", whose model is Python code ({listed}), "
             "and re-rendering runs the identification again: check the file, then run servoid "
             "report with --allow-code (allow_code=True in servoid.workflows.rerender)")
     inputs = _manifest_inputs(folder)
@@ -219,6 +221,7 @@ def rerender(results: str | Path, out: str | Path | None = None, *,
             f"check that it is the file you mean, then pass --experiment {source} "
             "(experiment= in servoid.workflows.rerender)")
     spec = _spec_from_checked(source, inputs, data, path)
+    checked = {os.path.realpath(source): inputs[source]}  # hashed here once, not again
     for file in spec_inputs(spec):
         file = file.resolve()
         if not named and not file.is_relative_to(base):
@@ -227,6 +230,7 @@ def rerender(results: str | Path, out: str | Path | None = None, *,
                 "servoid report reads only files in the run's folder or named on its command "
                 f"line: pass --experiment {source} if it is the file you mean")
         _check_input(file, inputs, source)
+        checked[os.path.realpath(file)] = inputs[file]
     for file, digest in code:  # the model code is an input the manifest does not list
         if not named and not file.resolve().is_relative_to(base):
             raise OptionError(
@@ -243,7 +247,7 @@ def rerender(results: str | Path, out: str | Path | None = None, *,
     own = out is None or target.resolve() == folder
     return _identify(spec, target, overwrite=overwrite, write=True, truth=None,
                      allow_outside=True, max_bytes=None, allow_code=allow_code, own_run=own,
-                     code_sha256=pinned if allow_code else None)
+                     code_sha256=pinned if allow_code else None, digests=checked)
 
 
 def _manifest_inputs(folder: Path) -> dict[Path, str]:
@@ -314,6 +318,16 @@ def _check_input(file: Path, inputs: Mapping[Path, str], source: Path) -> None:
             f"{file} is not the file this run read (missing from its manifest, or changed "
             f"since): the report would describe other data; run servoid identify {source} "
             "instead")
+
+
+def _runs_code(data: Mapping[str, Any]) -> str | None:
+    """The method of a results file when its model runs the user's code (else None)."""
+    from ._methods import METHODS
+
+    name = data.get("method")
+    if not isinstance(name, str) or name not in METHODS:
+        return None
+    return name if METHODS[name].runs_code else None
 
 
 def _check_results(data: object, path: Path) -> None:

@@ -3,8 +3,9 @@
 A results folder is a user's file as soon as it is written: it is edited,
 merged, half-copied.  :func:`load_results`, ``greybox_record`` and
 ``rerender`` read only a few of its fields, and :func:`check_results`
-walks exactly those — the model record, the parameter rows of each method
-family, the validation verdicts, the closed-loop approaches, the paths of
+walks exactly those — the model record, the result's own summary (or the
+parameter rows of each method family in an older file), the validation
+verdicts, the closed-loop approaches, the paths of
 the experiment file — so a field of the wrong type is a
 :class:`~servoid.FileFormatError` naming it (``estimate.parameters[2].value``),
 the value found and the fix, instead of an ``AttributeError`` deep in the
@@ -67,6 +68,7 @@ def check_results(data: object, path: Path) -> Mapping[str, Any]:
     if data.get("model") is not None:
         c.model(c.table(data, "model"), "model")
     c.summary(data)
+    c.record_summary(data)
     approaches = c.table(data, "approaches", optional=True)
     for name, approach in approaches.items():
         where = f"approaches.{name}"
@@ -266,6 +268,25 @@ class _Check:
         elif isinstance(data.get("parameters"), list):
             for k, row in enumerate(data["parameters"]):
                 self.row(row, f"parameters[{k}]")
+
+    def record_summary(self, data: Mapping[str, Any]) -> None:
+        """The ``"summary"`` a result writes of itself (what load_results returns)."""
+        if data.get("summary") is None:
+            return
+        summary = self.table(data, "summary")
+        for k, row in enumerate(self.rows_of(summary, "parameters", where="summary.parameters",
+                                             absent=True)):
+            if not isinstance(row, Mapping) or "value" not in row:
+                raise self.fail(f"summary.parameters[{k}]", "an object with name and value", row)
+            self.row(row, f"summary.parameters[{k}]")
+        self.number(summary, "fit_percent", "summary.fit_percent")
+        self.number(summary, "notes", "summary.notes")
+        for key in ("white", "independent", "structure_rejected"):
+            self.flag(summary, key, f"summary.{key}")
+        for key in ("decision", "reason", "method"):
+            self.text(summary, key, where=f"summary.{key}", optional=True)
+        for key in ("flags", "diverged", "conditions"):
+            self.rows_of(summary, key, where=f"summary.{key}", absent=True)
 
     def model(self, model: Mapping[str, Any], where: str) -> None:
         """The containers a model record is rebuilt from (the values: by the model)."""

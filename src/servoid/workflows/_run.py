@@ -37,10 +37,10 @@ from .._warn import warn
 from .._words import option
 from ..data import ExperimentSpec, load_experiment_spec
 from ._common import check_outputs, check_sizes, report_options, sha256, spec_inputs
-from ._methods import get_method, method_names
+from ._methods import get_method, method_names, method_of
 from ._provenance import provenance
-from ._registry import Identification, Method
-from ._summary import verdict_section
+from ._registry import CONTRACT, Identification, Method
+from ._summary import input_digest
 
 __all__ = ["MANIFEST", "get_method", "identify", "method_names", "write_results"]
 
@@ -50,8 +50,6 @@ MANIFEST = "manifest.json"
 # [loop] describes the rig (what is known about its feedback) and may stay whatever the method;
 # a [validation] record that a method cannot use would be silently ignored, so it is refused.
 _OPTIONAL_TABLES = ("validation",)
-# methods that fit every output channel when [identify] output is not set
-_MULTI_OUTPUT = ("n4sid",)
 
 
 def identify(
@@ -119,18 +117,24 @@ def identify(
 def _identify(spec: ExperimentSpec | str | os.PathLike[str], out: Path | None, *,
               overwrite: bool, write: bool, truth: Mapping[str, float] | None,
               allow_outside: bool, max_bytes: int | None, allow_code: bool,
-              own_run: bool = False, code_sha256: Mapping[str, str] | None = None) -> Any:
+              own_run: bool = False, code_sha256: Mapping[str, str] | None = None,
+              digests: Mapping[str, str] | None = None) -> Any:
     """:func:`identify` with its arguments checked, and what only a re-render asks.
 
     ``own_run`` lets the files of the complete run in the folder be
     replaced (a re-render into the run's own folder); ``code_sha256`` maps
     a grey-box model file (resolved path) to the SHA-256 its code must
-    have, checked on the very bytes that run.
+    have, checked on the very bytes that run; ``digests`` are the inputs'
+    SHA-256 by real path, already computed (a re-render checked them), so
+    that each input is hashed once per run.
     """
     if not isinstance(spec, ExperimentSpec):
         spec = load_experiment_spec(spec)
-    method = get_method(spec.identify.get("method", "arx"))
+    method = get_method(method_of(spec.identify))
     options = method.parse(spec.identify)
+    # the other tables of the method's own keys ([loop]), checked like [identify] when read
+    options.update(method.parse_tables({name: getattr(spec, name, None) or {}
+                                        for name in method.schemas}, options))
     if allow_code:  # never an [identify] key: only the caller may let a file run code
         options["allow_code"] = True
         if code_sha256 is not None:
@@ -163,7 +167,7 @@ def _identify(spec: ExperimentSpec | str | os.PathLike[str], out: Path | None, *
         with stage(f"identifying ({method.name})"):
             result = method.run(spec, options, truth)
         with stage("writing the figures and the report"):
-            return _write(result, folder, overwrite, lock, own_run)
+            return _write(result, folder, overwrite, lock, own_run, digests)
 
 
 def write_results(result: Identification, folder: str | os.PathLike[str], *,
@@ -183,10 +187,12 @@ def write_results(result: Identification, folder: str | os.PathLike[str], *,
         The same result with ``folder`` and ``files`` set.
     """
     if not (dataclasses.is_dataclass(result) and not isinstance(result, type)
-            and all(callable(getattr(result, a, None))
-                    for a in ("figures", "inputs", "to_dict", "page"))):
+            and all(callable(getattr(result, a, None)) for a in CONTRACT)):
+        missing = [a for a in CONTRACT if not callable(getattr(result, a, None))]
         raise type_error("result", result, "an identification result (what "
-                         "servoid.workflows.identify(..., write=False) returns)")
+                         "servoid.workflows.identify(..., write=False) returns"
+                         + (f"; this one has no {', '.join(missing)}" if missing and
+                            dataclasses.is_dataclass(result) else "") + ")")
     folder = as_path("folder", folder)
     overwrite = as_bool("overwrite", overwrite)
     _check_folder_path(folder)
@@ -195,8 +201,19 @@ def write_results(result: Identification, folder: str | os.PathLike[str], *,
 
 
 def _write(result: Identification, folder: Path, overwrite: bool, lock: FolderLock,
-           own_run: bool) -> Any:
-    """:func:`write_results` in a folder this run holds."""
+           own_run: bool, digests: Mapping[str, str] | None = None) -> Any:
+    """:func:`write_results` in a folder this run holds.
+
+    Each input is hashed once (into the result's ``digests``, which its
+    ``results.json``, its page, the provenance and the manifest read), each
+    output once, after it is written; nothing is read back.
+    """
+    table = getattr(result, "digests", None)
+    table = table if isinstance(table, dict) else {}
+    table.update(digests or {})
+    for path in result.inputs():
+        if Path(path).is_file():
+            input_digest(table, path)
     figures = result.figures()
     targets = {name: folder / name for name in ("results.json", "report.html", *figures)}
     manifest = folder / MANIFEST
@@ -218,12 +235,12 @@ def _write(result: Identification, folder: Path, overwrite: bool, lock: FolderLo
         write_json(result.to_dict(), targets["results.json"], overwrite=True)
         page = result.page(targets)
         done = {n: p for n, p in targets.items() if n != "report.html"}
-        verdict = result.verdict().section() if callable(getattr(result, "verdict", None)) \
-            else verdict_section(result.to_dict())
-        page = dataclasses.replace(page, meta=(*page.meta, *provenance(result, done)),
-                                   sections=(verdict, *page.sections))
+        written = {n: sha256(p) for n, p in done.items() if p.is_file()}
+        page = dataclasses.replace(page, meta=(*page.meta, *provenance(result, done, written)),
+                                   sections=(result.verdict().section(), *page.sections))
         write_html(page, targets["report.html"], overwrite=True)
-        write_json(_manifest(result, targets), manifest, overwrite=False)
+        written["report.html"] = sha256(targets["report.html"])
+        write_json(_manifest(result, targets, table, written), manifest, overwrite=False)
     except BaseException:
         # no half-written results: what this run created goes (files it replaced are
         # already gone, and the missing manifest marks the folder incomplete); the folder
@@ -326,7 +343,7 @@ def _check_channels(spec: ExperimentSpec, method: Method, options: Mapping[str, 
                 f"table has role = \"y\" (the channels are {listed}): set role = \"y\" on the "
                 "output channel"
             )
-        if len(outputs) > 1 and method.name not in _MULTI_OUTPUT:
+        if len(outputs) > 1 and not method.multi_output:
             raise OptionError(
                 f"the experiment file has {len(outputs)} output channels ({', '.join(outputs)}) "
                 f"and method = \"{method.name}\" fits one: set [identify] output = "
@@ -334,13 +351,16 @@ def _check_channels(spec: ExperimentSpec, method: Method, options: Mapping[str, 
             )
 
 
-def _manifest(result: Identification, targets: Mapping[str, Path]) -> dict[str, Any]:
+def _manifest(result: Identification, targets: Mapping[str, Path], inputs: dict[str, str],
+              outputs: Mapping[str, str]) -> dict[str, Any]:
+    """The manifest from the digests already computed (inputs by real path, outputs by name)."""
     return {
         "servoid_version": __version__,
         "complete": True,
-        "files": [{"name": name, "bytes": path.stat().st_size, "sha256": sha256(path)}
+        "files": [{"name": name, "bytes": path.stat().st_size,
+                   "sha256": outputs.get(name) or sha256(path)}
                   for name, path in targets.items()],
-        "inputs": [{"path": str(Path(p).resolve()), "sha256": sha256(p)}
+        "inputs": [{"path": str(Path(p).resolve()), "sha256": input_digest(inputs, p)}
                    for p in result.inputs() if p.is_file()],
     }
 

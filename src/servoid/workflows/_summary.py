@@ -1,19 +1,22 @@
-"""One identification's ``results.json`` in brief: parameters, fit, test verdicts, flags.
+"""One identification in brief: parameters, fit, test verdicts, flags — the fleet row.
 
-The fleet runner and :func:`~servoid.workflows.load_results` read only the
-dictionary every result writes to ``results.json``.  Each method family
-writes its parameters in one of a few shapes; :func:`summarise` knows them
-and returns the same plain :class:`RecordSummary` for all, with the
-decision of the run's verdict (its ``"verdict"`` entry).  A report is
-written from the result itself (``result.verdict()``); :func:`verdict_of`
-rebuilds the verdict of a ``results.json`` for what has only the file.
+Every result gives its :class:`RecordSummary` (``result.summary()``, part of
+the result contract of :mod:`._registry`), built from its own objects, and
+writes it into ``results.json`` as ``"summary"``.  The fleet row, the fleet
+report and :func:`~servoid.workflows.load_results` read that summary; only
+:func:`summarise`, for a ``results.json`` on disk, reads the file — its
+``"summary"`` entry, or for a file written before there was one, the
+parameters in the shapes older runs wrote them.  :func:`verdict_of`
+rebuilds the verdict of such a file.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass, replace
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ServoidError
@@ -21,12 +24,17 @@ from .._errors import ServoidError
 if TYPE_CHECKING:
     from ..report import Section, Verdict
 
-__all__ = ["ParameterValue", "RecordSummary", "summarise", "verdict_of", "verdict_section"]
+__all__ = ["Displayed", "ParameterValue", "RecordSummary", "input_digest", "summarise",
+           "summary_of", "verdict_of"]
 
 
 @dataclass(frozen=True)
 class ParameterValue:
-    """One estimated parameter of one record."""
+    """One estimated scalar of one record: value, standard deviation, 95 % interval, unit.
+
+    A scalar read from data without an uncertainty (an FRF's bandwidth) has
+    NaN for its std and interval.
+    """
 
     name: str
     value: float
@@ -34,6 +42,17 @@ class ParameterValue:
     ci_low: float
     ci_high: float
     unit: str = ""
+
+    @classmethod
+    def from_row(cls, row: Any) -> ParameterValue:
+        """From an estimate's table row (``name, value, std, ci_low, ci_high, unit``)."""
+        return cls(str(row.name), _num(row.value), _num(row.std), _num(row.ci_low),
+                   _num(row.ci_high), str(row.unit or ""))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (NaN where undefined; ``results.json`` writes it as null)."""
+        return {"name": self.name, "value": self.value, "std": self.std,
+                "ci_low": self.ci_low, "ci_high": self.ci_high, "unit": self.unit}
 
 
 @dataclass(frozen=True)
@@ -43,7 +62,8 @@ class RecordSummary:
     Attributes
     ----------
     parameters : tuple of ParameterValue
-        The primary estimate's parameters, in the method's order.
+        The primary estimate's parameters, in the method's order, then any
+        scalar the method reports beside them (an FRF's spec numbers).
     fit_percent : float or None
         Validation fit [%] of the primary model (NaN-free or None).
     white, independent : bool or None
@@ -65,6 +85,9 @@ class RecordSummary:
     conditions : tuple of dict
         The test conditions of each record (rate, length, excitation,
         band), as ``results.json`` holds them.
+    method : str
+        The registered method that made it ('' for an older file without
+        one).
     """
 
     parameters: tuple[ParameterValue, ...]
@@ -77,15 +100,95 @@ class RecordSummary:
     diverged: tuple[str, ...] = ()
     decision: str | None = None
     reason: str = ""
-    conditions: tuple[dict[str, Any], ...] = ()
+    conditions: tuple[dict[str, Any], ...] = field(default=())
+    method: str = ""
 
     def names(self) -> tuple[str, ...]:
         """Parameter names, in order."""
         return tuple(p.name for p in self.parameters)
 
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data: ``results.json``'s ``"summary"`` and a fleet record's outcome."""
+        return {"method": self.method, "parameters": [p.to_dict() for p in self.parameters],
+                "fit_percent": self.fit_percent, "white": self.white,
+                "independent": self.independent, "structure_rejected": self.structure_rejected,
+                "flags": list(self.flags), "notes": self.notes, "diverged": list(self.diverged),
+                "decision": self.decision, "reason": self.reason,
+                "conditions": [dict(c) for c in self.conditions]}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> RecordSummary:
+        """The summary :meth:`to_dict` wrote (null numbers read as NaN)."""
+        fit = data.get("fit_percent")
+        return cls(
+            tuple(_row(p) for p in data.get("parameters") or () if _has_value(p)),
+            fit_percent=None if fit is None else _num(fit),
+            white=_flag(data.get("white")), independent=_flag(data.get("independent")),
+            structure_rejected=_flag(data.get("structure_rejected")),
+            flags=tuple(str(f) for f in data.get("flags") or ()),
+            notes=int(data.get("notes") or 0),
+            diverged=tuple(str(d) for d in data.get("diverged") or ()),
+            decision=str(data["decision"]) if isinstance(data.get("decision"), str) else None,
+            reason=str(data.get("reason") or ""),
+            conditions=tuple(dict(c) for c in data.get("conditions") or ()
+                             if isinstance(c, Mapping)),
+            method=str(data.get("method") or ""))
+
+
+def summary_of(method: str, parameters: Sequence[Any], verdict: Verdict, *,
+               validation: Any = None, notes: Sequence[str] = (), flags: Sequence[str] = (),
+               structure_rejected: bool | None = None, diverged: Sequence[str] = (),
+               extra: Sequence[ParameterValue] = ()) -> RecordSummary:
+    """Build a result's :class:`RecordSummary` from its own objects.
+
+    Parameters
+    ----------
+    method : str
+        The registered method.
+    parameters : sequence
+        Estimate table rows (``Estimate.table()``) or :class:`ParameterValue`
+        (a None where there is no interval is read as NaN).
+    verdict : Verdict
+        The result's verdict (decision, reason, test conditions).
+    validation : ValidationReport, optional
+        The primary model's first validation (fit and residual tests).
+    notes, flags : sequence of str
+        The run's notes (counted) and the estimate's flags.
+    structure_rejected : bool, optional
+        The structure test's verdict, when there is one.
+    diverged : sequence of str
+        Where the free run diverged, per record.
+    extra : sequence of ParameterValue
+        Scalars reported beside the parameters.
+    """
+    # every number a float (None, where a method has no interval, as NaN)
+    rows = tuple(ParameterValue.from_row(p) for p in parameters)
+    fit = white = independent = None
+    if validation is not None:
+        fit = _num(validation.fit_percent)
+        fit = fit if math.isfinite(fit) else None  # results.json writes a NaN fit as null
+        residuals = validation.residuals
+        white, independent = bool(residuals.is_white), bool(residuals.is_independent)
+    return RecordSummary(
+        (*rows, *(ParameterValue.from_row(p) for p in extra)), fit_percent=fit, white=white, independent=independent,
+        structure_rejected=structure_rejected, flags=tuple(flags), notes=len(notes),
+        diverged=tuple(diverged), decision=verdict.decision, reason=verdict.reason,
+        conditions=tuple(c.to_dict() for c in verdict.conditions), method=method)
+
 
 def summarise(results: Mapping[str, Any]) -> RecordSummary:
-    """Return the summary of a ``results.json`` dictionary (see :func:`_summarise`)."""
+    """Return the summary of a ``results.json`` dictionary.
+
+    A file holds it whole (``"summary"``, what ``result.summary()`` gave);
+    for an older file it is rebuilt from the shapes its parameters were
+    written in (see :func:`_summarise`).
+    """
+    held = results.get("summary")
+    if isinstance(held, Mapping):
+        try:
+            return RecordSummary.from_dict(held)
+        except (TypeError, ValueError, KeyError):
+            pass  # a damaged entry (check_results names its fields): the older shapes instead
     summary = _summarise(results)
     notes = results.get("notes")
     verdict = results.get("verdict")
@@ -97,7 +200,8 @@ def summarise(results: Mapping[str, Any]) -> RecordSummary:
                    decision=str(decision) if isinstance(decision, str) else None,
                    reason=str(verdict.get("reason") or ""),
                    conditions=tuple(dict(c) for c in conditions if isinstance(c, Mapping))
-                   if isinstance(conditions, list) else ())
+                   if isinstance(conditions, list) else (),
+                   method=str(results.get("method") or ""))
 
 
 def _diverged(results: Mapping[str, Any]) -> tuple[str, ...]:
@@ -185,8 +289,12 @@ def _row(p: Mapping[str, Any]) -> ParameterValue:
 def _num(x: Any) -> float:
     try:
         return float(x)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return math.nan
+
+
+def _flag(x: Any) -> bool | None:
+    return x if isinstance(x, bool) else None
 
 
 def verdict_of(results: Mapping[str, Any]) -> Verdict:
@@ -231,18 +339,31 @@ def verdict_of(results: Mapping[str, Any]) -> Verdict:
         checks.append(Check("flags", str(len(s.flags)), "caution", "; ".join(s.flags)))
     checks.append(Check("notes", str(s.notes), "info", "listed under Notes" if s.notes
                         else "none"))
-    method = results.get("method") or "closedloop"
-    return Verdict(f"the results of a {method} run, judged from its results.json.",
-                   tuple(checks))
-
-
-def verdict_section(results: Mapping[str, Any]) -> Section:
-    """The report's verdict box of a ``results.json`` (see :func:`verdict_of`)."""
-    return verdict_of(results).section()
+    method = results.get("method")
+    run = f"a {method} run" if isinstance(method, str) and method else "a run"
+    return Verdict(f"the results of {run}, judged from its results.json.", tuple(checks))
 
 
 class Displayed:
-    """Short ``repr`` and a notebook view for a workflow result (its verdict and its text)."""
+    """What every workflow result shares: a short ``repr``, a notebook view, contract defaults.
+
+    The defaults of the result contract (:class:`~._registry.Identification`):
+    :meth:`sections` are the page's, :meth:`models` none; :meth:`digest` is
+    the SHA-256 of an input, computed once per result (``write_results``
+    fills the table ``digests`` for every input before anything reads it).
+    """
+
+    def sections(self, files: Mapping[str, Path]) -> tuple[Section, ...]:
+        """The report's sections after the verdict box (those of :meth:`page`)."""
+        return tuple(self.page(files).sections)  # type: ignore[attr-defined]
+
+    def models(self) -> dict[str, Any]:
+        """Name → identified model; none by default."""
+        return {}
+
+    def digest(self, path: str | os.PathLike[str]) -> str:
+        """SHA-256 of an input file (hex), hashed at most once for this result."""
+        return input_digest(getattr(self, "digests", None), path)
 
     def __repr__(self) -> str:
         first = str(self).splitlines()[0] if str(self) else ""
@@ -261,3 +382,15 @@ class Displayed:
             head = ""
         return (f'<div style="border:1px solid #aaa;padding:.3em .6em;margin:.3em 0">{head}'
                 f"</div><pre>{html.escape(str(self))}</pre>")
+
+
+def input_digest(table: dict[str, str] | None, path: str | os.PathLike[str]) -> str:
+    """SHA-256 of a file from ``table`` (real path → hex), hashing it there once if absent."""
+    from ._common import sha256
+
+    key = os.path.realpath(path)
+    if table is None:
+        return sha256(Path(path))
+    if key not in table:
+        table[key] = sha256(Path(path))
+    return table[key]

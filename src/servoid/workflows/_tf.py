@@ -10,7 +10,8 @@ from typing import Any
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 from ..estimate import Estimate, fit_tf
 from ._arx import HORIZON, OUTPUT
-from ._closedloop_any import controller_from_loop
+from ._closedloop_any import LOOP, known_loop
+from ._examples import open_loop
 from ._lti import IdentificationResult, fit_or_search, lti_result, n_inputs, order_grid
 from ._options import choice, integer, number, optional, orders
 from ._pem import COVARIANCE
@@ -24,8 +25,9 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     """Fit a continuous transfer function (or search its orders) and validate it."""
     estimation, validations = spec.records()
     closed = options["instrument"] == "r"
-    controller = controller_from_loop(spec.loop, estimation.dt)[0] \
-        if closed and "controller" in spec.loop else None
+    # [loop] is read (and checked) when the reference is the instrument and it names a controller
+    controller = known_loop(options["[loop]"], estimation.dt)[0] \
+        if "[loop]" in options else None
     settings = {"delay": options["delay"], "intersample": options["intersample"],
                 "output": options["output"], "max_iter": options["max_iter"],
                 "tol": options["tol"], "covariance": options["covariance"]}
@@ -42,7 +44,8 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
              + (f", delay {o['delay']:g} s" if o["delay"] else "") + f", {o['intersample']})")
     return lti_result(spec, "tf", estimate, title, validations, options, orders=rows,
                       criterion=options["criterion"] if grid else "", edge=edge, truth=truth,
-                      estimation=estimation, closed_loop=closed)
+                      estimation=estimation, closed_loop=closed,
+                      how="refined instrumental variables (SRIVC)")
 
 
 def _fit(data: Experiment | ExperimentSet, n_poles: int, n_zeros: int | None = None, *,
@@ -86,5 +89,9 @@ TF = Method(
         HORIZON,
     ),
     run=run,
-    tables=("loop", "validation"),
+    tables=(dataclasses.replace(
+        LOOP, when=lambda options, table: options["instrument"] == "r" and "controller" in table,
+        when_text='instrument = "r" and it names a controller (else CLSRIVC without one)'),
+        "validation"),
+    example=partial(open_loop, identify={"method": "tf"}),
 )

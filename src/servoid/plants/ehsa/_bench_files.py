@@ -28,13 +28,13 @@ from typing import Any, Literal
 from ..._atomic import atomic_path, check_writable
 from ..._checks import as_bool, as_instance, as_path, as_str
 from ..._errors import OptionTypeError, check_option
-from ...data import write_csv, write_experiment_spec, write_tdms
+from ...data import RigFormat, write_experiment_spec
 from ._bench import CHANNELS, BenchRun
 
 __all__ = ["RigFormat", "write_bench", "write_bench_files"]
 
-RigFormat = Literal["tdms", "csv"]
-_FORMATS: tuple[RigFormat, ...] = ("tdms", "csv")
+#: The formats the bench writes, its default first.
+_FORMATS = RigFormat.writable(first="tdms")
 
 #: What the experiment file asks the identification for ([S1] ARX(3, 4, 0) start).
 IDENTIFY: dict[str, Any] = {
@@ -49,7 +49,7 @@ def write_bench_files(
     run: BenchRun,
     folder: str | os.PathLike[str],
     *,
-    format: RigFormat = "tdms",
+    format: str | RigFormat = "tdms",
     overwrite: bool = False,
     name: str = "ehsa",
 ) -> list[Path]:
@@ -61,8 +61,8 @@ def write_bench_files(
         The result of :func:`~servoid.plants.ehsa.run`.
     folder : path-like
         Output folder, created if missing.
-    format : {"tdms", "csv"}
-        Rig file format.
+    format : {"tdms", "csv"} or RigFormat
+        Rig file format (one :data:`~servoid.data.RIG_FORMATS` writes).
     overwrite : bool
         Replace existing files; otherwise :class:`OutputExistsError`
         before anything is written.
@@ -86,21 +86,20 @@ def write_bench_files(
     """
     if not isinstance(run, BenchRun):
         raise OptionTypeError(f"run must be a BenchRun, got {type(run).__name__}")
-    check_option("format", format, _FORMATS)
+    if not isinstance(format, RigFormat):
+        check_option("format", format, _FORMATS)
+    fmt = RigFormat.named(format)
     if not isinstance(name, str) or not name or "/" in name or os.sep in name:
         raise OptionTypeError(f"name must be a plain file stem, got {name!r}")
     folder = as_path("folder", folder)
     as_bool("overwrite", overwrite)
-    rig = folder / f"{name}.{format}"
+    rig = folder / f"{name}{fmt.suffixes[0]}"
     toml = folder / f"{name}.toml"
     truth = folder / "truth.json"
     for target in (rig, toml, truth):
         check_writable(target, overwrite)
     folder.mkdir(parents=True, exist_ok=True)
-    if format == "tdms":
-        write_tdms(run.raw, rig, overwrite=overwrite)
-    else:
-        write_csv(run.raw, rig, overwrite=overwrite)
+    fmt.write(run.raw, rig, overwrite=overwrite)
     write_experiment_spec(experiment_document(run, rig.name), toml, overwrite=overwrite)
     text = json.dumps(truth_document(run), indent=2, ensure_ascii=False) + "\n"
     with atomic_path(truth, overwrite) as tmp:
@@ -113,7 +112,7 @@ def write_bench(
     *,
     set: Literal["B", "C"] = "B",
     seed: int = 0,
-    format: RigFormat = "tdms",
+    format: str | RigFormat = "tdms",
     overwrite: bool = False,
 ) -> list[Path]:
     """Rehearse the default test on the virtual rig and write its files.
@@ -131,7 +130,7 @@ def write_bench(
         Parameter set (:data:`~servoid.plants.ehsa.PARAMETER_SETS`).
     seed : int
         Seed of the noise.
-    format : {"tdms", "csv"}
+    format : {"tdms", "csv"} or RigFormat
         Rig file format.
     overwrite : bool
         Replace existing files.
@@ -170,8 +169,9 @@ def experiment_document(run: BenchRun, file: str) -> dict[str, Any]:
     """
     as_instance("run", run, BenchRun, "a BenchRun (from servoid.plants.ehsa.run)")
     data: dict[str, Any] = {"file": as_str("file", file)}
-    if file.lower().endswith(".csv"):
-        data["time"] = "time"
+    fmt = RigFormat.find(file)
+    if fmt is not None and fmt.time is not None:  # the time column its writer wrote
+        data["time"] = fmt.time
     # 15 significant digits: 1/(10 V/35 MPa) prints as 3500000.0, not ...0005.
     gains = {ch: float(f"{g:.15g}") for ch, g in run.calibration().items()}
     channels = {
@@ -241,3 +241,4 @@ def truth_document(run: BenchRun) -> dict[str, Any]:
         "excitation": excitation,
         "warnings": list(run.warnings),
     }
+

@@ -41,6 +41,7 @@ from ..._atomic import atomic_path, check_writable
 from ..._checks import as_path
 from ..._errors import DataError
 from ..._progress import Progress
+from ...data import RigFormat
 from ._bench import run
 from ._bench_config import EhsaBench
 from ._bench_files import write_bench_files
@@ -156,7 +157,7 @@ def write_virtual_fleet(
                      rng=int(seed) * 100_003 + k)
         files = write_bench_files(record, unit_dir, overwrite=overwrite)
         if k >= units:
-            _truncate(next(f for f in files if f.suffix == ".tdms"))
+            _truncate(next(f for f in files if RigFormat.find(f) is not None))
             damaged.append(serial)
         toml = next(f for f in files if f.suffix == ".toml")
         rows.append({"path": toml.relative_to(root).as_posix(), "serial": serial,

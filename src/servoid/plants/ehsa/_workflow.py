@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -13,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ... import __version__
-from ..._checks import as_float, as_float_list, as_mapping, type_error
+from ..._checks import as_float, as_float_list, type_error
 from ..._errors import DataError, OptionError, ServoidWarning
 from ..._lazy import signal as sps
 from ..._progress import stage
@@ -40,13 +41,12 @@ from ...workflows._common import (
     parameter_table,
     read_truth,
     report_options,
-    sha256,
     spec_inputs,
     validation_section,
 )
 from ...workflows._options import boolean, choice, choices, integer, number, optional
-from ...workflows._registry import FigureWriter, Method, Option
-from ...workflows._summary import Displayed
+from ...workflows._registry import FigureWriter, Method, Option, TableSchema
+from ...workflows._summary import Displayed, ParameterValue, RecordSummary, summary_of
 from ...workflows._verdict import count_check, interval_check, spec_conditions, validation_checks
 from ._api import APPROACHES, identify_closed_loop
 from ._loop import FeedbackLoop, reduced_plant
@@ -59,7 +59,7 @@ from ._result import ClosedLoopResult
 from ._structure_test import compare_structures
 from ._structures import STRUCTURES
 
-__all__ = ["METHOD", "METHODS", "ClosedLoopIdentification", "loop_from_table"]
+__all__ = ["LOOP", "METHOD", "METHODS", "ClosedLoopIdentification", "loop_from_table"]
 
 _NAMES = ("K", "omega_hp", "delta_hp")
 _F_KEYS = ("num", "den", "dt")
@@ -83,6 +83,7 @@ class ClosedLoopIdentification(Displayed):
     structure_test: Any = None
     refinement: Any = None
     conditions: tuple[Conditions, ...] = ()
+    digests: dict[str, str] = field(default_factory=dict, repr=False)
 
     @property
     def estimate(self) -> Any:
@@ -131,6 +132,26 @@ class ClosedLoopIdentification(Displayed):
                      if others else "."))
         return Verdict(tested, tuple(checks), self.conditions)
 
+    def summary(self) -> RecordSummary:
+        """The primary approach's K, ω_hp, δ_hp, its validation, structure test and flags."""
+        rows = [ParameterValue(row["name"], v["value"], v["std"], *v["ci95"], v["unit"])
+                for row in self.table() for v in (row[self.primary],)]
+        test = self.structure_test
+        return summary_of("closedloop", rows, self.verdict(), validation=self.validation,
+                          notes=self.notes, flags=[str(f) for f in self.results[self.primary].flags],
+                          structure_rejected=None if test is None else bool(test.rejected))
+
+    def models(self) -> dict[str, Any]:
+        """Each approach's continuous plant and discrete closed loop (``<approach>_plant``, …)."""
+        out: dict[str, Any] = {}
+        for approach, result in self.results.items():
+            label = re.sub(r"\W", "_", approach)
+            for model, suffix in ((result.plant_continuous, "plant"),
+                                  (result.closed_loop, "closed_loop")):
+                if model is not None:
+                    out[f"{label}_{suffix}"] = model
+        return out
+
     def table(self) -> list[dict[str, Any]]:
         """Per parameter: truth and each approach's value, std and 95 % CI."""
         rows = []
@@ -149,9 +170,10 @@ class ClosedLoopIdentification(Displayed):
         """Everything in ``results.json``."""
         return {
             "servoid_version": __version__,
+            "method": "closedloop",
             "experiment_file": str(self.spec.source) if self.spec.source else None,
             "data_file": str(self.spec.data_path),
-            "data_sha256": sha256(self.spec.data_path),
+            "data_sha256": self.digest(self.spec.data_path),
             "loop": self.loop.to_dict(),
             "primary_approach": self.primary,
             "truth": dict(self.truth) if self.truth else None,
@@ -164,6 +186,7 @@ class ClosedLoopIdentification(Displayed):
             "nonlinear_refinement": self.refinement.to_dict() if self.refinement else None,
             "notes": list(self.notes),
             "verdict": self.verdict().to_dict(),
+            "summary": self.summary().to_dict(),
         }
 
     def inputs(self) -> tuple[Path, ...]:
@@ -222,23 +245,23 @@ def loop_from_table(table: Mapping[str, Any]) -> FeedbackLoop:
 
     ``c`` is the forward gain; ``F`` the feedback, a number or a table
     ``{num = [...], den = [...]}`` (continuous, or discrete with ``dt``).
+    The keys are :data:`LOOP`'s.
     """
-    table = as_mapping("table", table)  # the [loop] of an experiment file
-    unknown = sorted(set(table) - {"c", "F"})
-    if unknown:
-        raise OptionError(f"unknown key(s) in [loop]: {', '.join(unknown)}; valid keys are c, F")
-    if "c" not in table or "F" not in table:
+    return _known_loop(LOOP.parse(table, "closedloop"))
+
+
+def _known_loop(loop: Mapping[str, Any]) -> FeedbackLoop:
+    """The loop of a checked ``[loop]`` (:data:`LOOP`)."""
+    if loop["c"] is None or loop["F"] is None:
         raise DataError(
             "the closed-loop approaches need the known loop: add [loop] with c = <forward gain> "
             "and F = <feedback gain> to the experiment file"
         )
-    c = as_float("c", table["c"], where="[loop]")
-    feedback = _feedback(table["F"])
     with keyed({"c": "[loop] c", "F": "[loop] F"}):
-        return FeedbackLoop(c, feedback)
+        return FeedbackLoop(loop["c"], loop["F"])
 
 
-def _feedback(value: Any) -> float | TransferFunction:
+def _feedback(value: Any, where: str = "[loop]", name: str = "F") -> float | TransferFunction:
     if isinstance(value, Mapping):
         unknown = sorted(set(value) - set(_F_KEYS))
         if unknown:
@@ -260,6 +283,19 @@ def _feedback(value: Any) -> float | TransferFunction:
     return as_float("F", value, where="[loop]")
 
 
+def _gain(value: Any, where: str, name: str) -> float:
+    return as_float(name, value, where=where)
+
+
+#: ``[loop]`` of the EHSA's closed-loop study: the loop H = c·G0/(1 + F·G0) it runs in.
+LOOP = TableSchema("loop", (
+    Option("c", None, optional(_gain), "forward gain of the loop (required)"),
+    Option("F", None, optional(_feedback),
+           "feedback: a gain, or {num = [...], den = [...]} (continuous; discrete with "
+           "dt = <s>) (required)"),
+), help="the known loop H = c·G0/(1 + F·G0)")
+
+
 def run(spec: ExperimentSpec, options: Mapping[str, Any],
         truth: Mapping[str, float] | None) -> ClosedLoopIdentification:
     """Run the closed-loop approaches an experiment file asks for.
@@ -272,7 +308,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     exact sampled model for the reference ``[rig]`` declares, or detects)
     and ``horizon``.
     """
-    loop = loop_from_table(spec.loop)
+    loop = _known_loop(options["[loop]"])
     estimation, (validation_data, *_) = spec.records()
     if truth is None:
         truth = _truth_from_spec(spec)
@@ -512,7 +548,7 @@ def _page(ident: ClosedLoopIdentification, files: Mapping[str, Path]) -> Page:
     )
     data = Section(
         "Experiment",
-        paragraphs=(f"Data file {spec.data_path.name} (sha256 {sha256(spec.data_path)[:16]}…).",),
+        paragraphs=(f"Data file {spec.data_path.name} (sha256 {ident.digest(spec.data_path)[:16]}…).",),
     )
     return Page(
         title=f"Closed-loop identification: {spec.source.name if spec.source else 'experiment'}",
@@ -581,6 +617,24 @@ def _assumptions(ident: ClosedLoopIdentification) -> tuple[str, ...]:
     return tuple(out)
 
 
+def _warm_up() -> None:
+    """Load the one-step fit's compiled kernels (a fleet's workers, before their first record)."""
+    from . import _kernels
+
+    _kernels.warm_up()
+
+
+def _example(folder: Path, seed: int = 0) -> Path:
+    """A short closed-loop record of the virtual rig (set B, PRBS) and its experiment file."""
+    from ...signals import prbs
+    from ._bench import run as run_bench
+    from ._bench_config import EhsaBench
+    from ._bench_files import write_bench_files
+
+    record = run_bench(EhsaBench(), prbs(9, clock=10, amplitude=1e-3, dt=1e-3), rng=seed)
+    return write_bench_files(record, folder, format="csv", overwrite=True)[1]
+
+
 def _refine(value: Any, where: str, name: str) -> bool | list[str]:
     if isinstance(value, bool):
         return value
@@ -613,7 +667,9 @@ METHOD = Method(
         HORIZON,
     ),
     run=run,
-    tables=("loop", "validation"),
+    tables=(LOOP, "validation"),
+    warm_up=_warm_up,
+    example=_example,
 )
 
 #: The plant's methods, as its record names them.

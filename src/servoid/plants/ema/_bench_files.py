@@ -18,17 +18,18 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 from ..._atomic import atomic_path, check_writable
 from ..._checks import as_bool, as_int, as_path
 from ..._errors import OptionTypeError, check_option
+from ...data import RigFormat
 from ._bench import CHANNELS, EmaBench, EmaRun, bench_reference, run_bench
 
 __all__ = ["experiment_document", "truth_document", "write_bench", "write_run"]
 
-RigFormat = Literal["tdms", "csv"]
-_FORMATS: tuple[RigFormat, ...] = ("tdms", "csv")
+#: The formats the bench writes, its default first.
+_FORMATS = RigFormat.writable(first="tdms")
 
 
 def write_bench(
@@ -40,7 +41,7 @@ def write_bench(
     amplitude: float = 2e-3,
     sweep: float = 0.02,
     f_max: float = 40.0,
-    format: RigFormat = "tdms",
+    format: str | RigFormat = "tdms",
     name: str = "ema",
     overwrite: bool = False,
 ) -> list[Path]:
@@ -57,8 +58,8 @@ def write_bench(
     duration, amplitude, sweep, f_max : float
         The test (:func:`~servoid.plants.ema.bench_reference`): length
         [s], multisine peak [m], slow sweep amplitude [m], highest line [Hz].
-    format : {"tdms", "csv"}
-        Rig file format.
+    format : {"tdms", "csv"} or RigFormat
+        Rig file format (one :data:`~servoid.data.RIG_FORMATS` writes).
     name : str
         Stem of the rig file and the experiment file.
     overwrite : bool
@@ -78,15 +79,14 @@ def write_bench(
     """
     bench = EmaBench() if bench is None else bench
     seed = as_int("seed", seed, minimum=0)
-    check_option("format", format, _FORMATS)
-    _check_targets(folder, name, format, overwrite)
+    _check_targets(folder, name, _format(format), overwrite)
     reference = bench_reference(bench, duration=duration, amplitude=amplitude, sweep=sweep,
                                 f_max=f_max)
     run = run_bench(bench, reference, rng=seed)
     return write_run(run, folder, format=format, name=name, overwrite=overwrite)
 
 
-def write_run(run: EmaRun, folder: str | os.PathLike[str], *, format: RigFormat = "tdms",
+def write_run(run: EmaRun, folder: str | os.PathLike[str], *, format: str | RigFormat = "tdms",
               name: str = "ema", overwrite: bool = False) -> list[Path]:
     """Write a bench run's rig file, experiment file and truth.
 
@@ -96,7 +96,7 @@ def write_run(run: EmaRun, folder: str | os.PathLike[str], *, format: RigFormat 
         What :func:`~servoid.plants.ema.run_bench` returned.
     folder : path-like
         Output folder (created).
-    format : {"tdms", "csv"}
+    format : {"tdms", "csv"} or RigFormat
         Rig file format.
     name : str
         Stem of the rig file and the experiment file.
@@ -108,17 +108,14 @@ def write_run(run: EmaRun, folder: str | os.PathLike[str], *, format: RigFormat 
     list of pathlib.Path
         ``[rig file, experiment file, truth.json]``.
     """
-    from ...data import write_csv, write_experiment_spec, write_tdms
+    from ...data import write_experiment_spec
 
     if not isinstance(run, EmaRun):
         raise OptionTypeError(f"run must be an EmaRun, got {type(run).__name__}")
-    check_option("format", format, _FORMATS)
-    rig, toml, truth = _check_targets(folder, name, format, overwrite)
+    fmt = _format(format)
+    rig, toml, truth = _check_targets(folder, name, fmt, overwrite)
     rig.parent.mkdir(parents=True, exist_ok=True)
-    if format == "tdms":
-        write_tdms(run.raw, rig, overwrite=overwrite)
-    else:
-        write_csv(run.raw, rig, overwrite=overwrite)
+    fmt.write(run.raw, rig, overwrite=overwrite)
     write_experiment_spec(experiment_document(run, rig.name), toml, overwrite=overwrite)
     text = json.dumps(truth_document(run), indent=2, ensure_ascii=False) + "\n"
     with atomic_path(truth, overwrite) as tmp:
@@ -143,8 +140,9 @@ def experiment_document(run: EmaRun, file: str) -> dict[str, Any]:
     """
     b = run.bench
     data: dict[str, Any] = {"file": file}
-    if file.lower().endswith(".csv"):
-        data["time"] = "time"
+    fmt = RigFormat.find(file)
+    if fmt is not None and fmt.time is not None:  # the time column its writer wrote
+        data["time"] = fmt.time
     gains = {ch: float(f"{g:.15g}") for ch, g in b.calibration().items()}
     channels = {ch: {"source": ch, "role": role, "gain": gains[ch], "offset": 0.0, "unit": unit}
                 for ch, (role, unit) in CHANNELS.items()}
@@ -199,13 +197,19 @@ def truth_document(run: EmaRun) -> dict[str, Any]:
     }
 
 
-def _check_targets(folder: str | os.PathLike[str], name: str, format: str,
+def _format(format: str | RigFormat) -> RigFormat:
+    if not isinstance(format, RigFormat):
+        check_option("format", format, _FORMATS)
+    return RigFormat.named(format)
+
+
+def _check_targets(folder: str | os.PathLike[str], name: str, format: RigFormat,
                    overwrite: bool) -> tuple[Path, Path, Path]:
     root = as_path("folder", folder)
     as_bool("overwrite", overwrite)
     if not isinstance(name, str) or not name or "/" in name or os.sep in name:
         raise OptionTypeError(f"name must be a plain file stem, got {name!r}")
-    targets = (root / f"{name}.{format}", root / f"{name}.toml", root / "truth.json")
+    targets = (root / f"{name}{format.suffixes[0]}", root / f"{name}.toml", root / "truth.json")
     for target in targets:
         check_writable(target, overwrite)
     return targets

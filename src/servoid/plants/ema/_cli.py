@@ -12,6 +12,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ...data import RigFormat  # the format records only: no numerics
+
 __all__ = ["add_cli"]
 
 # the bench's parameters → the flags that set them, for its error messages
@@ -51,7 +53,7 @@ def add_cli(rigs: Any, json_flag: Callable[[argparse.ArgumentParser], None]) -> 
                      help="screw backlash [m], which the identification does not model "
                      "(default: %(default)g)")
     ema.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
-    ema.add_argument("--format", choices=("tdms", "csv"), default="tdms",
+    ema.add_argument("--format", choices=RigFormat.writable(first="tdms"), default="tdms",
                      help="rig file format (default: %(default)s)")
     ema.add_argument("--overwrite", action="store_true",
                      help="replace files of an earlier run in --out")

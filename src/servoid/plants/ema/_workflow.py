@@ -16,10 +16,11 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from ..._checks import as_float, as_int, as_mapping, as_str, type_error
+from ..._checks import as_float, as_int, as_str, type_error
 from ..._errors import OptionError
 
-__all__ = ["LOOP_KEYS", "METHOD", "METHODS", "controller_from_loop"]  # noqa: F822 - PEP 562
+__all__ = ["LOOP", "LOOP_KEYS", "METHOD", "METHODS", "controller_from_loop",  # noqa: F822
+           "drive"]  # LOOP, METHOD, METHODS: PEP 562
 
 #: ``[loop]`` keys: the drive's gains (required) and its limits and sensors (optional).
 LOOP_KEYS = {
@@ -63,40 +64,67 @@ def controller_from_loop(table: Mapping[str, Any]) -> Any:
     OptionError
         An unknown or missing key (the message lists the valid ones).
     """
+    return drive(_loop().parse(table, "ema"))
+
+
+def drive(loop: Mapping[str, Any]) -> Any:
+    """The drive of a checked ``[loop]`` (every key of :data:`LOOP_KEYS`, None where absent)."""
     from ._control import EmaController
 
-    table = as_mapping("table", table, where="[loop]")
-    unknown = sorted(set(table) - set(LOOP_KEYS))
-    if unknown:
-        raise OptionError(f"unknown key(s) in [loop]: {', '.join(unknown)}; valid keys for "
-                          f"method = \"ema\" are {', '.join(LOOP_KEYS)}")
-    missing = [k for k in _REQUIRED if k not in table]
+    missing = [k for k in _REQUIRED if loop[k] is None]
     if missing:
         raise OptionError(f"[loop] needs {', '.join(missing)} (the drive's gains) to simulate "
                           f"the identified actuator in its loop; give them, or remove [loop] "
                           "to identify without the validation")
-    values: dict[str, Any] = {}
-    for key in ("kp_i", "ki_i", "kp_w", "ki_w", "kp_x", "ki_x"):
-        if key in table:
-            values[key] = as_float(key, table[key], nonneg=True, where="[loop]")
-    for key in ("u_max", "i_max", "w_max"):
-        values[key] = as_float(key, table.get(key, float("inf")), positive=True, finite=False,
-                               where="[loop]")
-    for key, low in (("outer_every", 1), ("encoder_counts", 0)):
-        if key in table:
-            values[key] = as_int(key, table[key], minimum=low, where="[loop]")
-    if "feedback" in table:
-        values["feedback"] = as_str("feedback", table["feedback"], where="[loop]")
     try:
-        return EmaController(**values)
+        return EmaController(**{k: v for k, v in loop.items() if v is not None})
     except (ValueError, TypeError) as exc:
         raise OptionError(f"[loop]: {exc}") from None
+
+
+def _gain(value: Any, where: str, name: str) -> float:
+    return as_float(name, value, nonneg=True, where=where)
+
+
+def _limit(value: Any, where: str, name: str) -> float:
+    return as_float(name, value, positive=True, finite=False, where=where)
+
+
+def _count(minimum: int) -> Any:
+    def check(value: Any, where: str, name: str) -> int:
+        return as_int(name, value, minimum=minimum, where=where)
+    return check
+
+
+def _text(value: Any, where: str, name: str) -> str:
+    return as_str(name, value, where=where)
+
+
+def _loop() -> Any:
+    """The ``[loop]`` schema (built on first use, like :data:`METHOD`)."""
+    if "LOOP" not in globals():
+        from ...workflows._registry import Option, TableSchema
+
+        checks = {"u_max": _limit, "i_max": _limit, "w_max": _limit,
+                  "outer_every": _count(1), "encoder_counts": _count(0), "feedback": _text}
+        infinite = ("u_max", "i_max", "w_max")
+        globals()["LOOP"] = TableSchema("loop", tuple(
+            Option(key, float("inf") if key in infinite else None, checks.get(key, _gain),
+                   help + (" (required)" if key in _REQUIRED else ""))
+            for key, help in LOOP_KEYS.items()), help="the drive: its gains, limits and sensors")
+    return globals()["LOOP"]
 
 
 def _run(spec: Any, options: Mapping[str, Any], truth: Mapping[str, Any] | None) -> Any:
     from ._workflow_run import run_ema
 
     return run_ema(spec, options, truth)
+
+
+def _example(folder: Any, seed: int = 0) -> Any:
+    from ._workflow_run import example
+
+    return example(folder, seed)
 
 
 def _build() -> Any:
@@ -144,12 +172,15 @@ def _build() -> Any:
                    "simulate the identified actuator in its loop on held-back data (needs [loop])"),
         ),
         run=_run,
-        tables=("loop", "validation"),
+        tables=(_loop(), "validation"),
+        example=_example,
     )
 
 
 def __getattr__(name: str) -> Any:
-    # METHOD: the method; METHODS: the plant's methods, for its Plant record
+    # METHOD: the method; METHODS: the plant's methods, for its Plant record; LOOP: [loop]
+    if name == "LOOP":
+        return _loop()
     if name not in ("METHOD", "METHODS"):
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     if "METHOD" not in globals():

@@ -12,6 +12,7 @@ empty there): a free run, scored on the held-back part only.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -24,19 +25,20 @@ import numpy as np
 from ... import __version__
 from ..._errors import ChannelError, OptionError
 from ...data import Experiment
-from ...report import Figure, Page, Section, Table
+from ...report import Check, Figure, Page, Section, Table, Verdict
 from ...validate import fit_percent, residual_analysis
-from ...workflows._common import read_truth, report_options, sha256
+from ...workflows._common import read_truth, report_options
 from ...workflows._registry import FigureWriter
-from ...workflows._summary import Displayed
+from ...workflows._summary import Displayed, ParameterValue, RecordSummary, summary_of
+from ...workflows._verdict import count_check, record_conditions
 from ._control import EmaController
 from ._figures import plot_equations, plot_validation_run
 from ._filters import anti_alias_replica
 from ._identify import PHYSICAL, EmaIdentification, fit_ema
 from ._sim import simulate_ema
-from ._workflow import controller_from_loop
+from ._workflow import drive
 
-__all__ = ["EmaResult", "run_ema"]
+__all__ = ["EmaResult", "example", "run_ema"]
 
 # what the validation's independence test decimates to: about 1 kHz, below the filters
 _TEST_RATE = 1000.0
@@ -67,6 +69,10 @@ class EmaResult(Displayed):
         The results folder, if written.
     files : tuple of pathlib.Path
         The files written.
+    conditions : tuple of Conditions
+        Rate, length, excitation and band of the estimation and validation records.
+    digests : dict
+        SHA-256 of the input files, each hashed once (see ``digest``).
     """
 
     spec: Any
@@ -78,6 +84,69 @@ class EmaResult(Displayed):
     notes: tuple[str, ...] = ()
     folder: Path | None = None
     files: tuple[Path, ...] = ()
+    conditions: tuple[Any, ...] = ()
+    digests: dict[str, str] = field(default_factory=dict, repr=False)
+
+    def verdict(self) -> Verdict:
+        """The free run in the known drive on data the fit did not use, record by record.
+
+        The motor current's fit decides (the load position follows the
+        reference whatever the model); a current error that follows the
+        reference rejects the model; parameters the record did not determine
+        leave the verdict inconclusive.
+        """
+        checks: list[Check] = []
+        several = len(self.validations) > 1
+        for v in self.validations:
+            on = f" ({v['experiment']})" if several else ""
+            fit = v["current_fit"]
+            checks.append(Check(f"simulation fit{on}", f"{fit:.1f} %",
+                                "fail" if fit < 0 else "pass",
+                                "the simulated motor current is further from the measurement "
+                                "than its mean value" if fit < 0 else
+                                "free run of the motor current in the known drive, on data not "
+                                "used for fitting"))
+            p = v["independence_pvalue"]
+            if p is not None:
+                checks.append(Check(
+                    f"input–residual independence{on}", f"p = {p:.3g}",
+                    "pass" if v["independent"] else "fail",
+                    "the current error does not follow the reference" if v["independent"] else
+                    "the current error follows the reference: the dynamics are not captured"))
+            checks.append(Check(f"load position fit{on}", f"{v['position_fit']:.1f} %", "info",
+                                "the loop makes the load follow its reference whatever the "
+                                "model: not a test of it"))
+        if not self.validations:
+            checks.append(Check("validation", "none", "caution",
+                                "the identified actuator was not simulated on data the fit did "
+                                "not use (no [loop], or [identify] validate = false)"))
+        rows = self.identification.rows()
+        unresolved = [r["name"] for r in rows if not r["identifiable"] and not r["given"]]
+        checks.append(count_check("not identifiable", unresolved,
+                                  "not determined by this record: " + ", ".join(unresolved),
+                                  "caution"))
+        checks.append(count_check("notes", self.notes, "listed under Notes"))
+        tested = ("the electromechanical actuator's physical parameters from three equations "
+                  "of the closed-loop record, the identified actuator simulated in its known "
+                  "drive from the logged reference on "
+                  + (f"{len(self.validations)} record(s) not used for fitting."
+                     if self.validations else "no record (no validation)."))
+        return Verdict(tested, tuple(checks), tuple(self.conditions))
+
+    def summary(self) -> RecordSummary:
+        """Every physical parameter with σ and interval, the current's free-run fit, decision."""
+        rows = [ParameterValue(r["name"], r["value"], r["std"], r["ci_low"], r["ci_high"],
+                               r["unit"]) for r in self.identification.rows()]
+        summary = summary_of("ema", rows, self.verdict(), notes=self.notes)
+        if self.validations:
+            first = self.validations[0]
+            return dataclasses.replace(summary, fit_percent=first["current_fit"],
+                                       independent=first["independent"])
+        return summary
+
+    def models(self) -> dict[str, Any]:
+        """The identified actuator as ``"ema"`` (:class:`EmaParameters`, for simulation)."""
+        return {"ema": self.identification.parameters()}
 
     def to_dict(self) -> dict[str, Any]:
         """Everything in ``results.json``."""
@@ -110,13 +179,15 @@ class EmaResult(Displayed):
             "method": "ema",
             "experiment_file": str(self.spec.source) if self.spec.source else None,
             "data_file": str(self.spec.data_path),
-            "data_sha256": sha256(self.spec.data_path),
+            "data_sha256": self.digest(self.spec.data_path),
             "estimate": {"method": "ema", "n_samples": ident.n_rows, "confidence_level": 0.95,
                          "parameters": rows},
             "identification": ident.to_dict(),
             "validation": validation,
             "loop": None if self.controller is None else self.controller.to_dict(),
             "notes": list(self.notes),
+            "verdict": self.verdict().to_dict(),
+            "summary": self.summary().to_dict(),
         }
 
     def inputs(self) -> tuple[Path, ...]:
@@ -182,7 +253,7 @@ def run_ema(spec: Any, options: Mapping[str, Any],
             f"[preprocess] detrend = \"{spec.preprocess.detrend}\" would remove the mean of the "
             "current and the voltage, which the physical equations need (friction and the "
             "constant load are in them): remove it for method = \"ema\"")
-    controller = controller_from_loop(spec.loop) if spec.loop else None
+    controller = drive(options["[loop]"]) if spec.loop else None
     notes: list[str] = []
     record = spec.load(detrend=False)
     channels = {k: options[k] for k in ("current", "voltage", "angle", "position")}
@@ -205,6 +276,7 @@ def run_ema(spec: Any, options: Mapping[str, Any],
         min_deflection_fit=options["min_deflection_fit"])
     notes += ident.notes
     validations: list[dict[str, Any]] = []
+    checked: list[tuple[str, Experiment]] = []  # the validation records read
     if options["validate"] and controller is None:
         notes.append("no [loop] table: the drive is unknown, so the identified actuator was not "
                      "simulated on held-back data (no validation)")
@@ -216,17 +288,24 @@ def run_ema(spec: Any, options: Mapping[str, Any],
         if start is not None:
             validations.append(_validate(record, start, ident, controller, channels, ref_name,
                                          anti_alias, "the held-back part"))
+            checked.append((f"{spec.data_path.name}, held-back part", held))
         for path in spec.validation_paths:
             other = spec.load(path, detrend=False)
+            checked.append((path.name, other))
             validations.append(_validate(other, 0, ident, controller, channels, ref_name,
                                          anti_alias, path.name))
     if truth is None:
         name = report_options(spec.report).get("truth")
         if name is not None:
             truth = read_truth(spec.base_dir / name, list(PHYSICAL)) or None
+    conditions = (record_conditions(estimation, f"estimation: {spec.data_path.name}"
+                                    + ("" if start is None else ", first part"),
+                                    options["reference"]),
+                  *(record_conditions(other, f"validation: {name}", options["reference"])
+                    for name, other in checked))
     return EmaResult(spec, ident, controller, tuple(validations),
                      None if truth is None else {k: float(v) for k, v in truth.items()},
-                     dict(options), tuple(notes))
+                     dict(options), tuple(notes), conditions=conditions)
 
 
 def _only(record: Experiment, role: str) -> str:
@@ -334,7 +413,7 @@ def _page(result: EmaResult, files: Mapping[str, Path]) -> Page:
         f"{2 * math.pi * ident.gear_ratio / ident.lead:.6g} rad/m.")), tables=(params, eqs))
     sections = [
         Section("Experiment", paragraphs=tuple(
-            f"{what} file {path.name} (sha256 {sha256(path)[:16]}…)."
+            f"{what} file {path.name} (sha256 {result.digest(path)[:16]}…)."
             for what, path in (("Data", spec.data_path),
                                *(("Validation", p) for p in spec.validation_paths)))),
         method,
@@ -374,3 +453,10 @@ def _page(result: EmaResult, files: Mapping[str, Path]) -> Page:
         meta=(("servoid", __version__), ("experiment file", str(spec.source or "")),
               ("data file", str(spec.data_path))),
     )
+
+
+def example(folder: Path, seed: int = 0) -> Path:
+    """A short record of the virtual EMA rig (the default test, 4 s) and its experiment file."""
+    from ._bench_files import write_bench
+
+    return write_bench(folder, seed=seed, duration=4.0, format="csv", overwrite=True)[1]

@@ -35,8 +35,7 @@ from ..._atomic import atomic_path, check_writable
 from ..._checks import as_bool, as_instance, as_int, as_path, as_str, type_error
 from ..._errors import DataError, OptionTypeError, ServoidWarning, check_option
 from ..._warn import warn
-from ...data import Experiment, write_csv, write_experiment_spec, write_tdms
-from ..ehsa._bench_files import RigFormat
+from ...data import Experiment, RigFormat, write_experiment_spec
 from ._bench import (
     _TEST_NAMES,
     PNEUMATIC_CHANNELS,
@@ -51,7 +50,8 @@ from ._params import PNEUMATIC_NOMINAL, PneumaticParameters
 
 __all__ = ["write_pneumatic_campaign"]
 
-_FORMATS: tuple[RigFormat, ...] = ("tdms", "csv")
+#: The formats the bench writes, its default first.
+_FORMATS = RigFormat.writable(first="tdms")
 #: Parameters the multi-step scheme estimates (spec §3.9).
 IDENTIFIED = ("k_v", "xi_v", "omega_v", "ad_1", "ad_2", "ad_3", "ad_4", "R", "kappa",
               "F_haft", "v_krit", "c_k", "d_k", "p_krit")
@@ -75,7 +75,7 @@ def write_pneumatic_campaign(
     tests: Sequence[PneumaticTestName | PneumaticTest] = _TEST_NAMES,
     snr_db: float | None = 40.0,
     seed: int = 0,
-    format: RigFormat = "tdms",
+    format: str | RigFormat = "tdms",
     overwrite: bool = False,
     duration: float | None = None,
     f_acq: float = 10_000.0,
@@ -98,8 +98,8 @@ def write_pneumatic_campaign(
         Noise seed, >= 0.  Each test draws from ``default_rng([seed, k])``
         with k its index in the list of names above, so a test's record
         does not depend on which other tests run.
-    format : {"tdms", "csv"}
-        Rig file format.
+    format : {"tdms", "csv"} or RigFormat
+        Rig file format (one :data:`~servoid.data.RIG_FORMATS` writes).
     overwrite : bool
         Replace existing files; otherwise :class:`OutputExistsError`
         before anything is written.
@@ -147,7 +147,9 @@ def write_pneumatic_campaign(
     """
     folder = as_path("folder", folder)
     as_bool("overwrite", overwrite)
-    check_option("format", format, _FORMATS)
+    if not isinstance(format, RigFormat):
+        check_option("format", format, _FORMATS)
+    fmt = RigFormat.named(format)
     seed = as_int("seed", seed, minimum=0)
     if snr_db is not None and not (isinstance(snr_db, (int, float))
                                    and not isinstance(snr_db, bool) and math.isfinite(snr_db)):
@@ -155,7 +157,7 @@ def write_pneumatic_campaign(
     plan = _plan(tests, duration)
     bench = PneumaticBench(params=params, f_acq=f_acq, snr_db=snr_db)
     names = [t.name for t in plan]
-    targets = [folder / f"{n}.{ext}" for n in names for ext in (format, "toml")]
+    targets = [folder / f"{n}{ext}" for n in names for ext in (fmt.suffixes[0], ".toml")]
     targets += [folder / CAMPAIGN, folder / "truth.json"]
     for target in targets:
         check_writable(target, overwrite)
@@ -175,7 +177,7 @@ def write_pneumatic_campaign(
             if text not in issued:
                 issued.append(text)
                 warn(text, ServoidWarning)
-        doc = pneumatic_experiment_document(rec, f"{test.name}.{format}")
+        doc = pneumatic_experiment_document(rec, f"{test.name}{fmt.suffixes[0]}")
         records.append((rec.raw, doc, _test_info(rec)))
         del rec
 
@@ -184,10 +186,7 @@ def write_pneumatic_campaign(
     for raw, doc, _ in records:
         rig = folder / doc["data"]["file"]
         toml = rig.with_suffix(".toml")
-        if format == "tdms":
-            write_tdms(raw, rig, overwrite=overwrite)
-        else:
-            write_csv(raw, rig, overwrite=overwrite)
+        fmt.write(raw, rig, overwrite=overwrite)
         write_experiment_spec(doc, toml, overwrite=overwrite)
         written += [rig, toml]
     infos = {info["name"]: info for _, _, info in records}
@@ -256,8 +255,9 @@ def pneumatic_experiment_document(run: PneumaticRun, file: str) -> dict[str, Any
     """
     as_instance("run", run, PneumaticRun, "a PneumaticRun (from servoid.plants.pneumatic.run_pneumatic)")
     data: dict[str, Any] = {"file": as_str("file", file)}
-    if file.lower().endswith(".csv"):
-        data["time"] = "time"
+    fmt = RigFormat.find(file)
+    if fmt is not None and fmt.time is not None:  # the time column its writer wrote
+        data["time"] = fmt.time
     channels = {}
     for name, (gain, offset) in run.calibration().items():
         role, unit = PNEUMATIC_CHANNELS[name]

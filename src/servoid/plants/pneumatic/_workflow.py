@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -52,17 +52,17 @@ from ...report import (
     save_figure,
 )
 from ...report._text import plain
-from ...workflows._common import read_truth, report_options, sha256
+from ...workflows._common import read_truth, report_options
 from ...workflows._options import boolean, choice, number, optional, text
-from ...workflows._registry import FigureWriter, Method, Option
-from ...workflows._summary import Displayed
+from ...workflows._registry import FigureWriter, Method, Option, TableSchema
+from ...workflows._summary import Displayed, ParameterValue, RecordSummary, summary_of
 from ...workflows._verdict import count_check, record_conditions
 from ._pipeline import MultistepResult, identify_multistep
 from ._refine import REFINABLE, RecordComparison
 from ._sim import PositionController
 from ._steps import KnownConstants
 
-__all__ = ["METHOD", "METHODS", "PneumaticIdentification"]
+__all__ = ["LOOP", "METHOD", "METHODS", "PneumaticIdentification"]
 
 _TESTS = ("valve", "thermo", "flow", "friction")
 _KNOWN = tuple(f.name for f in dataclasses.fields(KnownConstants))
@@ -91,6 +91,10 @@ class PneumaticIdentification(Displayed):
         Files written.
     conditions : tuple of Conditions
         Rate, length, excitation and band of each test record.
+    data_files : mapping of str to Path
+        The rig file each test's experiment file names (read at the run).
+    digests : dict
+        SHA-256 of the input files, each hashed once (see ``digest``).
     """
 
     spec: ExperimentSpec
@@ -100,6 +104,18 @@ class PneumaticIdentification(Displayed):
     folder: Path | None = None
     files: tuple[Path, ...] = ()
     conditions: tuple[Conditions, ...] = ()
+    data_files: Mapping[str, Path] = field(default_factory=dict)
+    digests: dict[str, str] = field(default_factory=dict, repr=False)
+
+    def summary(self) -> RecordSummary:
+        """Every parameter of the assembled model with σ and interval, the S6 decision."""
+        rows = [ParameterValue(r["name"], r["value"], r["std"], *r["ci95"], r["unit"])
+                for r in self.result.table()]
+        return summary_of("pneumatic-multistep", rows, self.verdict(), notes=self.result.notes)
+
+    def models(self) -> dict[str, Any]:
+        """The assembled parameter set (refined if refined) as ``"pneumatic"``."""
+        return {"pneumatic": self.result.final_parameters}
 
     def verdict(self) -> Verdict:
         """S6: the assembled model simulated on the held-back record, channel by channel."""
@@ -151,14 +167,15 @@ class PneumaticIdentification(Displayed):
             "parameters": self.table(),
             **{k: v for k, v in self.result.to_dict().items() if k != "parameters"},
             "verdict": self.verdict().to_dict(),
+            "summary": self.summary().to_dict(),
         }
 
     def inputs(self) -> tuple[Path, ...]:
         """Every file the run read: each test's experiment file and rig file."""
         out = list(self.sources.values())
-        for path in self.sources.values():
+        for test, path in self.sources.items():
             if path.suffix == ".toml":
-                out.append(_data_file(path))
+                out.append(self.data_files.get(test) or _data_file(path))
         if self.spec.source:
             out.append(Path(self.spec.source))
             truth = report_options(self.spec.report).get("truth")
@@ -234,19 +251,22 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         if own is not None and path.resolve() == own:
             raise OptionError(f"[identify] {test} = {options[test]!r} names this campaign file "
                               f"itself; name the experiment file of the {test} test")
+    data_files: dict[str, Path] = {}
     for test, path in sources.items():
         sub = load_experiment_spec(path)
         records[test] = _named(sub.load(), test)
+        data_files[test] = sub.data_path
     if "validation" not in records:
         records["validation"] = _named(spec.load(), "validation")
-        sources["validation"] = spec.data_path
-    known = _known(spec.identify, spec.loop)
+        sources["validation"] = data_files["validation"] = spec.data_path
+    loop = {k: v for k, v in options["[loop]"].items() if v is not None}
+    known = _known(spec.identify, loop)
     result = identify_multistep(
         records, known,
         derivatives=options["derivatives"],
         refine=options["refine"],
         refine_record=options["refine_record"],
-        controller=_controller(spec.loop, spec.identify.get("known", {})),
+        controller=_controller(loop, spec.identify.get("known", {})),
         p_krit=options["p_krit"],
         v_krit=options["v_krit"],
         blend=options["blend"],
@@ -255,9 +275,10 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     )
     if truth is None:
         truth = _truth(spec, base)
-    conditions = tuple(record_conditions(records[test], f"{test}: {_data_file(path).name}")
-                       for test, path in sources.items())
-    return PneumaticIdentification(spec, result, sources, truth, conditions=conditions)
+    conditions = tuple(record_conditions(records[test], f"{test}: {data_files[test].name}")
+                       for test in sources)
+    return PneumaticIdentification(spec, result, sources, truth, conditions=conditions,
+                                   data_files=data_files)
 
 
 # -- helpers --------------------------------------------------------------------------------
@@ -429,7 +450,8 @@ def _page(ident: PneumaticIdentification, files: Mapping[str, Path]) -> Page:
                  "(S6)",
         sections=tuple(sections),
         meta=(("servoid", __version__), ("campaign file", str(ident.spec.source or "")),
-              *((f"{k} record", f"{p.name} (sha256 {sha256(_data_file(p))[:12]}…)")
+              *((f"{k} record",
+                 f"{p.name} (sha256 {ident.digest(ident.data_files.get(k) or _data_file(p))[:12]}…)")
                 for k, p in ident.sources.items())),
     )
 
@@ -466,6 +488,30 @@ def _known_table(value: Any, where: str, name: str) -> Mapping[str, Any]:
     return as_mapping(name, value, where=where)
 
 
+def _value(value: Any, where: str, name: str) -> float:
+    return as_float(name, value, where=where)
+
+
+#: ``[loop]`` of a campaign: the controller of its closed-loop tests and known constants.
+LOOP = TableSchema("loop", (
+    Option("K_p", None, optional(_value),
+           "position gain of the closed-loop tests [V/m]; none, with K_d: reconstructed by LS"),
+    Option("K_d", None, optional(_value), "velocity gain [V·s/m] (with K_p)"),
+    *(Option(name, None, optional(_value),
+             f"known constant {name} (as in [identify] known; there it wins)")
+      for name in _KNOWN),
+), help="the controller of the closed-loop tests and the actuator's known constants")
+
+
+def _example(folder: Path, seed: int = 0) -> Path:
+    """A short virtual campaign (every test, 1 s each at 10 kHz) and its campaign file."""
+    from ._bench_files import write_pneumatic_campaign
+
+    files = write_pneumatic_campaign(folder, seed=seed, duration=1.0, format="csv",
+                                     overwrite=True)
+    return next(p for p in files if p.name == "pneumatic.toml")
+
+
 METHOD = Method(
     name="pneumatic-multistep",
     summary="servopneumatic actuator, equation group by equation group (S0–S6) from a "
@@ -492,7 +538,8 @@ METHOD = Method(
                "how the valve input is held between samples"),
     ),
     run=run,
-    tables=("loop",),
+    tables=(LOOP,),
+    example=_example,
 )
 
 #: The plant's methods, as its record names them.

@@ -36,14 +36,13 @@ from typing import Any
 import numpy as np
 
 from ... import __version__
-from ..._checks import as_float, as_int_list, as_mapping, as_str, read_json
+from ..._checks import as_float, as_int_list, as_mapping, read_json
 from ..._errors import (
     ChannelError,
     DataError,
     FileFormatError,
     OptionError,
     ServoidWarning,
-    check_option,
 )
 from ...data import Experiment, ExperimentSpec
 from ...estimate import Estimate, fit_arx
@@ -60,10 +59,10 @@ from ...report import (
     plot_loop,
 )
 from ...validate import relative_error, simulate_from_data
-from ...workflows._common import parameter_table, report_options, sha256
+from ...workflows._common import parameter_table, report_options
 from ...workflows._options import boolean, choice, choices, integer, number, optional, text
-from ...workflows._registry import FigureWriter, Method, Option
-from ...workflows._summary import Displayed
+from ...workflows._registry import FigureWriter, Method, Option, TableSchema
+from ...workflows._summary import Displayed, RecordSummary, summary_of
 from ...workflows._verdict import loop_verdict, record_conditions
 from ._axis import CascadeController, RigidAxis, simulate_rigid_loop
 from ._inverse import (
@@ -74,10 +73,10 @@ from ._inverse import (
     inverse_dynamics_regression,
 )
 
-__all__ = ["METHOD", "METHODS", "InverseDynamicsIdentification", "controller_from_table"]
+__all__ = ["LOOP", "METHOD", "METHODS", "InverseDynamicsIdentification",
+           "controller_from_table"]
 
 _LOOP_KEYS = ("kp", "kv", "gtau", "saturation")
-_LOOP_INPUT_KEYS = ("disturbance", "disturbance_at", "reference_offset")
 _DISTURBANCE_AT = ("drive", "load")
 # settings that only pipeline = "servoid" takes (the published one fixes them)
 _SERVOID_ONLY = ("decimation_filter", "differentiation", "trim")
@@ -141,10 +140,20 @@ class InverseDynamicsIdentification(Displayed):
     options: Mapping[str, Any] = field(default_factory=dict)
     records: tuple[Experiment, ...] = ()
     conditions: tuple[Conditions, ...] = ()
+    digests: dict[str, str] = field(default_factory=dict, repr=False)
 
     def verdict(self) -> Verdict:
         """Closed-loop simulation of data the fit did not use, estimate by estimate."""
         return loop_verdict(self)
+
+    def summary(self) -> RecordSummary:
+        """The primary IDIM-LS estimate's M, Fv, Fc (…) with σ and intervals, the decision."""
+        return summary_of("inverse-dynamics", self.estimate.table(0.95), self.verdict(),
+                          notes=self.notes)
+
+    def models(self) -> dict[str, Any]:
+        """The rigid axis of each estimate (``"idim-ls symmetric"``, …)."""
+        return {key: est.model for key, est in self.estimates.items()}
 
     @property
     def estimate(self) -> Estimate:
@@ -155,9 +164,10 @@ class InverseDynamicsIdentification(Displayed):
         """Everything in ``results.json``."""
         out: dict[str, Any] = {
             "servoid_version": __version__,
+            "method": "inverse-dynamics",
             "experiment_file": str(self.spec.source) if self.spec.source else None,
             "data_file": str(self.spec.data_path),
-            "data_sha256": sha256(self.spec.data_path),
+            "data_sha256": self.digest(self.spec.data_path),
             "controller": {"kp": self.controller.kp, "kv": self.controller.kv,
                            "gtau": self.controller.gtau,
                            "saturation": self.controller.saturation},
@@ -172,6 +182,7 @@ class InverseDynamicsIdentification(Displayed):
             "published": dict(self.published) if self.published else None,
             "notes": list(self.notes),
             "verdict": self.verdict().to_dict(),
+            "summary": self.summary().to_dict(),
         }
         for key, est in self.estimates.items():
             entry = est.to_dict()
@@ -265,7 +276,7 @@ def controller_from_table(
     (default 10). A missing gain is taken from the data file's scalars
     (``notes``) of the same name, if there. The loop-input keys
     ``disturbance``, ``disturbance_at`` and ``reference_offset`` are
-    allowed and read by the workflow, not here.
+    allowed and read by the workflow, not here (every key: :data:`LOOP`).
 
     Parameters
     ----------
@@ -279,25 +290,51 @@ def controller_from_table(
     CascadeController
         The known loop.
     """
-    table = as_mapping("table", table)  # the [loop] of an experiment file
+    return _controller(LOOP.parse(table, "inverse-dynamics"), notes)
+
+
+def _controller(loop: Mapping[str, Any], notes: Mapping[str, Any] | None) -> CascadeController:
+    """The cascade of a checked ``[loop]``, a gain it leaves out taken from the file's scalars."""
     notes = {} if notes is None else as_mapping("notes", notes)
-    unknown = sorted(set(table) - set(_LOOP_KEYS) - set(_LOOP_INPUT_KEYS))
-    if unknown:
-        raise OptionError(f"unknown key(s) in [loop]: {', '.join(unknown)}; valid keys for "
-                          f"method = \"inverse-dynamics\" are "
-                          f"{', '.join(_LOOP_KEYS + _LOOP_INPUT_KEYS)}")
-    values: dict[str, float] = {"saturation": 10.0}
+    values: dict[str, float] = {}
     for key in _LOOP_KEYS:
-        value = table.get(key, notes.get(key, values.get(key)))
+        if loop[key] is not None:
+            values[key] = loop[key]  # checked by LOOP
+            continue
+        value = notes.get(key, 10.0 if key == "saturation" else None)
         if value is None:
             raise DataError(
                 f"[loop] {key} is needed for the closed-loop simulation and is neither in the "
                 "experiment file nor a scalar of the data file; add it under [loop]"
             )
-        where = "[loop]" if key in table else "data file scalar"
         values[key] = as_float(key, value, positive=True, finite=key != "saturation",
-                               where=where)
+                               where="data file scalar")
     return CascadeController(values["kp"], values["kv"], values["gtau"], values["saturation"])
+
+
+def _positive(finite: bool = True) -> Any:
+    def check(value: Any, where: str, name: str) -> float:
+        return as_float(name, value, positive=True, finite=finite, where=where)
+    return check
+
+
+#: ``[loop]`` of the rigid axis: its cascade (u = kv·(kp·(r − q) − q̇), force gtau·u within
+#: ±saturation) and what enters the loop besides the reference.
+LOOP = TableSchema("loop", (
+    Option("kp", None, optional(_positive()),
+           "position gain [1/s]; none: the data file's scalar kp"),
+    Option("kv", None, optional(_positive()),
+           "velocity gain [V/(m/s)]; none: the data file's scalar kv"),
+    Option("gtau", None, optional(_positive()),
+           "drive gain [N/V]; none: the data file's scalar gtau"),
+    Option("saturation", None, optional(_positive(finite=False)),
+           "drive voltage limit [V]; none: the data file's scalar, else 10"),
+    Option("disturbance", None, optional(text()),
+           "a channel holding a measured force on the axis [N] (unit N), added in every "
+           "closed-loop simulation"),
+    Option("disturbance_at", "drive", choice(_DISTURBANCE_AT), "where the disturbance enters"),
+    Option("reference_offset", 0.0, number(unit="m"), "constant added to the reference [m]"),
+), help="the known cascade and the loop's other inputs")
 
 
 def run(spec: ExperimentSpec, options: Mapping[str, Any],
@@ -310,7 +347,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     holds published reference results to compare with.
     """
     options = _checked(options)
-    loop = _loop_inputs(spec)
+    loop = _loop_inputs(spec, options["[loop]"])
     notes: list[str] = []
     data = _load_record(spec, None, loop, notes)
     records = tuple(_load_record(spec, path, loop, notes) for path in spec.validation_paths)
@@ -318,7 +355,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         raise DataError(
             f"[loop] disturbance = {loop['disturbance']!r}: no record has that channel's source "
             "in its file; check its [channels] entry, or remove the key")
-    controller = controller_from_table(spec.loop, data.notes)
+    controller = _controller(options["[loop]"], data.notes)
     published = truth if truth is not None else _published_from_spec(spec)
     channels = {k: options[k] for k in ("position", "force")}
     idim = _idim_settings(options)
@@ -398,12 +435,10 @@ def _idim_settings(options: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _loop_inputs(spec: ExperimentSpec) -> dict[str, Any]:
-    table = spec.loop
-    where = "[loop]"
-    name = table.get("disturbance")
+def _loop_inputs(spec: ExperimentSpec, table: Mapping[str, Any]) -> dict[str, Any]:
+    """The loop's other inputs of a checked ``[loop]``, the disturbance held to [channels]."""
+    name = table["disturbance"]
     if name is not None:
-        name = as_str("disturbance", name, where=where)
         declared = {ch.name: ch for ch in spec.channels}
         if name not in declared:
             raise DataError(
@@ -416,11 +451,8 @@ def _loop_inputs(spec: ExperimentSpec) -> dict[str, Any]:
                 f"[loop] disturbance = {name!r} has unit {unit!r}, but the disturbance is a "
                 f"force [N]; give [channels.{name}] the gain to newtons (for a voltage added to "
                 "the drive: gain = gtau) and unit = \"N\"")
-    at = table.get("disturbance_at", "drive")
-    check_option("[loop] disturbance_at", at, _DISTURBANCE_AT)
-    offset = as_float("reference_offset", table.get("reference_offset", 0.0), unit="m",
-                      where=where)
-    return {"disturbance": name, "disturbance_at": str(at), "reference_offset": offset}
+    return {"disturbance": name, "disturbance_at": str(table["disturbance_at"]),
+            "reference_offset": table["reference_offset"]}
 
 
 def _load_record(spec: ExperimentSpec, path: Path | None, loop: Mapping[str, Any],
@@ -735,7 +767,7 @@ def _page(ident: InverseDynamicsIdentification, files: Mapping[str, Path]) -> Pa
             + ". It has a pole at 1 (the integrator) and a second real pole standing in for "
             "friction; it drifts with any input offset and says nothing physical.",)))
     data_sec = Section("Experiment", paragraphs=tuple(
-        f"{what} file {path.name} (sha256 {sha256(path)[:16]}…)."
+        f"{what} file {path.name} (sha256 {ident.digest(path)[:16]}…)."
         for what, path in (("Data", spec.data_path),
                            *(("Validation", p) for p in spec.validation_paths))))
     return Page(
@@ -746,6 +778,39 @@ def _page(ident: InverseDynamicsIdentification, files: Mapping[str, Path]) -> Pa
         meta=(("servoid", __version__), ("experiment file", str(spec.source or "")),
               ("data file", str(spec.data_path))),
     )
+
+
+def _example(folder: Path, seed: int = 0) -> Path:
+    """A simulated EMPS-like axis in its cascade (8 s at 1 kHz) and its experiment file."""
+    from ...data import write_csv, write_experiment_spec
+
+    dt, gtau = 1e-3, 35.15
+    controller = CascadeController(kp=160.18, kv=243.45, gtau=gtau, saturation=10.0)
+    t = dt * np.arange(8000)
+    rng = np.random.default_rng(seed)
+    # moves out and back with stops and reversals, a small multisine on top to excite the mass
+    r = 0.05 * (1 - np.cos(2 * np.pi * 0.25 * t)) + 2e-3 * sum(
+        np.sin(2 * np.pi * f * t + phase) for f, phase in zip((1.3, 2.9, 4.7),
+                                                               rng.uniform(0, 2 * np.pi, 3),
+                                                               strict=True))
+    sim = simulate_rigid_loop(RigidAxis(95.0, 200.0, 20.0, -3.0), controller, r, dt)
+    qm = sim.position + 1e-6 * rng.standard_normal(t.size)  # encoder-like noise [m]
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    record = Experiment.from_arrays(dt, r=r, u=sim.voltage, y=qm,
+                                    names={"r": "qg", "u": "vir", "y": "qm"})
+    write_csv(record, folder / "axis.csv", overwrite=True)
+    toml = folder / "axis.toml"
+    write_experiment_spec({
+        "data": {"file": "axis.csv"},
+        "channels": {"qg": {"role": "r", "unit": "m"}, "vir": {"role": "u", "unit": "V"},
+                     "qm": {"role": "y", "unit": "m"},
+                     "force": {"source": "vir", "role": "side", "gain": gtau, "unit": "N"}},
+        "split": {"fraction": 0.5},
+        "loop": {"kp": controller.kp, "kv": controller.kv, "gtau": gtau, "saturation": 10.0},
+        "identify": {"method": "inverse-dynamics", "model": "symmetric"},
+    }, toml, overwrite=True)
+    return toml
 
 
 METHOD = Method(
@@ -786,7 +851,8 @@ METHOD = Method(
                "fit on the estimation part of [split], simulate the rest (not with [validation])"),
     ),
     run=run,
-    tables=("loop", "validation"),
+    tables=(LOOP, "validation"),
+    example=_example,
 )
 
 #: The plant's methods, as its record names them.
