@@ -20,7 +20,7 @@ import numpy as np
 from anyloop_rigs import RIGS, Record, Rig
 
 from servoid import ServoidError
-from servoid.closedloop import fit_cliv, fit_indirect_tf, fit_two_stage
+from servoid.closedloop import fit_cliv, fit_direct_bj, fit_indirect_tf, fit_two_stage
 from servoid.estimate import fit_bj, fit_oe
 from servoid.models import TransferFunction
 
@@ -88,6 +88,8 @@ def fit(method: str, rec: Record, **options: object):  # type: ignore[no-untyped
     if method == "cliv":
         return fit_cliv(exp, nf, nb, nk, **options)
     if method == "bj":
+        return fit_direct_bj(exp, nb, c, d, nf, nk, **options)
+    if method == "bj-plain":
         return fit_bj(exp, nb, c, d, nf, nk, **options)
     if method == "indirect":
         return fit_indirect_tf(exp, controller(rig), nb, nf, nk, **options)

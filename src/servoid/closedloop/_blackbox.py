@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import as_bool, as_int
-from .._errors import DataError, ServoidError, ServoidWarning, check_option
+from .._errors import DataError, IdentifiabilityError, ServoidError, ServoidWarning, check_option
 from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate, fit_bj, fit_iv, fit_oe
@@ -297,8 +297,20 @@ def fit_cliv(
     r_name = reference_name(data, "closed-loop IV")
     check_excites(r_name, [np.asarray(seg[r_name]) for seg in segments], "r")
     single_name(segments[0], "u", None, "plant input")
-    est = fit_iv(data, na, nb, nk, instrument="r", output=output, iterations=iterations,
-                 covariance=covariance)
+    try:
+        est = fit_iv(data, na, nb, nk, instrument="r", output=output, iterations=iterations,
+                     covariance=covariance)
+    except IdentifiabilityError as exc:
+        if "uncorrelated" not in str(exc):
+            raise
+        raise IdentifiabilityError(
+            f"closed-loop IV failed: its instruments, the reference {r_name!r} delayed and "
+            f"filtered through the model's own simulation, are nearly uncorrelated with the "
+            f"regressors (lags of u and y) for na = {na}, nb = {nb} ({exc}). The reference "
+            "moves the loop too little at the plant's own frequencies: raise the reference's "
+            "excitation (a faster PRBS clock, a larger amplitude), lower the orders, or, with "
+            "the controller known, use method = \"indirect\""
+        ) from exc
     return dataclasses.replace(est, method="cliv", options={**est.options, "reference": r_name})
 
 
