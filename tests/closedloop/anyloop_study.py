@@ -168,6 +168,7 @@ if __name__ == "__main__":
     parser.add_argument("--loop", action="append", default=None)
     parser.add_argument("--method", action="append", default=None)
     parser.add_argument("-v", action="store_true")
+    parser.add_argument("--json", default=None, help="also write the counts to this file")
     args = parser.parse_args()
     loops = {"motor (slow PRBS, 50 ms bit)": ("motor", None),
              "motor (fast PRBS, 2 ms bit)": ("motor", 2),
@@ -179,3 +180,10 @@ if __name__ == "__main__":
         out[label] = study(name, range(args.seeds), args.n, args.method or METHODS,
                            clock=clock, progress=print if args.v else None)
     print(table(out))
+    if args.json:
+        import json
+
+        counts = {loop: {m: t.counts() for m, t in tallies.items()}
+                  for loop, tallies in out.items()}
+        with open(args.json, "w", encoding="utf-8") as fh:
+            json.dump({"seeds": args.seeds, "n": args.n, "counts": counts}, fh, indent=1)

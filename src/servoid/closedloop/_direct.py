@@ -62,7 +62,7 @@ def fit_direct_bj(
     max_iter: int = 100,
     tol: float = 1e-9,
 ) -> Estimate:
-    """Fit the plant by the direct approach (Box–Jenkins on u → y), loop-aware starts.
+    """Fit the plant by the direct approach: Box–Jenkins on u → y.
 
     Parameters
     ----------

@@ -1,15 +1,18 @@
-"""Validation: fit metrics, residual tests and the ValidationReport."""
+"""Validation: fit metrics, residual tests, the ValidationReport, and what data cannot fix."""
 
+from ._carry import DataLimit, data_limits
 from ._metrics import fit_percent, nrmse, relative_error, rmse, vaf
 from ._report import ValidationReport, compare, simulate_from_data, validate
 from ._residuals import ResidualAnalysis, residual_analysis
 from ._simulate import Replayable, discrete_model, is_replayable, simulate_model
 
 __all__ = [
+    "DataLimit",
     "Replayable",
     "ResidualAnalysis",
     "ValidationReport",
     "compare",
+    "data_limits",
     "discrete_model",
     "fit_percent",
     "is_replayable",
