@@ -51,8 +51,8 @@ _DRIFT_SHARE = 0.5
 _DRIFT_INPUT = 0.05
 #: A jump larger than this share of the range is an edge; a step has at most two.
 _EDGE = 0.25
-#: Share of samples that stand still (|Δx| below 1e-6 of the range) in a step.
-_STILL = 0.98
+#: Largest spread (std) between the edges of a step, as a share of its range.
+_LEVEL = 0.1
 #: Share of samples on one extreme value, and its multiple of the median value count: clipped.
 _CLIP_SHARE = 0.02
 _CLIP_RATIO = 10.0
@@ -189,15 +189,20 @@ def _range(pieces: list[NDArray[np.float64]]) -> float:
 
 
 def _step(pieces: list[NDArray[np.float64]]) -> str | None:
-    """'n edges' when the signal changes level at most twice and stands still otherwise."""
+    """'n edges' when the signal changes level at most twice and is level between."""
     span = _range(pieces)
     if span <= 0:
         return None
-    edges = sum(int(np.sum(np.abs(np.diff(p)) > _EDGE * span)) for p in pieces)
-    steps = sum(p.size - 1 for p in pieces)
-    still = sum(int(np.sum(np.abs(np.diff(p)) <= 1e-6 * span)) for p in pieces)
-    if 1 <= edges <= 2 * len(pieces) and edges <= 2 and still >= _STILL * max(steps, 1):
-        return f"{edges} edge{'s' if edges > 1 else ''}, still otherwise"
+    edges = 0
+    rough = 0.0
+    for p in pieces:
+        at = np.flatnonzero(np.abs(np.diff(p)) > _EDGE * span) + 1
+        edges += at.size
+        for part in np.split(p, at):
+            if part.size > 1:
+                rough = max(rough, float(np.std(part)))
+    if 1 <= edges <= 2 and rough <= _LEVEL * span:
+        return f"{edges} edge{'s' if edges > 1 else ''}, level between"
     return None
 
 
