@@ -32,6 +32,7 @@ SUITES: dict[str, str] = {
     "ehsa": "bench_ehsa",
     "closedloop": "bench_closedloop",
     "closedloop-coverage": "bench_closedloop_coverage",  # 240 rig runs (~2 min; 8 under --quick)
+    "closedloop-any": "bench_closedloop_any",  # any-plant methods on 2e4 samples vs open-loop OE
     "pneumatic": "bench_pneumatic",
     "multistep": "bench_multistep",
     "signals": "bench_signals",

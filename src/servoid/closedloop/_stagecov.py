@@ -116,11 +116,13 @@ def structured_long_run(
     p = regressors[0][0].shape[1]
     meat = np.zeros((p, p))
     for zs, ns in zip(regressors, noises, strict=True):
+        size = zs[0].shape[0]
         for a in range(k):
             for b in range(k):
-                r_ab = _xcorr_signed(ns[a], ns[b], bandwidth) / n
-                g = _gram_lags(zs[a], zs[b], bandwidth)  # (lags, p, p)
-                meat += np.einsum("l,lij->ij", weights * r_ab, g)
+                # Σ_τ c(τ) Σ_t za(t) zb(t − τ)ᵀ = zaᵀ (c ∗ zb): one filter, one Gram
+                c = weights * _xcorr_signed(ns[a], ns[b], bandwidth) / n
+                full = sps.fftconvolve(zs[b], c[:, None], axes=0)
+                meat += zs[a].T @ full[bandwidth: bandwidth + size]
     return 0.5 * (meat + meat.T), bandwidth
 
 
@@ -134,16 +136,6 @@ def _xcorr_signed(x: NDArray[np.float64], y: NDArray[np.float64],
     """Σ_t x(t) y(t − τ) for τ = −lags…lags."""
     size = 1 << int(np.ceil(np.log2(2 * x.size)))
     full = np.fft.irfft(np.fft.rfft(x, size) * np.conj(np.fft.rfft(y, size)), size)
-    return np.concatenate([full[size - lags:], full[: lags + 1]]) if lags else full[:1]
-
-
-def _gram_lags(za: NDArray[np.float64], zb: NDArray[np.float64],
-               lags: int) -> NDArray[np.float64]:
-    """Σ_t za(t) zb(t − τ)ᵀ for τ = −lags…lags, shape (2·lags + 1, p, p)."""
-    size = 1 << int(np.ceil(np.log2(2 * za.shape[0])))
-    fa = np.fft.rfft(za, size, axis=0)
-    fb = np.conj(np.fft.rfft(zb, size, axis=0))
-    full = np.fft.irfft(fa[:, :, None] * fb[:, None, :], size, axis=0)
     return np.concatenate([full[size - lags:], full[: lags + 1]]) if lags else full[:1]
 
 
