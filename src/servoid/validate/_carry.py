@@ -18,9 +18,10 @@ names what each kind of record cannot fix:
     nothing about the rest of the frequency response.
 ``drift``
     A straight line explains most of the output's variance while the
-    excitation has no such trend.  A drift that no input explains biases
-    the low-frequency part of the model: the static gain and the slow
-    poles (unless the plant integrates).
+    excitation swings about zero with no trend of its own.  A drift that no
+    input explains biases the low-frequency part of the model: the static
+    gain and the slow poles.  An excitation with a mean ramps the output of
+    an integrating plant just as well, so drift is not judged then.
 ``clipped``
     A signal sits on its largest or smallest value for runs of samples,
     far more often than on any other value: a saturated actuator or a
@@ -49,6 +50,8 @@ _SINE_SHARE = 0.95
 #: Share of the output's variance a straight line explains, with none in the excitation: drift.
 _DRIFT_SHARE = 0.5
 _DRIFT_INPUT = 0.05
+#: An excitation whose mean is within this share of its range swings about zero.
+_CENTRED = 0.1
 #: A jump larger than this share of the range is an edge; a step has at most two.
 _EDGE = 0.25
 #: Largest spread (std) between the edges of a step, as a share of its range.
@@ -158,8 +161,10 @@ def data_limits(
     for name in outputs:
         y = [_values(seg[name]) for seg in segments]
         share = _trend_share(y)
-        quiet = excitation is None or _trend_share(
-            [_values(seg[excitation]) for seg in segments]) < _DRIFT_INPUT
+        # an input with a mean (or a trend) ramps an integrating plant's output: that is
+        # dynamics, not drift, and the data alone cannot tell the two apart
+        x = [] if excitation is None else [_values(seg[excitation]) for seg in segments]
+        quiet = excitation is not None and _trend_share(x) < _DRIFT_INPUT and _centred(x)
         if share > _DRIFT_SHARE and quiet:
             found.append(DataLimit("drift", name, f"a straight line explains "
                                    f"{100 * share:.0f} % of its variance", (
@@ -238,6 +243,13 @@ def _trend_share(pieces: list[NDArray[np.float64]]) -> float:
         explained += slope**2 * float(tc @ tc)
         total += float(centred @ centred)
     return explained / total if total > 0 else 0.0
+
+
+def _centred(pieces: list[NDArray[np.float64]]) -> bool:
+    """The signal swings about zero: its mean is within 10 % of its range."""
+    allx = np.concatenate(pieces)
+    span = float(np.max(allx) - np.min(allx)) if allx.size else 0.0
+    return span > 0 and abs(float(np.mean(allx))) <= _CENTRED * span
 
 
 def _clipped(pieces: list[NDArray[np.float64]]) -> str | None:
