@@ -129,9 +129,9 @@ def study(rig: Rig | str, seeds: Iterable[int], n: int, methods: Iterable[str] =
     tallies = {m: Tally(m) for m in methods}
     for seed in seeds:
         rec = rig.closed(seed, n, clock=clock)
-        for m in tallies:
+        for m, tally in tallies.items():
             o = outcome(m, rec, **options.get(m, {}))  # type: ignore[arg-type]
-            tallies[m].outcomes.append(o)
+            tally.outcomes.append(o)
             if progress is not None:
                 progress(f"{rig.name} seed {seed} {m}: "
                          + ("refused " + o.error[:80] if o.refused else

@@ -12,11 +12,11 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from anyloop_rigs import RIGS  # noqa: E402
+from anyloop_rigs import RIGS
 
-from servoid import ServoidWarning  # noqa: E402
-from servoid.data import Experiment, write_csv, write_experiment_spec  # noqa: E402
-from servoid.workflows import identify  # noqa: E402
+from servoid import ServoidWarning
+from servoid.data import Experiment, write_csv, write_experiment_spec
+from servoid.workflows import identify
 
 
 def _run(folder, rig, *, loop=None, reference=True, out=None):

@@ -12,12 +12,12 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from anyloop_rigs import RIGS  # noqa: E402
+from anyloop_rigs import RIGS
 
-from servoid import OptionTypeError, ServoidWarning  # noqa: E402
-from servoid.data import load_experiment_spec, write_csv, write_experiment_spec  # noqa: E402
-from servoid.workflows import identify  # noqa: E402
-from servoid.workflows._examples import closed_loop  # noqa: E402
+from servoid import OptionTypeError, ServoidWarning
+from servoid.data import load_experiment_spec, write_csv, write_experiment_spec
+from servoid.workflows import identify
+from servoid.workflows._examples import closed_loop
 
 
 @pytest.fixture(scope="module")

@@ -34,8 +34,8 @@ from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate, fit_bj, fit_iv, fit_oe
 from ..estimate._covariance import Covariance
-from ._stagecov import Stage1, two_stage_covariance
 from ._channels import aic_order, check_excites, ls_fit, output_name, reference_name, single_name
+from ._stagecov import Stage1, two_stage_covariance
 
 __all__ = ["fit_cliv", "fit_two_stage"]
 

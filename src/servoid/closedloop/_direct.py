@@ -37,9 +37,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._errors import ConvergenceError, ServoidError, ServoidWarning
+from .._lazy import signal as sps
 from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
-from .._lazy import signal as sps
 from ..estimate import Estimate, fit_bj, fit_iv
 from ..models import PolynomialModel
 from ._channels import output_name, single_name
@@ -141,9 +141,9 @@ def fit_direct_bj(
         # one criterion for every candidate: the stabilised one (the BJ criterion where
         # the BJ predictor is stable, up to the start-up transient)
         criterion = _Criterion(segments, y_name, nb, nc, nd, nf, nk)
-        cost = lambda fit: criterion.cost(np.asarray(fit[0].parameters))  # noqa: E731
+        cost = lambda fit: criterion.cost(np.asarray(fit[0].parameters))
     else:
-        cost = lambda fit: float(fit[0].options["cost"])  # noqa: E731
+        cost = lambda fit: float(fit[0].options["cost"])
     est, label, said = min(fits, key=cost)
     for w in said:
         warn(str(w.message), ServoidWarning)

@@ -15,10 +15,13 @@ stage-1 regressor (lags of r), e₁ its residual and
 ``A = Σ_t ψ(t) (G φ)(t)ᵀ`` the sensitivity of the stage-2 score to the
 FIR taps (∂ŷ/∂s_k is the plant driven by the k-th lag of r).  Both noise
 terms come from the loop noise and are coloured, and correlated with each
-other, so ``Σ s`` is summed with the long-run (HAC) covariance of s(t):
-Bartlett weights over a bandwidth chosen by Andrews' AR(1) rule (Newey &
-West, *Econometrica* 55(3), 1987; Andrews, *Econometrica* 59(3), 1991).
-The result is ``P = H⁻¹ Ŝ H⁻¹``.
+other, while ψ and φ come from r alone.  The long-run covariance of ``Σ s``
+is therefore ``Σ_τ w(τ) Σ_ab r̂_ab(τ) Σ_t Z_a(t) Z_b(t − τ)ᵀ`` with the
+noises' (cross-)covariances r̂_ab averaged over the record and Bartlett
+weights w over four times the noises' memory (:func:`structured_long_run`;
+the lag-window estimator of Newey & West, *Econometrica* 55(3), 1987, with
+the regressors' products summed exactly).  The result is
+``P = H⁻¹ Ŝ H⁻¹``.
 """
 
 from __future__ import annotations
@@ -56,10 +59,10 @@ def two_stage_covariance(
 ) -> tuple[NDArray[np.float64], int]:
     """Covariance of the stage-2 OE parameters (b0…, f1…), stage 1 counted.
 
-    Returns the covariance and the HAC bandwidth [samples].
+    Returns the covariance and the lag window's half-width [samples].
     """
     bq = np.concatenate([np.zeros(nk), b])
-    scores, hess, cross = [], 0.0, 0.0
+    hess, cross = 0.0, 0.0
     psis = []
     for r0, ur, y in zip(stage1.r0, stage1.ur, ys, strict=True):
         yhat, psi = oe_gradient(b, f, nk, ur)

@@ -168,7 +168,7 @@ def _identified_controller(data: Experiment | ExperimentSet
     exp: Experiment | ExperimentSet = pieces[0] if len(pieces) == 1 else ExperimentSet(
         tuple(pieces))
     best = None
-    for na in range(0, 4):
+    for na in range(4):
         est = fit_arx(exp, na, na + 1, 0)
         rms = float(np.sqrt(np.mean(est.residuals**2)))
         scale = float(np.std(np.concatenate([np.asarray(p["y"]) for p in pieces])))

@@ -112,8 +112,8 @@ def _run(spec: ExperimentSpec, options: Mapping[str, Any],
     elif known:
         plan.append(("indirect", None, "skipped: the record has no reference r"))
     else:
-        plan.append(("indirect", None, "skipped: the controller is not known ([loop] "
-                                       "controller)"))
+        plan.append(("indirect", None,
+                     "skipped: the controller is not known ([loop] controller)"))
     plan.append(("direct-bj", partial(fit_direct_bj, estimation, nb, nc, nd, nf, nk,
                                       output=out), ""))
     if has_r:

@@ -13,7 +13,7 @@ import math
 import re
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -40,9 +40,10 @@ from ..report import (
     plot_singular_values,
     plot_validation,
 )
-from ..validate import ValidationReport, data_limits, validate
+from ..validate import ValidationReport, validate
 from ._common import (
     DivergedRun,
+    data_limit_notes,
     keyed,
     parameter_table,
     spec_inputs,
@@ -542,8 +543,8 @@ def lti_result(
         if feedback is not None and feedback.has_feedback:
             closed_loop = True
             all_notes.append(_feedback_note(method, feedback, direct))
-    estimate, limits = _data_limits(estimate, estimation if estimation is not None else records,
-                                    closed_loop)
+    estimate, limits = data_limit_notes(estimate, estimation if estimation is not None
+                                        else records, closed_loop, outputs_of(estimate))
     all_notes += limits
     if measured is None and estimation is not None:
         measured = _measured_frf(estimation, estimate, closed_loop)
@@ -590,25 +591,6 @@ def lti_result(
         tuple(all_notes), gain_unit(validations[0], estimate), feedback, conditions=conditions,
         edge=tuple(edge), spec_numbers=dict(spec_numbers or {}), how=how, direct=direct,
         **(extra or {}))
-
-
-def _data_limits(estimate: Estimate, data: Experiment | ExperimentSet | None,
-                 closed_loop: bool) -> tuple[Estimate, list[str]]:
-    """What the record cannot fix (servoid.validate.data_limits), in the options and as notes."""
-    if data is None:
-        return estimate, []
-    first = data if isinstance(data, Experiment) else data[0]
-    inputs = [n for n in estimate.options.get("inputs") or [] if n in first.names]
-    refs = first.names_of("r")
-    excitation = refs[0] if closed_loop and len(refs) == 1 else (
-        inputs[0] if len(inputs) == 1 else None)
-    outputs = [n for n in outputs_of(estimate) if n in first.names]
-    found = data_limits(data, excitation=excitation, inputs=inputs, outputs=outputs)
-    if not found:
-        return estimate, []
-    options = {**estimate.options, "data_limits": [d.to_dict() for d in found]}
-    return replace(estimate, options=options), [
-        f"the data cannot fix every parameter: {d.text()}" for d in found]
 
 
 def _feedback(data: Experiment | ExperimentSet, estimate: Estimate) -> Any:
