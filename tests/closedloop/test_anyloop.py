@@ -87,6 +87,16 @@ def test_direct_bj_reaches_an_unstable_plant_that_plain_bj_cannot():
     assert plain_z > 4  # measured 5–30σ or a stalled search on these seeds
 
 
+def test_direct_bj_without_a_reference_says_it_may_miss_an_unstable_plant():
+    from servoid.data import Experiment
+
+    rec = RIGS["unstable"].closed(1, 4000)
+    with pytest.warns(ServoidWarning, match="the Box–Jenkins search met the unit circle"):
+        est = fit_direct_bj(Experiment.from_arrays(rec.rig.dt, u=rec.u, y=rec.y), 3, 1, 1, 3, 1)
+    assert est.options["consistent"] is False
+    assert "record the reference r" in est.options["broken_assumptions"][0]
+
+
 def test_direct_bj_keeps_the_box_jenkins_predictor_on_a_stable_plant():
     rec = RIGS["delay"].closed(0, 6000)
     est = fit_direct_bj(rec.experiment(), 2, 1, 1, 2, 4)

@@ -147,8 +147,21 @@ def fit_direct_bj(
     est, label, said = min(fits, key=cost)
     for w in said:
         warn(str(w.message), ServoidWarning)
+    broken = []
+    if not has_r and est.options.get("reflected", 0):
+        # without r there is no closed-loop IV estimate to say whether the plant is stable:
+        # a search that kept leaving the stable region is the only evidence
+        broken.append(
+            f"the Box–Jenkins search met the unit circle ({est.options['reflected']} "
+            "reflected steps): the plant may be unstable, which its predictor cannot follow; "
+            "record the reference r so that the closed-loop IV start and the stabilised "
+            "predictor can be used"
+        )
+        warn(f"the direct Box–Jenkins estimate may not be consistent: {broken[0]}",
+             ServoidWarning)
     return dataclasses.replace(est, method="direct-bj", options={
         **est.options, "start": label, "starts": [fit[1] for fit in fits],
+        "consistent": not broken, "broken_assumptions": broken,
     })
 
 

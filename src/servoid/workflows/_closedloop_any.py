@@ -118,6 +118,9 @@ def in_loop(est: Estimate, data: Experiment | ExperimentSet, loop: Mapping[str, 
     first = data if isinstance(data, Experiment) else data[0]
     what = f"the identified plant is {kind}" + (
         f" (a pole at |z| = {radius:.4g})" if radius > 1.0 + _MARGINAL else "")
+    if len(first.names_of("r")) != 1:
+        return None, [f"{what}: its free run below grows without bound; record the reference r "
+                      "(role 'r') to validate it in its loop"]
     if loop.get("controller") is not None:
         c, f = known_loop(loop, first.dt)
         cn, cd = _q(c)
