@@ -21,8 +21,9 @@ Rigs
     DC motor (R = 1 Ω, L = 1 mH, k = 0.05 N·m/A, J = 1e-4 kg·m²,
     b = 1e-4 N·m·s) with a 5:1 gear and a 5 mm ball screw driving 10 kg:
     voltage → load velocity [mm/s], under a PI speed controller
-    (continuous kp = 0.6 V·s/mm, Ti = 37.6 ms, Tustin at 1 kHz), 1st-order
-    anti-alias filter at 100 Hz, ARMA(1, 1) noise.  Third order.
+    (continuous kp = 1 V·s/mm, Ti = 20 ms, Tustin at 1 kHz), 1st-order
+    anti-alias filter at 100 Hz, ARMA(1, 1) noise, PRBS reference of
+    ±10 mm/s with a 50 ms bit.  Third order.
 ``unstable``
     10/((s − 3)(s + 20)) under a PD controller with a filtered derivative
     (continuous kp = 12, kd = 0.5, τ = 20 ms, Tustin at 100 Hz),
