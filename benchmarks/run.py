@@ -33,6 +33,7 @@ SUITES: dict[str, str] = {
     "closedloop": "bench_closedloop",
     "closedloop-coverage": "bench_closedloop_coverage",  # 240 rig runs (~2 min; 8 under --quick)
     "ehsa-validity": "bench_ehsa_validity",  # Merritt flow law, 4 rigs × 100 seeds (~8 min)
+    "closedloop-any": "bench_closedloop_any",  # any-plant methods on 2e4 samples vs open-loop OE
     "pneumatic": "bench_pneumatic",
     "multistep": "bench_multistep",
     "signals": "bench_signals",

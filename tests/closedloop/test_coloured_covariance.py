@@ -125,10 +125,10 @@ def test_basic_cliv_without_prefilter_uses_the_sandwich():
     assert np.all(np.abs(robust.std / white.std - 1) > 0.02), robust.std / white.std
 
 
-def test_two_stage_covariance_is_its_output_error_sandwich():
+def test_two_stage_covariance_counts_stage_1():
     exp = record(5, ARMA)
     est = fit_two_stage(exp, 2, 2, 1)
-    assert est.options["covariance"].startswith("sandwich, AR(")
+    assert est.options["covariance"].startswith("two-step sandwich: stage-1 FIR error counted")
     np.testing.assert_array_equal(est.covariance, est.covariance.T)
     assert np.linalg.eigvalsh(est.covariance).min() > 0
     assert np.all(np.abs((est.parameters - THETA_OE) / est.std) < 4)  # 4σ, one record

@@ -39,8 +39,8 @@ def test_the_old_packages_count_what_moved():
     assert len(OLD["servoid.actuators"]) == 40 and len(OLD["servoid.multistep"]) == 23
     assert importlib.import_module("servoid.actuators").__all__ == []
     assert set(importlib.import_module("servoid.closedloop").__all__) == {
-        "FeedbackTest", "feedback_test", "fit_cliv", "fit_indirect_tf", "fit_two_stage",
-        "warn_if_feedback"}
+        "FeedbackTest", "feedback_test", "fit_cliv", "fit_direct_bj", "fit_indirect_tf",
+        "fit_two_stage", "warn_if_feedback"}
 
 
 def test_an_unknown_name_is_an_attribute_error():

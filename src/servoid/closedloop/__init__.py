@@ -7,7 +7,7 @@ Black box, for any plant in a loop (:mod:`._blackbox`, :mod:`._indirect`,
     fit_indirect_tf    known controller C: OE on r → y, then the plant of any order
     fit_two_stage      unknown controller: û_r = Ŝ r by FIR (or projection), then OE/BJ
     fit_cliv           unknown controller: IV with instruments from r
-    (direct)           servoid.estimate.fit_bj on (u, y): PEM with a noise model
+    fit_direct_bj      the direct approach: Box–Jenkins on (u, y), started from CLIV too
 
 The electro-hydraulic actuator's physical identification in its known loop
 (``FeedbackLoop``, ``identify_closed_loop``, the structure test, the
@@ -17,6 +17,7 @@ still found here for one release, with a :class:`DeprecationWarning`.
 
 from .._moved import moved_names
 from ._blackbox import fit_cliv, fit_two_stage
+from ._direct import fit_direct_bj
 from ._feedback import FeedbackTest, feedback_test, warn_if_feedback
 from ._indirect import fit_indirect_tf
 
@@ -32,6 +33,7 @@ __all__ = [
     "FeedbackTest",
     "feedback_test",
     "fit_cliv",
+    "fit_direct_bj",
     "fit_indirect_tf",
     "fit_two_stage",
     "warn_if_feedback",

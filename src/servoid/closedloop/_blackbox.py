@@ -21,6 +21,7 @@ is driven by the reference alone, and every method here uses r to reach it:
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Sequence
 from typing import Literal
 
@@ -28,11 +29,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import as_bool, as_int
-from .._errors import DataError, ServoidWarning, check_option
+from .._errors import DataError, IdentifiabilityError, ServoidError, ServoidWarning, check_option
 from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Covariance, Estimate, fit_bj, fit_iv, fit_oe
 from ._channels import aic_order, check_excites, ls_fit, output_name, reference_name, single_name
+from ._stagecov import Stage1, two_stage_covariance
 
 __all__ = ["fit_cliv", "fit_two_stage"]
 
@@ -42,6 +44,10 @@ Structure = Literal["oe", "bj"]
 _MAX_STAGE1 = 100
 #: Rows per stage-1 coefficient below which the search stops growing.
 _ROWS_PER_TAP = 20
+#: A pole this far beyond the unit circle (|z| − 1) counts as unstable.
+_UNSTABLE_MARGIN = 1e-3
+#: Two-stage and CLIV estimates further apart than this [σ of the difference] disagree.
+_DISAGREE = 4.0
 #: Share of var(u) the reference must explain before a warning.
 _WEAK_REFERENCE = 0.05
 
@@ -141,10 +147,11 @@ def fit_two_stage(
     ys = [np.asarray(seg[y_name], dtype=float) for seg in segments]
     check_excites(r_name, rs, "r")
     check_excites(u_name, us, "u")
-    ur, info = _stage1(rs, us, stage1_order, projection)
-    if info["explained"] < _WEAK_REFERENCE:
+    first_stage = _stage1(rs, us, stage1_order, projection)
+    explained = first_stage.explained
+    if explained < _WEAK_REFERENCE:
         warn(
-            f"the reference explains only {100 * info['explained']:.2g} % of the variance of "
+            f"the reference explains only {100 * explained:.2g} % of the variance of "
             f"{u_name!r}: the noise-free input û_r is weak, so the plant estimate will be "
             "poor. Raise the reference excitation",
             ServoidWarning,
@@ -152,19 +159,51 @@ def fit_two_stage(
     stage2 = ExperimentSet(tuple(
         Experiment.from_arrays(seg.dt, u=x, y=y, names={"u": u_name, "y": y_name}, t0=seg.t0,
                                name=seg.name)
-        for seg, x, y in zip(segments, ur, ys, strict=True)
+        for seg, x, y in zip(segments, first_stage.ur, ys, strict=True)
     ))
     stage2_data: Experiment | ExperimentSet = stage2[0] if len(stage2) == 1 else stage2
     pem = {"multistart": multistart, "rng": rng, "max_iter": max_iter, "tol": tol}
+    # an unstable plant has an unstable OE predictor: the stage-2 search cannot reach it
+    check = _cliv_check(data, nf, nb, nk, y_name)
+    unstable = check[0] if check is not None else None
     if structure == "oe":
-        # the OE fit's own covariance is already the coloured-noise sandwich
-        est = fit_oe(stage2_data, nb, nf, nk, covariance="robust", **pem)  # type: ignore[arg-type]
-        cov = est.covariance
-        note = (f"sandwich, AR({est.options['covariance_ar_order']}) residual spectrum; "
-                "stage-1 error not counted")
+        with warnings.catch_warnings():
+            # identifiability is judged below with the covariance that counts stage 1
+            warnings.filterwarnings("ignore", ".*not all identifiable", ServoidWarning)
+            est = fit_oe(stage2_data, nb, nf, nk, covariance="robust", initial="zero",
+                         **pem)  # type: ignore[arg-type]
+        b = np.asarray(est.parameters[:nb])
+        f = np.concatenate([[1.0], est.parameters[nb:]])
+        cov, bandwidth = two_stage_covariance(first_stage, ys, b, f, nk)
+        note = (f"two-step sandwich: stage-1 FIR error counted, long-run covariance over "
+                f"{bandwidth} lags")
     else:
         est = fit_bj(stage2_data, nb, nc, nd, nf, nk, **pem)  # type: ignore[arg-type]
         cov, note = est.covariance, "bj (noise model); stage-1 error not counted"
+    broken = []
+    if unstable is not None:
+        broken.append(
+            f"the plant is unstable (the closed-loop IV estimate has a pole at |z| = "
+            f"{unstable:.3g}), so the output-error predictor of stage 2 is unstable and its "
+            "search can only return a stable, biased plant; use method = \"cliv\", or "
+            "\"indirect\" with the known controller"
+        )
+    elif check is not None and structure == "oe":
+        # the same plant from CLIV, which has no stage 1: a disagreement beyond both
+        # intervals is the stage-1 error showing as dynamics of its own in stage 2
+        theta_iv = np.concatenate([check[1][nf:], check[1][:nf]])
+        var_iv = np.concatenate([np.diag(check[2])[nf:], np.diag(check[2])[:nf]])
+        gap = np.abs(np.asarray(est.parameters) - theta_iv) / np.sqrt(np.diag(cov) + var_iv)
+        if float(np.max(gap)) > _DISAGREE:
+            broken.append(
+                f"the plant of stage 2 and the closed-loop IV estimate of the same orders "
+                f"differ by {float(np.max(gap)):.3g} σ: the stage-1 FIR r → u (order "
+                f"{first_stage.order}) leaves an error that stage 2 explains with dynamics "
+                "of its own; use method = \"cliv\" or the direct Box–Jenkins fit"
+            )
+    if broken:
+        warn(f"the two-stage estimate is not consistent on this record: {broken[0]}",
+             ServoidWarning)
     return dataclasses.replace(
         est,
         covariance=cov,
@@ -174,13 +213,32 @@ def fit_two_stage(
             "structure": structure,
             "reference": r_name,
             "input": u_name,
-            "stage1_order": info["order"],
-            "stage1_lags": info["lags"],
+            "stage1_order": first_stage.order,
+            "stage1_lags": [min(first_stage.lags), max(first_stage.lags)],
             "projection": projection,
-            "reference_explains": info["explained"],
+            "reference_explains": explained,
             "covariance": note,
+            "consistent": not broken,
+            "broken_assumptions": broken,
         },
     )
+
+
+def _cliv_check(
+    data: Experiment | ExperimentSet, nf: int, nb: int, nk: int, y_name: str,
+) -> tuple[float | None, NDArray[np.float64], NDArray[np.float64]] | None:
+    """Closed-loop IV of the same plant: (unstable pole radius or None, θ, covariance)."""
+    if nf == 0:
+        return None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ServoidWarning)
+            iv = fit_iv(data, nf, nb, nk, instrument="r", output=y_name)
+    except ServoidError:
+        return None
+    theta = np.asarray(iv.parameters, dtype=float)
+    radius = float(np.max(np.abs(np.roots(np.concatenate([[1.0], theta[:nf]])))))
+    return (radius if radius > 1.0 + _UNSTABLE_MARGIN else None), theta, iv.covariance
 
 
 def fit_cliv(
@@ -238,8 +296,20 @@ def fit_cliv(
     r_name = reference_name(data, "closed-loop IV")
     check_excites(r_name, [np.asarray(seg[r_name]) for seg in segments], "r")
     single_name(segments[0], "u", None, "plant input")
-    est = fit_iv(data, na, nb, nk, instrument="r", output=output, iterations=iterations,
-                 covariance=covariance)
+    try:
+        est = fit_iv(data, na, nb, nk, instrument="r", output=output, iterations=iterations,
+                     covariance=covariance)
+    except IdentifiabilityError as exc:
+        if "uncorrelated" not in str(exc):
+            raise
+        raise IdentifiabilityError(
+            f"closed-loop IV failed: its instruments, the reference {r_name!r} delayed and "
+            f"filtered through the model's own simulation, are nearly uncorrelated with the "
+            f"regressors (lags of u and y) for na = {na}, nb = {nb} ({exc}). The reference "
+            "moves the loop too little at the plant's own frequencies: raise the reference's "
+            "excitation (a faster PRBS clock, a larger amplitude), lower the orders, or, with "
+            "the controller known, use method = \"indirect\""
+        ) from exc
     return dataclasses.replace(est, method="cliv", options={**est.options, "reference": r_name})
 
 
@@ -248,8 +318,8 @@ def _stage1(
     us: Sequence[NDArray[np.float64]],
     order: int | None,
     projection: bool,
-) -> tuple[list[NDArray[np.float64]], dict[str, object]]:
-    """FIR r → u by least squares; return û_r per segment and a summary."""
+) -> Stage1:
+    """FIR r → u by least squares: û_r per segment, the regression kept for the covariance."""
     shortest = min(r.size for r in rs)
     total = sum(r.size for r in rs)
     if order is None:
@@ -268,23 +338,25 @@ def _stage1(
             f"{l_max + lead + len(lags)} samples, got {shortest}; use a longer record or a "
             "smaller stage1_order"
         )
-    phi, target, means = [], [], []
+    phi, target, means, r0s, row_list = [], [], [], [], []
     for r, u in zip(rs, us, strict=True):
         r0, u0 = r - r.mean(), u - u.mean()
         rows = np.arange(l_max - 1, r.size - lead)
         phi.append(np.column_stack([r0[rows - k] for k in lags]))
         target.append(u0[rows])
-        means.append((r.mean(), u.mean()))
+        means.append(u.mean())
+        r0s.append(r0)
+        row_list.append(rows)
     x, t = np.vstack(phi), np.concatenate(target)
     sizes = [2 * n - 1 if projection else n for n in range(1, l_max + 1)]
     n = l_max if order is not None else aic_order(x, t, sizes) + 1
     k_cols = sizes[n - 1]
     coef, resid, _ = ls_fit(x[:, :k_cols], t)
     explained = float(1.0 - (resid @ resid) / max(float(t @ t), 1e-300))
-    used = lags[:k_cols]
-    ur = []
-    for r, (r_mean, u_mean) in zip(rs, means, strict=True):
-        r0 = r - r_mean
+    used = tuple(int(k) for k in lags[:k_cols])
+    ur, e1 = [], []
+    start = 0
+    for r0, u_mean, rows in zip(r0s, means, row_list, strict=True):
         # Σ_k s_k r(t − k) with r = 0 outside the record, for negative (future) lags too
         back = max(used)
         ahead = -min(used)
@@ -292,6 +364,9 @@ def _stage1(
         for c, k in zip(coef, used, strict=True):
             kernel[k + ahead] = c
         full = np.convolve(r0, kernel)
-        ur.append(u_mean + full[ahead: ahead + r.size])
-    return ur, {"order": int(n), "lags": [int(min(used)), int(max(used))],
-                "explained": explained}
+        ur.append(u_mean + full[ahead: ahead + r0.size])
+        e1.append(resid[start: start + rows.size])
+        start += rows.size
+    cols = x[:, :k_cols]
+    return Stage1(coef=coef, lags=used, r0=tuple(r0s), rows=tuple(row_list), e1=tuple(e1),
+                  ur=tuple(ur), gram=cols.T @ cols, order=int(n), explained=explained)

@@ -388,6 +388,10 @@ class _Refinement:
                 psis.append(psi @ self.big_h)
             if not np.isfinite(sum(float(e @ e) for e in errors)):
                 return None
+            # a closed loop just outside stability grows; past ~1e150 its Gram matrix
+            # overflows, and a LAPACK solve on inf never returns
+            if not all(np.isfinite(np.einsum("ij,ij->", p, p)) for p in psis):
+                return None
         return errors, psis
 
     def run(

@@ -1,5 +1,6 @@
-"""Validation: fit metrics, residual tests and the ValidationReport."""
+"""Validation: fit metrics, residual tests, the ValidationReport, and what data cannot fix."""
 
+from ._carry import DataLimit, data_limits
 from ._figures import residuals_figure, validation_figure
 from ._metrics import fit_percent, nrmse, relative_error, rmse, vaf
 from ._report import ValidationReport, compare, simulate_from_data, validate
@@ -14,10 +15,12 @@ from ._simulate import Initial as Initial
 from ._simulate import check_signals as check_signals
 
 __all__ = [
+    "DataLimit",
     "Replayable",
     "ResidualAnalysis",
     "ValidationReport",
     "compare",
+    "data_limits",
     "discrete_model",
     "fit_percent",
     "is_replayable",

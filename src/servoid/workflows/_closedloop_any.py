@@ -7,12 +7,14 @@ from collections.abc import Mapping
 from functools import partial
 from typing import Any
 
+import numpy as np
+
 from .._checks import as_float, as_float_list
-from .._errors import DataError
+from .._errors import DataError, ServoidError
 from ..closedloop import fit_cliv, fit_indirect_tf, fit_two_stage
 from ..data import Experiment, ExperimentSet, ExperimentSpec
-from ..estimate import Estimate
-from ..models import TransferFunction
+from ..estimate import Estimate, fit_arx
+from ..models import PolynomialModel, TransferFunction
 from ._examples import closed_loop
 from ._lti import IdentificationResult, lti_result
 from ._options import HORIZON, boolean, choice, integer, optional, text
@@ -38,9 +40,12 @@ def _run_two_stage(spec: ExperimentSpec, options: Mapping[str, Any],
             f"({orders_text(est.options, ('nb', 'nf', 'nk'))})"
     note = (f"stage 1: a FIR of order {est.options['stage1_order']} from the reference explains "
             f"{100 * est.options['reference_explains']:.0f} % of the input's variance")
+    loop = in_loop(est, estimation, options["[loop]"])
+    est = _mark(est, loop)
     return lti_result(spec, "two-stage", est, title, validations, options, truth=truth,
-                      notes=[note], closed_loop=True, records=estimation,
-                      how="the two-stage method (FIR r → u, then prediction error)")
+                      notes=[note, *broken(est), *loop[1]], closed_loop=True, records=estimation,
+                      how="the two-stage method (FIR r → u, then prediction error)",
+                      loop_model=loop[0])
 
 
 def _run_cliv(spec: ExperimentSpec, options: Mapping[str, Any],
@@ -51,9 +56,12 @@ def _run_cliv(spec: ExperimentSpec, options: Mapping[str, Any],
                    covariance=options["covariance"])
     est = _plant_input(est, estimation)
     title = f"plant by closed-loop IV ({orders_text(est.options, ('na', 'nb', 'nk'))})"
+    loop = in_loop(est, estimation, options["[loop]"])
+    est = _mark(est, loop)
     return lti_result(spec, "cliv", est, title, validations, options, truth=truth,
-                      closed_loop=True, records=estimation,
-                      how="closed-loop instrumental variables (the reference as instrument)")
+                      notes=loop[1], closed_loop=True, records=estimation,
+                      how="closed-loop instrumental variables (the reference as instrument)",
+                      loop_model=loop[0])
 
 
 def _run_indirect(spec: ExperimentSpec, options: Mapping[str, Any],
@@ -68,9 +76,128 @@ def _run_indirect(spec: ExperimentSpec, options: Mapping[str, Any],
                           max_iter=options["max_iter"], tol=options["tol"])
     est = _plant_input(est, estimation)
     title = f"plant by the indirect approach ({orders_text(est.options, ('nb', 'nf', 'nk'))})"
+    loop = in_loop(est, estimation, options["[loop]"])
+    est = _mark(est, loop)
     return lti_result(spec, "indirect", est, title, validations, options, truth=truth,
-                      closed_loop=True, records=estimation,
-                      how="the indirect approach (closed loop r → y with the known controller)")
+                      notes=loop[1], closed_loop=True, records=estimation,
+                      how="the indirect approach (closed loop r → y with the known controller)",
+                      loop_model=loop[0])
+
+
+def broken(est: Estimate) -> list[str]:
+    """The estimate's own words on the assumptions this record breaks, as notes."""
+    return [f"not consistent on this record: {why}"
+            for why in est.options.get("broken_assumptions", [])]
+
+
+#: A plant pole at |z| >= 1 − this is unstable or an integrator: it is validated in its loop.
+_MARGINAL = 1e-6
+
+
+def in_loop(est: Estimate, data: Experiment | ExperimentSet, loop: Mapping[str, Any]
+            ) -> tuple[PolynomialModel | None, list[str]]:
+    """The closed loop r → y to validate an unstable (or integrating) plant in, with a note.
+
+    A plant with a pole on or outside the unit circle cannot be run free:
+    its simulation grows without bound, and so would its "fit".  It is
+    validated in its loop instead, ``u = C·(r − F·y)``, with the controller
+    of ``[loop]`` when it is known and otherwise with the controller
+    identified from the record (least squares of u on r − y, which the
+    controller maps without noise).  Returns (None, []) for a stable plant.
+    """
+    model = est.model
+    if not isinstance(model, PolynomialModel) or model.n_inputs != 1:
+        return None, []
+    bg = np.concatenate([np.zeros(model.nk[0]), model.b[0]])
+    fg = np.convolve(model.a, model.f[0]) if model.f is not None else np.asarray(model.a)
+    radius = float(np.max(np.abs(np.roots(fg)))) if fg.size > 1 else 0.0
+    if radius < 1.0 - _MARGINAL:
+        return None, []
+    kind = "unstable" if radius > 1.0 + _MARGINAL else "an integrator (a pole on the unit circle)"
+    first = data if isinstance(data, Experiment) else data[0]
+    what = f"the identified plant is {kind}" + (
+        f" (a pole at |z| = {radius:.4g})" if radius > 1.0 + _MARGINAL else "")
+    if len(first.names_of("r")) != 1:
+        return None, [f"{what}: its free run below grows without bound; record the reference r "
+                      "(role 'r') to validate it in its loop"]
+    if loop.get("controller") is not None:
+        c, f = known_loop(loop, first.dt)
+        cn, cd = _q(c)
+        fn, fd = _q(f)
+        how = "the known controller of [loop]"
+    else:
+        fn, fd = np.ones(1), np.ones(1)
+        try:
+            cn, cd, how = _identified_controller(data)
+        except ServoidError as exc:
+            return None, [f"{what}: a free run of it diverges, and it could not be validated in "
+                          f"its loop ({exc}); add the controller as [loop] controller"]
+    bcl = np.convolve(np.convolve(bg, cn), fd)
+    fcl = _padd(np.convolve(np.convolve(fg, cd), fd), np.convolve(np.convolve(bg, cn), fn))
+    bcl, fcl = bcl / fcl[0], fcl / fcl[0]
+    lead = int(np.flatnonzero(np.abs(bcl) > 0)[0]) if np.any(bcl) else 0
+    r_name = first.names_of("r")[0]
+    y_name = model.output_name
+    closed = PolynomialModel([1.0], (bcl[lead:],), (lead,), first.dt, f=(fcl,),
+                             input_names=(r_name,), output_name=y_name)
+    loop_radius = float(np.max(np.abs(np.roots(fcl)))) if fcl.size > 1 else 0.0
+    note = (f"{what}: it is validated in its loop, r → y with {how}, not run free; the fits "
+            f"and residual tests below are of that closed loop")
+    if loop_radius >= 1.0:
+        note += (f". With this controller the identified loop itself is unstable (a pole at "
+                 f"|z| = {loop_radius:.4g}): the plant estimate does not describe the loop "
+                 "that ran, so its validation fails")
+    return closed, [note]
+
+
+def _mark(est: Estimate, loop: tuple[PolynomialModel | None, list[str]]) -> Estimate:
+    """The estimate, marked as validated in its loop when it is."""
+    if loop[0] is None:
+        return est
+    return dataclasses.replace(est, options={**est.options, "validated_in_loop": True})
+
+
+def _identified_controller(data: Experiment | ExperimentSet
+                           ) -> tuple[np.ndarray, np.ndarray, str]:
+    """The controller u = C·(r − y), fitted by ARX on the record (it is noise-free)."""
+    segments = [data] if isinstance(data, Experiment) else list(data)
+    pieces = []
+    for seg in segments:
+        r = np.asarray(seg[seg.names_of("r")[0]], dtype=float)
+        y = np.asarray(seg[seg.names_of("y")[0]], dtype=float)
+        u = np.asarray(seg[seg.names_of("u")[0]], dtype=float)
+        pieces.append(Experiment.from_arrays(seg.dt, u=r - y, y=u))
+    exp: Experiment | ExperimentSet = pieces[0] if len(pieces) == 1 else ExperimentSet(
+        tuple(pieces))
+    best = None
+    for na in range(4):
+        est = fit_arx(exp, na, na + 1, 0)
+        rms = float(np.sqrt(np.mean(est.residuals**2)))
+        scale = float(np.std(np.concatenate([np.asarray(p["y"]) for p in pieces])))
+        best = (est, na)
+        if rms <= 1e-3 * max(scale, 1e-300):
+            break
+    assert best is not None
+    est, na = best
+    a = np.concatenate([[1.0], est.parameters[:na]])
+    b = np.asarray(est.parameters[na:], dtype=float)
+    return b, a, f"the controller identified from the record (ARX({na}, {na + 1}) of u on r − y)"
+
+
+def _q(value: TransferFunction | float) -> tuple[np.ndarray, np.ndarray]:
+    """Numerator and monic denominator in q⁻¹ of a discrete TF or a gain."""
+    if isinstance(value, TransferFunction):
+        den = np.asarray(value.den, dtype=float)
+        num = np.concatenate([np.zeros(den.size - np.asarray(value.num).size), value.num])
+        return num / den[0], den / den[0]
+    return np.array([float(value)]), np.ones(1)
+
+
+def _padd(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    out = np.zeros(max(p.size, q.size))
+    out[: p.size] += p
+    out[: q.size] += q
+    return out
 
 
 def _plant_input(est: Estimate, data: Experiment | ExperimentSet) -> Estimate:
@@ -125,7 +252,8 @@ def _discrete(value: float | Mapping[str, Any], dt: float) -> TransferFunction |
 LOOP = TableSchema("loop", (
     Option("controller", None, optional(_transfer),
            "the controller C(q) from r − F·y to u: a gain or {num = [...], den = [...]} in "
-           "descending powers of z, at the data's dt (or dt = …) (required)"),
+           "descending powers of z, at the data's dt (or dt = …); required by the indirect "
+           "approach, and the loop an unstable identified plant is validated in"),
     Option("feedback", 1.0, _transfer, "the feedback F(q) from y: a gain or {num, den}"),
 ), help="the known loop")
 
@@ -149,6 +277,7 @@ TWO_STAGE = Method(
         HORIZON,
     ),
     run=_run_two_stage,
+    tables=(LOOP, "validation"),
     example=partial(closed_loop, identify={"method": "two-stage"}),
 )
 
@@ -166,6 +295,7 @@ CLIV = Method(
         HORIZON,
     ),
     run=_run_cliv,
+    tables=(LOOP, "validation"),
     example=partial(closed_loop, identify={"method": "cliv"}),
 )
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import warnings
@@ -22,12 +23,13 @@ from .._errors import (
     SimulationDivergedError,
 )
 from .._words import option
+from ..data import Experiment, ExperimentSet
 from ..estimate import Estimate
 from ..report import Figure, Section, Table, pvalue_text
-from ..validate import ValidationReport
+from ..validate import ValidationReport, data_limits
 
-__all__ = ["REPORT_KEYS", "DivergedRun", "check_outputs", "check_sizes", "keyed",
-           "parameter_table", "read_truth", "report_options", "sha256", "spec_inputs",
+__all__ = ["REPORT_KEYS", "DivergedRun", "check_outputs", "check_sizes", "data_limit_notes",
+           "keyed", "parameter_table", "read_truth", "report_options", "sha256", "spec_inputs",
            "truth_from_spec", "validation_section", "warnings_as_notes"]
 
 REPORT_KEYS = ("folder", "truth")
@@ -271,3 +273,22 @@ def sha256(path: Path) -> str:
     from ..data import file_sha256
 
     return file_sha256(path)
+
+
+def data_limit_notes(estimate: Estimate, data: Experiment | ExperimentSet | None,
+                     closed_loop: bool, outputs: list[str]) -> tuple[Estimate, list[str]]:
+    """What the record cannot fix (servoid.validate.data_limits), in the options and as notes."""
+    if data is None:
+        return estimate, []
+    first = data if isinstance(data, Experiment) else data[0]
+    inputs = [n for n in estimate.options.get("inputs") or [] if n in first.names]
+    refs = first.names_of("r")
+    excitation = refs[0] if closed_loop and len(refs) == 1 else (
+        inputs[0] if len(inputs) == 1 else None)
+    outputs = [n for n in outputs if n in first.names]
+    found = data_limits(data, excitation=excitation, inputs=inputs, outputs=outputs)
+    if not found:
+        return estimate, []
+    options = {**estimate.options, "data_limits": [d.to_dict() for d in found]}
+    return dataclasses.replace(estimate, options=options), [
+        f"the data cannot fix every parameter: {d.text()}" for d in found]

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from .._checks import as_bool
 from .._errors import ServoidError, ServoidWarning, SimulationDivergedError
 from .._version import __version__
 from .._warn import warn
@@ -42,6 +43,7 @@ from ..report import (
 from ..validate import ValidationReport, validate
 from ._common import (
     DivergedRun,
+    data_limit_notes,
     keyed,
     parameter_table,
     spec_inputs,
@@ -166,6 +168,8 @@ class IdentificationResult(Displayed):
     def __str__(self) -> str:
         est = self.estimate
         lines = [self._headline()]
+        lines += [f"  data cannot fix: {d['channel']!r} {d['name']} ({d['value']}): "
+                  f"{d['meaning']}" for d in self.estimate.options.get("data_limits", ())]
         truth = self.truth or {}
         body = str(est).splitlines()[1:]
         if len(body) == len(est.names):  # one line per parameter: show the known value
@@ -358,7 +362,12 @@ class IdentificationResult(Displayed):
     def verdict(self) -> Verdict:
         """What the report decides: the checks on each validation record, one decision."""
         est = self.estimate
-        checks: list[Check] = []
+        # what the data cannot fix and the assumptions they break come before any interval
+        checks: list[Check] = [Check(f"data: {d['name']}", f"{d['channel']}: {d['value']}",
+                                     "caution", d["meaning"])
+                               for d in est.options.get("data_limits", ())]
+        checks += [Check("consistency", "not consistent", "caution", why)
+                   for why in est.options.get("broken_assumptions", ())]
         several = len(self.validations) > 1
         multi = len(outputs_of(est)) > 1
         covariance = est.options.get("covariance")
@@ -406,9 +415,11 @@ class IdentificationResult(Displayed):
         est = self.estimate
         o = est.options
         records = len(self.validations)
+        run = "in its loop from the reference" if o.get("validated_in_loop") else \
+            "from the input"
         return (f"{self.title}, output {', '.join(outputs_of(est))} from "
                 f"{', '.join(o.get('inputs', []))} ({o.get('input', 'u')}), fitted on "
-                f"{est.n_samples} samples and simulated from the input on "
+                f"{est.n_samples} samples and simulated {run} on "
                 f"{'a record' if records == 1 else f'{records} records'} not used for fitting.")
 
     def _verdict_checks(self) -> list[Check]:
@@ -491,6 +502,7 @@ def lti_result(
     spec_numbers: Mapping[str, tuple[float, float]] | None = None,
     how: str = "",
     direct: bool = False,
+    loop_model: Any = None,
 ) -> IdentificationResult:
     """Validate an estimate on each record and assemble the result.
 
@@ -516,17 +528,24 @@ def lti_result(
     says how the method fits (the report's Model section); ``direct``
     marks the direct approach on closed-loop data (a noise model of its
     own), for which a record that looks closed loop is no caution.
+    ``loop_model`` (the closed loop r → y of a plant that cannot run free)
+    is validated in place of the estimate, driven by the reference.
     """
     input_role = estimate.options.get("input", "u")
     feedback = None
     all_notes = list(notes)
-    if estimation is not None and input_role == "u" and not closed_loop:
+    # [loop] open = true: the record was taken in open loop, so no feedback test
+    declared_open = as_bool("[loop] open", spec.loop.get("open", False))
+    if estimation is not None and input_role == "u" and not closed_loop and not declared_open:
         # feedback is a property of the test run: the whole record is the best evidence
         whole = estimation if spec.validation.files else spec.load()
         feedback = _feedback(whole, estimate)
         if feedback is not None and feedback.has_feedback:
             closed_loop = True
             all_notes.append(_feedback_note(method, feedback, direct))
+    estimate, limits = data_limit_notes(estimate, estimation if estimation is not None
+                                        else records, closed_loop, outputs_of(estimate))
+    all_notes += limits
     if measured is None and estimation is not None:
         measured = _measured_frf(estimation, estimate, closed_loop)
     if not characteristics and modal:
@@ -539,7 +558,8 @@ def lti_result(
                 try:
                     with warnings_as_notes() as said:
                         reports.append(validate(
-                            estimate, v, input=input_role, output=output,
+                            estimate if loop_model is None else loop_model, v,
+                            input=input_role if loop_model is None else "r", output=output,
                             horizon=options.get("horizon", 5), initial=spec.validation.initial,
                             transient=spec.validation.transient, limits=spec.limits(output),
                             closed_loop=closed_loop))

@@ -63,6 +63,10 @@ _LISTED: tuple[tuple[str, str, str], ...] = (
     ("indirect", "_closedloop_any:INDIRECT",
      "plant of any order from a closed-loop record and the known controller ([loop] "
      "controller, feedback): OE of r → y, then the plant"),
+    ("closedloop-auto", "_closedloop_auto:CLOSEDLOOP_AUTO",
+     "plant from a closed-loop record: the loop's known facts (reference, controller, "
+     "stability) pick the closed-loop methods, run side by side, the most informative "
+     "consistent one kept"),
     ("hammerstein", "_blocks:HAMMERSTEIN",
      "Hammerstein model y = G(q)·f(u) + e: a static curve (dead zone, saturation, …) "
      "before a linear block, jointly by output error"),
