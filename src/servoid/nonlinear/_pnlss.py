@@ -70,7 +70,9 @@ def exponents(nx: int, nu: int, degree: int, monomials: Monomials = "full"
 
 @dataclass(frozen=True, eq=False)
 class PnlssModel:
-    """A polynomial nonlinear state-space model that replays itself on records.
+    """A polynomial nonlinear state-space model (PNLSS).
+
+    It replays itself on records (:class:`~servoid.validate.Replayable`).
 
     On the normalised signals ũ = (u − u_mean)/u_scale and
     ỹ = (y − y_mean)/y_scale::
@@ -261,6 +263,10 @@ class PnlssModel:
             raise DataError(f"theta must hold {self.n_parameters} values, got {th.shape}")
         parts = _split(th, self.n_states, self.n_inputs, self.n_monomials)
         return replace(self, covariance=None, **parts)
+
+    def poles(self) -> NDArray[np.complex128]:
+        """Poles of the linear part: the eigenvalues of A."""
+        return np.linalg.eigvals(self.A)
 
     def linear_part(self) -> Any:
         """The linear part (E = F = 0) as a StateSpace in the data's units.

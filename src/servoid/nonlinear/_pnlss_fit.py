@@ -59,7 +59,7 @@ def fit_pnlss(
     max_iter: int = 100,
     tol: float = 1e-9,
 ) -> Estimate:
-    """Fit a polynomial nonlinear state-space model by simulation error.
+    """Fit a PNLSS model by simulation error (Levenberg–Marquardt).
 
     Parameters
     ----------
@@ -99,8 +99,9 @@ def fit_pnlss(
         C, D, E, F on the normalised signals (:attr:`PnlssModel.names`);
         covariance σ̂²·(JᵀJ + ridge)⁻¹ of those, the initial states
         marginalised; residuals the simulation errors [output unit];
-        options with the cost history, iterations, rejected steps and
-        each record's initial state.
+        options with the costs, iterations, rejected steps, each record's
+        initial state and the linear start (``linear_start``: A, B, C, D
+        in the data's units).
 
     Raises
     ------
@@ -173,6 +174,7 @@ def fit_pnlss(
         "cost": sse * y_scale**2 / n_total,
         "initial_states": [x.tolist() for x in x0s], "n_monomials": nm,
         "n_parameters": n_model, "linear_rms": info["linear_rms"] * y_scale,
+        "linear_start": _physical(start, u_scale, y_scale),
     }
     return Estimate(model=fitted, parameters=theta, names=labels, covariance=cov,
                     noise_variance=noise, n_samples=n_total, method="pnlss",
@@ -426,6 +428,14 @@ def _records(data: object, role: str, output: str | None
         names = {"inputs": list(inputs), "output": y_name, "output_unit": exp.unit(y_name),
                  "input_units": [exp.unit(n) for n in inputs]}
     return out, names
+
+
+def _physical(start: Sequence[NDArray[np.float64]], u_scale: NDArray[np.float64],
+              y_scale: float) -> dict[str, list[Any]]:
+    """The linear start in the data's units, as lists (a StateSpace's A, B, C, D)."""
+    A, B, C, D = start
+    return {"A": A.tolist(), "B": (B / u_scale[None, :]).tolist(),
+            "C": [(C * y_scale).tolist()], "D": [(D * y_scale / u_scale).tolist()]}
 
 
 def _inverse(H: NDArray[np.float64]) -> NDArray[np.float64]:
