@@ -133,6 +133,8 @@ def fit_pnlss(
                                    "excites nothing; excite the system with a multisine, PRBS "
                                    "or chirp")
     normal = [((u - u_mean) / u_scale, (y - y_mean) / y_scale) for u, y in records]
+    if initial is None:
+        _check_size(n_states, nu, degree, monomials, len(records), y_all.size)
     start = _linear_start(data, initial, linear, n_states, input, output, dt, nu,
                           (u_mean, u_scale, y_mean, y_scale))
     nx = start[0].shape[0]
@@ -145,10 +147,7 @@ def fit_pnlss(
                        output_name=names["output"], input_units=tuple(names["input_units"]),
                        output_unit=names["output_unit"])
     n_total = y_all.size
-    n_free = model.n_parameters + nx * len(records)
-    if n_free >= n_total - 1:
-        raise DataError(f"{n_free} parameters (with the initial states) cannot be fitted to "
-                        f"{n_total} samples; record more data, or lower n_states or degree")
+    n_free = _check_size(nx, nu, degree, monomials, len(records), n_total)
     search = _Search(model, normal, ridge)
     theta, x0s, info = search.run(max_iter, tol)
     fitted = model.with_parameters(theta)
@@ -357,7 +356,16 @@ def _fit_linear(data: Any, linear: str, n_states: int, input: str, output: str |
     from ..estimate import fit_n4sid, fit_oe
 
     if linear == "n4sid":
-        est = fit_n4sid(data, n_states, input=input, output=output)
+        # short horizons: a band-limited multisine is not persistently exciting of the default
+        # order, and the start only has to be close
+        try:
+            est = fit_n4sid(data, n_states, input=input, output=output,
+                            horizon=max(2 * n_states + 2, 6))
+        except IdentifiabilityError:
+            first = data if isinstance(data, Experiment) else data[0]
+            if len(first.names_of(input)) != 1:
+                raise
+            return _fit_linear(data, "oe", n_states, input, output)  # the same model by OE
         m = est.model
         return (np.asarray(m.A, float), np.asarray(m.B, float), np.asarray(m.C, float),
                 np.asarray(m.D, float))
@@ -428,6 +436,17 @@ def _records(data: object, role: str, output: str | None
         names = {"inputs": list(inputs), "output": y_name, "output_unit": exp.unit(y_name),
                  "input_units": [exp.unit(n) for n in inputs]}
     return out, names
+
+
+def _check_size(nx: int, nu: int, degree: int, monomials: Monomials, n_records: int,
+                n_total: int) -> int:
+    """The number of free parameters, or a DataError when the records are too short."""
+    nm = exponents(nx, nu, degree, monomials).shape[0]
+    n_free = nx * nx + nx * nu + nx + nu + nx * nm + nm + nx * n_records
+    if n_free >= n_total - 1:
+        raise DataError(f"{n_free} parameters (with the initial states) cannot be fitted to "
+                        f"{n_total} samples; record more data, or lower n_states or degree")
+    return n_free
 
 
 def _physical(start: Sequence[NDArray[np.float64]], u_scale: NDArray[np.float64],
