@@ -13,10 +13,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "nonlinear"))
 
-from test_pnlss import _free_run_rms, _record  # noqa: E402
+from test_pnlss import _free_run_rms, _record
 
-from servoid import ServoidWarning  # noqa: E402
-from servoid.nonlinear import fit_pnlss  # noqa: E402
+from servoid import ServoidWarning
+from servoid.nonlinear import fit_pnlss
 
 
 def main() -> None:

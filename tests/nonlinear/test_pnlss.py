@@ -298,10 +298,9 @@ def test_too_short_a_record_is_refused():
 def test_a_constant_input_is_refused():
     rec = Experiment.from_arrays(u=np.ones(500), y=np.random.default_rng(0).standard_normal(500),
                                  dt=0.01)
-    with pytest.raises(Exception, match="constant|excit"):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ServoidWarning)
-            fit_pnlss(rec, 2, 2)
+    with pytest.raises(Exception, match="constant|excit"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", ServoidWarning)
+        fit_pnlss(rec, 2, 2)
 
 
 def test_measured_initial_is_refused(fitted):

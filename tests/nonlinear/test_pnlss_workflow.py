@@ -39,7 +39,7 @@ def test_the_free_run_reaches_the_example_noise(run):
 
 
 def test_the_report_has_the_linear_part_and_the_nonlinear_contribution(run):
-    result, out = run
+    _, out = run
     page = (out / "report.html").read_text(encoding="utf-8")
     assert "Nonlinear terms" in page and "States and degree" in page
     assert (out / "linear_bode.png").is_file() and (out / "nonlinear.png").is_file()

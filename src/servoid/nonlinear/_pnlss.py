@@ -488,9 +488,9 @@ class PnlssModel:
 
     def __str__(self) -> str:
         labels = self.monomial_names
-        lines = [f"PNLSS model: {self.n_states} states, {self.n_inputs} input(s), "
-                 f"{self.n_monomials} monomials ({self.monomials}, degree ≤ {self.degree}), "
-                 f"dt = {self.dt:g} s"]
+        lines = [(f"PNLSS model: {self.n_states} states, {self.n_inputs} input(s), "
+                  f"{self.n_monomials} monomials ({self.monomials}, degree ≤ {self.degree}), "
+                  f"dt = {self.dt:g} s")]
         for i in range(self.n_states):
             terms = " ".join(f"{c:+.4g}·{m}" for c, m in zip(self.E[i], labels, strict=True)
                              if c != 0.0)

@@ -31,7 +31,6 @@ from .._errors import (
     ServoidWarning,
     check_option,
 )
-from .._warn import warn
 from ..data import Experiment, ExperimentSet
 from ..estimate import Estimate, output_name
 from ._pnlss import MONOMIALS, Monomials, PnlssModel, exponents
@@ -326,7 +325,7 @@ def _linear_start(data: Any, initial: Any, linear: str, n_states: int, input: st
     """A, B, C, D of a discrete linear model on the normalised signals."""
     from ..models import StateSpace
 
-    u_mean, u_scale, y_mean, y_scale = scales
+    _, u_scale, _, y_scale = scales
     if initial is not None:
         model = getattr(initial, "model", initial)
         if not isinstance(model, StateSpace):

@@ -178,7 +178,7 @@ def jacobian(A, B, C, D, E, F, P, u, x0, first, y, J):  # pragma: no cover - com
                 for k in range(nx):
                     s += Ax[i, k] * S[k, c]
                 Sn[i, c] = s
-        if oA_direct(first):
+        if first == 0:  # the model's own columns (not the initial state's alone)
             for i in range(nx):
                 for k in range(nx):
                     Sn[i, i * nx + k - first] += z[k]
@@ -195,9 +195,3 @@ def jacobian(A, B, C, D, E, F, P, u, x0, first, y, J):  # pragma: no cover - com
                 y[s_] = np.nan
             return t + 1
     return -1
-
-
-@nb.njit(cache=True, inline="always")
-def oA_direct(first):  # pragma: no cover - compiled
-    """The model's own columns are in the Jacobian (not the initial state's alone)."""
-    return first == 0

@@ -81,9 +81,10 @@ class PnlssResult(IdentificationResult):
 
     def _extra_lines(self) -> list[str]:
         o = self.estimate.options
-        lines = [f"  search: linear start RMS {o['linear_rms']:.4g} → {np.sqrt(o['cost']):.4g} "
-                 f"after {o['iterations']} Levenberg–Marquardt iterations "
-                 f"({o['rejected']} steps rejected, {o['diverged_steps']} of them diverged)"]
+        lines = [(f"  search: linear start RMS {o['linear_rms']:.4g} → "
+                  f"{np.sqrt(o['cost']):.4g} after {o['iterations']} Levenberg–Marquardt "
+                  f"iterations ({o['rejected']} steps rejected, {o['diverged_steps']} of them "
+                  "diverged)")]
         share = self._share()
         if share is not None:
             lines.append(f"  nonlinear terms: {100 * share:.3g} % of the output's RMS variation "
@@ -132,10 +133,10 @@ class PnlssResult(IdentificationResult):
         if share is not None and "nonlinear.png" in files:
             out.append(Section(
                 "Nonlinear terms",
-                paragraphs=(f"Over the first validation record the nonlinear terms (E ζ, F η) "
-                            f"change the free run by {100 * share:.3g} % of the output's RMS "
-                            "variation: the full model's run against the same model with "
-                            "E = F = 0, from the same initial state.",),
+                paragraphs=((f"Over the first validation record the nonlinear terms (E ζ, F η) "
+                             f"change the free run by {100 * share:.3g} % of the output's RMS "
+                             "variation: the full model's run against the same model with "
+                             "E = F = 0, from the same initial state."),),
                 figures=(Figure.from_file(files["nonlinear.png"],
                                           "Free run of the model and of its linear part, and "
                                           "their difference"),)))
@@ -144,10 +145,10 @@ class PnlssResult(IdentificationResult):
                           f"{c.rms:.4g}", c.status) for c in self.grid)
             out.append(Section(
                 "States and degree",
-                paragraphs=(f"Each candidate fitted on the first {100 * (1 - HOLDOUT):g} % of "
-                            f"the estimation data and scored by its free-run RMS error on the "
-                            "rest (initial state estimated); the best is refitted on all of "
-                            "it.",),
+                paragraphs=((f"Each candidate fitted on the first {100 * (1 - HOLDOUT):g} % of "
+                             "the estimation data and scored by its free-run RMS error on the "
+                             "rest (initial state estimated); the best is refitted on all of "
+                             "it."),),
                 tables=(Table(("n_states", "degree", "parameters", "held-out RMS", "status"),
                               rows, "Best first"),)))
         return out
@@ -213,12 +214,13 @@ def _grid(value: int | Sequence[int]) -> list[int]:
 def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Sequence[int],
             options: Mapping[str, Any]) -> tuple[Candidate, ...]:
     """Fit every (n_states, degree) on the first part, score the free run on the rest."""
-    if isinstance(data, ExperimentSet) and len(data) > 1:
-        fit_on: Any = ExperimentSet(list(data)[:-1]) if len(data) > 2 else list(data)[0]
-        held = list(data)[-1]
+    records = [data] if isinstance(data, Experiment) else list(data)
+    if len(records) > 1:  # hold out the last record whole
+        fit_on: Any = ExperimentSet(records[:-1]) if len(records) > 2 else records[0]
+        held = records[-1]
     else:
-        whole = data if isinstance(data, Experiment) else list(data)[0]
-        cut = int(round(whole.n_samples * (1 - HOLDOUT)))
+        whole = records[0]
+        cut = round(whole.n_samples * (1 - HOLDOUT))
         fit_on, held = whole.slice(0, cut), whole.slice(cut, None)
     rows = []
     for n in states:
