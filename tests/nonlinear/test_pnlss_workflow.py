@@ -44,7 +44,7 @@ def test_the_report_has_the_linear_part_and_the_nonlinear_contribution(run):
     assert "Nonlinear terms" in page and "States and degree" in page
     assert (out / "linear_bode.png").is_file() and (out / "nonlinear.png").is_file()
     data = json.loads((out / "results.json").read_text(encoding="utf-8"))
-    assert data["model"]["type"] == "pnlss" and 0 < data["nonlinear_share"] < 5
+    assert data["model"]["type"] == "polynomial_state_space" and 0 < data["nonlinear_share"] < 5
 
 
 def test_results_load_back_bit_exact_and_export(run, tmp_path):

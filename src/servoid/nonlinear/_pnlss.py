@@ -477,7 +477,7 @@ class PnlssModel:
 
     def to_dict(self) -> dict[str, Any]:
         """Structure, coefficients and their std as plain data (``results.json``)."""
-        return {"type": "pnlss", "dt": self.dt, "n_states": self.n_states,
+        return {"type": "polynomial_state_space", "dt": self.dt, "n_states": self.n_states,
                 "degree": self.degree, "monomials": self.monomials,
                 "names": list(self.names), "parameters": self.parameters.tolist(),
                 "std": [None if np.isnan(s) else float(s) for s in self.std],
