@@ -48,6 +48,7 @@ SUITES: dict[str, str] = {
     "fleet": "bench_fleet",  # 1000 bench records on 1 and 2 workers (8 under --quick)
     "greybox-ode": "bench_greybox_ode",  # two-state ODE, 1e4 samples; Python path ~1 min
     "narx": "bench_narx",  # term selection, 1e5 samples × 105 candidates, vs sysidentpy FROLS
+    "pnlss": "bench_pnlss",  # PNLSS fit (1e4 samples, 2 states, degree 3) and simulation
     "integrator": "bench_integrator",  # every simulator kernel through its public call
     "frequency": "bench_frequency",  # LPM of 1e6 samples, ML fit on 1e4 lines, vs numpy/scipy
 }

@@ -226,7 +226,8 @@ def test_a_newer_version_or_an_unknown_type_is_refused(tmp_path, model):
         load_model(path)
     path.write_text(json.dumps({**data, "type": "VolterraModel"}), encoding="utf-8")
     with pytest.raises(FileFormatError, match=r"must be one of .*'NarxModel', 'BlockModel', "
-                                              r"'OdeModel', got 'VolterraModel'.*does not know"):
+                                              r"'PnlssModel', 'OdeModel', got 'VolterraModel'"
+                                              r".*does not know"):
         load_model(path)
 
 

@@ -21,6 +21,10 @@ nonlinear models:
   ``output_nonlinearity`` (null or ``{"kind": ..., "parameters": {name:
   value}}``, plus ``breakpoints`` for a piecewise-linear shape) and
   ``linear``, the linear block as a nested model record;
+- ``"PnlssModel"``: ``A``, ``B``, ``C``, ``D``, ``E``, ``F`` (on the
+  normalised signals), ``powers`` (each monomial's exponent row),
+  ``u_mean``, ``u_scale``, ``y_mean``, ``y_scale``, ``monomials``, names,
+  units, ``monomial_names`` (not read back) and ``covariance``;
 - ``"OdeModel"``: a fitted grey-box ODE, as a reference to the user's
   Python file (absolute path, SHA-256, function names) with its numbers;
   read back only with ``allow_code=True`` and an unchanged file.
@@ -88,6 +92,7 @@ _TYPES = ("TransferFunction", "StateSpace", "PolynomialModel")
 RECORD_TYPES: dict[str, str] = {
     "NarxModel": "servoid.nonlinear._narx_model:NarxModel",
     "BlockModel": "servoid.nonlinear._block:BlockModel",
+    "PnlssModel": "servoid.nonlinear._pnlss:PnlssModel",
     "OdeModel": "servoid.estimate._ode_model:OdeModel",
 }
 _MATLAB_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,62}")

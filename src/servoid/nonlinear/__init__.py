@@ -1,4 +1,4 @@
-"""Nonlinear black-box models: polynomial NARX and block-oriented models.
+"""Nonlinear black-box models: polynomial NARX, block-oriented and PNLSS models.
 
 Each model here simulates itself on a record (``replay``), so
 :func:`servoid.validate.validate`, ``compare`` and the workflows' validation
@@ -8,6 +8,11 @@ records treat it as they treat a linear model.
 # NARX
 from ._narx import MAX_CANDIDATES, candidate_terms, fit_narx
 from ._narx_model import NarxModel
+
+# Polynomial nonlinear state space
+# isort: split
+from ._pnlss import MONOMIALS, PnlssModel
+from ._pnlss_fit import fit_pnlss
 
 # Block-oriented
 # isort: split
@@ -27,12 +32,14 @@ from ._static import (
 
 __all__: list[str] = [
     "MAX_CANDIDATES",
+    "MONOMIALS",
     "SHAPES",
     "AbsoluteValue",
     "BlockModel",
     "DeadZone",
     "NarxModel",
     "PiecewiseLinear",
+    "PnlssModel",
     "Polynomial",
     "Saturation",
     "SignedPower",
@@ -43,5 +50,6 @@ __all__: list[str] = [
     "fit_hammerstein",
     "fit_hammerstein_wiener",
     "fit_narx",
+    "fit_pnlss",
     "fit_wiener",
 ]

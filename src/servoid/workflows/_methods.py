@@ -79,6 +79,10 @@ _LISTED: tuple[tuple[str, str, str], ...] = (
     ("narx", "_narx:METHOD",
      "polynomial NARX y(t) = Σ θ·(products of lagged y and u) + e: terms chosen by "
      "forward orthogonal least squares (ERR) and BIC/AIC, validated by free run"),
+    ("pnlss", "_pnlss:METHOD",
+     "polynomial nonlinear state space x⁺ = Ax + Bu + Eζ(x, u), y = Cx + Du + Fη(x, u) "
+     "from a linear start, by Levenberg–Marquardt on the simulation error; states and "
+     "degree from a grid on held-out data"),
     ("greybox", "_greybox:GREYBOX",
      "a grey-box ODE written in Python (model = \"file.py:rhs\"), its parameters and "
      "initial states fitted by simulation error with bounds, saturations, multistart and "

@@ -372,6 +372,14 @@ def _models(data: object, path: Path, allow_code: bool = False) -> dict[str, Any
 def _from_model_dict(model: Mapping[str, Any], path: Path, variance: object,
                      allow_code: bool = False) -> Any:
     kind = model.get("type")
+    if kind == "polynomial_state_space":  # a PnlssModel: its model file record inside
+        record = model.get("model_file")
+        if not isinstance(record, Mapping):
+            raise FileFormatError(f"{path}: model.model_file is missing; the file is damaged: "
+                                  f"{_FIX}")
+        from ..models import model_from_record
+
+        return model_from_record(record, where=f"results file {path}")
     if kind == "greybox_ode":
         record = model.get("model_file")
         if not isinstance(record, Mapping):

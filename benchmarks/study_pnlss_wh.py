@@ -1,0 +1,77 @@
+"""PNLSS on the real Wiener–Hammerstein benchmark (SYSID 2009), if its record is here.
+
+Reads ``../shared/data/wiener_hammerstein/WienerHammerBenchmark.csv`` (or the
+file named by ``$SERVOID_WH_CSV``) at run time; servoid ships none of it.
+Skips with a message when the file is absent. The split is the benchmark's
+(its PROVENANCE): samples [5200:184000], estimation the first 100 000,
+test the remaining 78 800, the first 50 test samples only for the initial
+state and left out of the score. Prints the test RMSE of the free run.
+
+Usage::
+
+    PYTHONPATH=src python benchmarks/study_pnlss_wh.py [n_states] [degree] [monomials] \\
+        [n_fit] [max_iter]
+
+``n_fit`` takes the first n_fit estimation samples (default all 100 000).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from servoid import ServoidWarning
+from servoid.data import Experiment
+from servoid.nonlinear import fit_pnlss
+
+_REPO = Path(__file__).resolve().parents[1]
+#: ../shared beside the checkout (or beside the folder of worktrees)
+CANDIDATES = [base / "shared/data/wiener_hammerstein/WienerHammerBenchmark.csv"
+              for base in (_REPO.parent, _REPO.parent.parent)]
+
+
+def main(argv: list[str]) -> int:
+    given = os.environ.get("SERVOID_WH_CSV")
+    found = [p for p in CANDIDATES if p.is_file()]
+    path = Path(given) if given else (found[0] if found else CANDIDATES[0])
+    if not path.is_file():
+        print(f"skipped: no Wiener–Hammerstein record at {path} (set SERVOID_WH_CSV)")
+        return 0
+    nx = int(argv[0]) if argv else 6
+    degree = int(argv[1]) if len(argv) > 1 else 3
+    monomials = argv[2] if len(argv) > 2 else "state"
+    n_fit = int(argv[3]) if len(argv) > 3 else 100_000
+    max_iter = int(argv[4]) if len(argv) > 4 else 100
+    data = np.genfromtxt(path, delimiter=",", skip_header=1, usecols=(0, 1))
+    u, y = data[5200:184000, 0], data[5200:184000, 1]
+    dt = 1 / 51200.0
+    est_u, est_y = u[:100_000][:n_fit], y[:100_000][:n_fit]
+    test_u, test_y = u[100_000:], y[100_000:]
+    exp = Experiment.from_arrays(u=est_u, y=est_y, dt=dt)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ServoidWarning)
+        est = fit_pnlss(exp, nx, degree, monomials=monomials, max_iter=max_iter)
+    took = time.perf_counter() - t0
+    model = est.model
+    x0 = model.initial_state(test_y[:50], test_u[:50])
+    y_sim = model.simulate(test_u, x0)
+    rmse = float(np.sqrt(np.mean((y_sim[50:] - test_y[50:]) ** 2)))
+    lin = fit_pnlss(exp, nx, 1, max_iter=max_iter) if degree > 1 else est
+    x0l = lin.model.initial_state(test_y[:50], test_u[:50])
+    rmse_lin = float(np.sqrt(np.mean((lin.model.simulate(test_u, x0l)[50:] - test_y[50:]) ** 2)))
+    print(f"PNLSS n_states={nx} degree={degree} monomials={monomials} on {n_fit} estimation "
+          f"samples: {est.parameters.size} parameters, {est.options['iterations']} iterations, "
+          f"{took:.0f} s; estimation RMS {1e3 * np.sqrt(est.options['cost']):.3f} mV; "
+          f"test RMSE {1e3 * rmse:.3f} mV (linear state space of the same order: "
+          f"{1e3 * rmse_lin:.3f} mV)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

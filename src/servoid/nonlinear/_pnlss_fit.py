@@ -1,0 +1,476 @@
+"""Fitting a PNLSS model: a linear start, then Levenberg–Marquardt on the simulation error.
+
+The linear start is a discrete state-space model: the caller's
+(``initial``: e.g. the best linear approximation turned into state space)
+or n4sid's on the same records (``linear = "n4sid"``), or an OE model
+turned into state space (``linear = "oe"``).  Its states are rescaled to
+unit variance over the record, so the monomials of the states are of order
+one.  The search then fits A … F and each record's initial state together
+on the squared simulation error, with the exact Jacobian from the compiled
+sensitivity recursion (:mod:`._pnlss_kernel`); a step whose simulation
+diverges, or that does not lower the cost, is rejected and the damping
+raised.  A ridge term ``ridge·N·‖(E, F)‖²`` keeps unneeded nonlinear
+coefficients near zero.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._checks import as_float, as_int, as_str, type_error
+from .._errors import (
+    ConvergenceError,
+    DataError,
+    IdentifiabilityError,
+    ModelError,
+    ServoidWarning,
+    check_option,
+)
+from ..data import Experiment, ExperimentSet
+from ..estimate import Estimate, output_name
+from ._pnlss import MONOMIALS, Monomials, PnlssModel, exponents
+from ._pnlss_kernel import jacobian, simulate
+
+__all__ = ["LINEAR_STARTS", "fit_pnlss"]
+
+#: Where the linear start comes from when no ``initial`` model is given.
+LINEAR_STARTS = ("n4sid", "oe")
+
+Record = tuple[NDArray[np.float64], NDArray[np.float64]]  # (u (N, nu), y (N,))
+
+
+def fit_pnlss(
+    data: Experiment | ExperimentSet,
+    n_states: int = 2,
+    degree: int = 3,
+    *,
+    monomials: Monomials = "full",
+    initial: Any = None,
+    linear: Literal["n4sid", "oe"] = "n4sid",
+    ridge: float = 0.0,
+    input: Literal["u", "r"] = "u",
+    output: str | None = None,
+    max_iter: int = 100,
+    tol: float = 1e-9,
+) -> Estimate:
+    """Fit a PNLSS model by simulation error (Levenberg–Marquardt).
+
+    Parameters
+    ----------
+    data : Experiment or ExperimentSet
+        Record(s) with the input(s) of role `input` and the output; each
+        record gets its own initial state.
+    n_states : int
+        Number of states (ignored with `initial`, whose order is used).
+    degree : int
+        Highest degree of the monomials (1: the linear model refined by
+        output error; 2 … 6 otherwise).
+    monomials : {"full", "state", "input"}
+        Products of states and inputs, of states alone, or of inputs alone.
+    initial : StateSpace or Estimate, optional
+        The linear start: a discrete state-space model (or an Estimate of
+        one) at the records' sample period, e.g. the best linear
+        approximation from a frequency-domain fit turned into state space.
+        Default: n4sid (or OE) on the same records.
+    linear : {"n4sid", "oe"}
+        The linear start's method when `initial` is not given.
+    ridge : float
+        Weight α ≥ 0 of the penalty α·N·‖(E, F)‖² on the normalised
+        coefficients (0: none).
+    input : {"u", "r"}
+        Role of the input channel(s).
+    output : str, optional
+        The output channel when there are several.
+    max_iter : int
+        Most Levenberg–Marquardt iterations (Jacobian evaluations).
+    tol : float
+        Relative decrease of the cost below which the search stops.
+
+    Returns
+    -------
+    Estimate
+        Method ``"pnlss"``; model a :class:`PnlssModel`; parameters A, B,
+        C, D, E, F on the normalised signals (:attr:`PnlssModel.names`);
+        covariance σ̂²·(JᵀJ + ridge)⁻¹ of those, the initial states
+        marginalised; residuals the simulation errors [output unit];
+        options with the costs, iterations, rejected steps, each record's
+        initial state and the linear start (``linear_start``: A, B, C, D
+        in the data's units).
+
+    Raises
+    ------
+    DataError
+        Fewer samples than parameters, non-finite samples, a linear start
+        of the wrong shape or sample period.
+    IdentifiabilityError
+        A constant input.
+    ConvergenceError
+        The linear start's own simulation diverges (an unstable start).
+    """
+    check_option("monomials", monomials, MONOMIALS)
+    check_option("linear", linear, LINEAR_STARTS)
+    check_option("input", input, ("u", "r"))
+    n_states = as_int("n_states", n_states, minimum=1, maximum=20)
+    degree = as_int("degree", degree, minimum=1, maximum=6)
+    ridge = as_float("ridge", ridge, nonneg=True)
+    max_iter = as_int("max_iter", max_iter, minimum=0)
+    tol = as_float("tol", tol, positive=True)
+    records, names = _records(data, input, output)
+    dt = float(data.dt)
+    nu = records[0][0].shape[1]
+    u_all = np.concatenate([u for u, _ in records])
+    y_all = np.concatenate([y for _, y in records])
+    u_mean, u_scale = u_all.mean(axis=0), u_all.std(axis=0)
+    y_mean, y_scale = float(y_all.mean()), float(y_all.std()) or 1.0
+    if np.any(u_scale == 0):
+        raise IdentifiabilityError(f"an input of {', '.join(names['inputs'])} is constant: it "
+                                   "excites nothing; excite the system with a multisine, PRBS "
+                                   "or chirp")
+    normal = [((u - u_mean) / u_scale, (y - y_mean) / y_scale) for u, y in records]
+    if initial is None:
+        _check_size(n_states, nu, degree, monomials, len(records), y_all.size)
+    start = _linear_start(data, initial, linear, n_states, input, output, dt, nu,
+                          (u_mean, u_scale, y_mean, y_scale))
+    nx = start[0].shape[0]
+    powers = exponents(nx, nu, degree, monomials)
+    nm = powers.shape[0]
+    A, B, C, D = _balanced(*start, normal)
+    model = PnlssModel(A, B, C, D, np.zeros((nx, nm)), np.zeros(nm), powers, dt,
+                       u_mean=u_mean, u_scale=u_scale, y_mean=y_mean, y_scale=y_scale,
+                       monomials=monomials, input_names=tuple(names["inputs"]),
+                       output_name=names["output"], input_units=tuple(names["input_units"]),
+                       output_unit=names["output_unit"])
+    n_total = y_all.size
+    n_free = _check_size(nx, nu, degree, monomials, len(records), n_total)
+    search = _Search(model, normal, ridge)
+    theta, x0s, info = search.run(max_iter, tol)
+    fitted = model.with_parameters(theta)
+    J, r = search.jacobian(theta, x0s)
+    n_model = model.n_parameters
+    sse = float(r @ r)
+    sigma2 = sse / max(n_total - n_free, 1)  # normalised units
+    H = J.T @ J
+    H[:n_model, :n_model] += search.penalty_matrix()
+    cov_all = _inverse(H)
+    cov = sigma2 * cov_all[:n_model, :n_model]
+    noise = sigma2 * y_scale**2
+    fitted = _with_covariance(fitted, cov, noise)
+    resid = r * y_scale
+    labels = fitted.names
+    options = {
+        "n_states": nx, "degree": degree, "monomials": monomials, "ridge": ridge,
+        "linear": "given" if initial is not None else linear, "input": input,
+        "inputs": list(names["inputs"]), "output": names["output"],
+        "max_iter": max_iter, "tol": tol, "iterations": info["iterations"],
+        "rejected": info["rejected"], "diverged_steps": info["diverged"],
+        "cost_start": info["cost_start"] * y_scale**2 / n_total,
+        "cost": sse * y_scale**2 / n_total,
+        "initial_states": [x.tolist() for x in x0s], "n_monomials": nm,
+        "n_parameters": n_model, "linear_rms": info["linear_rms"] * y_scale,
+        "linear_start": _physical(start, u_scale, y_scale),
+    }
+    return Estimate(model=fitted, parameters=theta, names=labels, covariance=cov,
+                    noise_variance=noise, n_samples=n_total, method="pnlss",
+                    status=info["status"], options=options,
+                    residual_function=lambda: resid.copy())
+
+
+# -- the search ---------------------------------------------------------------------------
+
+
+class _Search:
+    """Levenberg–Marquardt over A … F and the records' initial states."""
+
+    def __init__(self, model: PnlssModel, records: Sequence[Record], ridge: float) -> None:
+        self.model = model
+        self.records = [(np.ascontiguousarray(u), y) for u, y in records]
+        self.n_total = sum(y.size for _, y in records)
+        nx, nm = model.n_states, model.n_monomials
+        self.n_model = model.n_parameters
+        self.ef = np.arange(self.n_model - nx * nm - nm, self.n_model)
+        self.rho = ridge * self.n_total
+
+    def penalty_matrix(self) -> NDArray[np.float64]:
+        P = np.zeros((self.n_model, self.n_model))
+        P[self.ef, self.ef] = self.rho
+        return P
+
+    def _args(self, theta: NDArray[np.float64]) -> tuple[Any, ...]:
+        m = self.model.with_parameters(theta)
+        return m._kernel_args()
+
+    def cost(self, theta: NDArray[np.float64], x0s: Sequence[NDArray[np.float64]]
+             ) -> float:
+        """Σ squared simulation error + penalty; inf for a diverging run."""
+        args = self._args(theta)
+        total = self.rho * float(theta[self.ef] @ theta[self.ef])
+        for (u, y), x0 in zip(self.records, x0s, strict=True):
+            ys = np.empty(y.size)
+            xs = np.empty((y.size + 1, self.model.n_states))
+            if simulate(*args, u, x0, ys, xs) >= 0:
+                return np.inf
+            total += float(np.sum((ys - y) ** 2))
+        return total
+
+    def jacobian(self, theta: NDArray[np.float64], x0s: Sequence[NDArray[np.float64]]
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """J (N, n_model + nx·records) and r = simulated − measured; ConvergenceError if it
+        diverges (it cannot: only accepted points are differentiated)."""
+        args = self._args(theta)
+        nx, nm_ = self.model.n_states, self.n_model
+        J = np.zeros((self.n_total, nm_ + nx * len(self.records)))
+        r = np.empty(self.n_total)
+        row = 0
+        for k, ((u, y), x0) in enumerate(zip(self.records, x0s, strict=True)):
+            ys = np.empty(y.size)
+            Jk = np.empty((y.size, nm_ + nx))
+            if jacobian(*args, u, x0, 0, ys, Jk) >= 0:
+                raise ConvergenceError("the PNLSS simulation diverged at an accepted point; "
+                                       "lower the degree or n_states")
+            J[row:row + y.size, :nm_] = Jk[:, :nm_]
+            J[row:row + y.size, nm_ + k * nx: nm_ + (k + 1) * nx] = Jk[:, nm_:]
+            r[row:row + y.size] = ys - y
+            row += y.size
+        return J, r
+
+    def run(self, max_iter: int, tol: float
+            ) -> tuple[NDArray[np.float64], list[NDArray[np.float64]], dict[str, Any]]:
+        """The linear part alone first (E = F = 0, as the start of Paduart et al.), then all."""
+        nx = self.model.n_states
+        theta = self.model.parameters.copy()
+        x0s = [np.zeros(nx) for _ in self.records]
+        n_all = self.n_model + nx * len(self.records)
+        linear = np.setdiff1d(np.arange(n_all), self.ef)
+        theta, x0s, first = self._lm(theta, x0s, max_iter, tol, linear)
+        info = dict(first)
+        if self.ef.size:
+            theta, x0s, second = self._lm(theta, x0s, max_iter, tol, np.arange(n_all))
+            info.update(status=second["status"], cost=second["cost"])
+            for key in ("iterations", "rejected", "diverged"):
+                info[key] += second[key]
+        info["linear_rms"] = np.sqrt(first["cost"] / self.n_total)
+        return theta, x0s, info
+
+    def _lm(self, theta: NDArray[np.float64], x0s: list[NDArray[np.float64]], max_iter: int,
+            tol: float, free: NDArray[np.int64]
+            ) -> tuple[NDArray[np.float64], list[NDArray[np.float64]], dict[str, Any]]:
+        nx = self.model.n_states
+        cost = self.cost(theta, x0s)
+        if not np.isfinite(cost):
+            raise ConvergenceError("the linear start's simulation diverges on the record (an "
+                                   "unstable linear model); give a stable initial model or "
+                                   "use linear = \"oe\"")
+        info: dict[str, Any] = {"cost_start": cost, "iterations": 0, "rejected": 0,
+                                "diverged": 0, "status": "ok"}
+        lam = 1e-3
+        small = 0
+        n_model = self.n_model
+        for it in range(max_iter):
+            J, r = self.jacobian(theta, x0s)
+            info["iterations"] = it + 1
+            H = J.T @ J
+            H[:n_model, :n_model] += self.penalty_matrix()
+            g = J.T @ r
+            g[self.ef] += self.rho * theta[self.ef]
+            H = H[np.ix_(free, free)]
+            g = g[free]
+            d = np.diag(H).copy()
+            d = np.maximum(d, 1e-12 * max(float(d.max()), 1e-300))
+            accepted = False
+            while lam < 1e10:
+                step = np.zeros(J.shape[1])
+                try:
+                    step[free] = -np.linalg.solve(H + lam * np.diag(d), g)
+                except np.linalg.LinAlgError:
+                    lam *= 10.0
+                    continue
+                t_new = theta + step[:n_model]
+                x_new = [x + step[n_model + k * nx: n_model + (k + 1) * nx]
+                         for k, x in enumerate(x0s)]
+                c_new = self.cost(t_new, x_new)
+                if not np.isfinite(c_new):
+                    info["diverged"] += 1
+                if c_new < cost:
+                    accepted = True
+                    drop = (cost - c_new) / cost
+                    theta, x0s, cost = t_new, x_new, c_new
+                    lam = max(lam / 3.0, 1e-10)
+                    break
+                info["rejected"] += 1
+                lam *= 10.0
+            if not accepted:
+                break  # no damping lowers the cost: a (local) minimum
+            small = small + 1 if drop < tol else 0
+            if small >= 2:
+                break
+        else:
+            if max_iter > 0:
+                info["status"] = f"stopped after max_iter = {max_iter} iterations"
+        info["cost"] = cost
+        return theta, x0s, info
+
+
+# -- the linear start ---------------------------------------------------------------------
+
+
+def _linear_start(data: Any, initial: Any, linear: str, n_states: int, input: str,
+                  output: str | None, dt: float, nu: int,
+                  scales: tuple[Any, Any, float, float]
+                  ) -> tuple[NDArray[np.float64], ...]:
+    """A, B, C, D of a discrete linear model on the normalised signals."""
+    from ..models import StateSpace
+
+    _, u_scale, _, y_scale = scales
+    if initial is not None:
+        model = getattr(initial, "model", initial)
+        if not isinstance(model, StateSpace):
+            if hasattr(model, "to_ss") and getattr(model, "dt", None) is not None:
+                model = model.to_ss()
+            else:
+                raise type_error("initial", initial, "a discrete StateSpace (or an Estimate of "
+                                 "one), e.g. the best linear approximation in state space")
+        if model.dt is None or abs(model.dt - dt) > 1e-9 * dt:
+            raise DataError(f"initial must be discrete at the records' sample period dt = "
+                            f"{dt:g} s, got dt = {model.dt}; discretise it first "
+                            "(servoid.models.c2d)")
+        A, B, C, D = (np.asarray(model.A, float), np.asarray(model.B, float),
+                      np.asarray(model.C, float), np.asarray(model.D, float))
+        if B.shape[1] != nu or C.shape[0] != 1:
+            raise DataError(f"initial must have {nu} input(s) and one output, got "
+                            f"{B.shape[1]} and {C.shape[0]}")
+    else:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ServoidWarning)
+            A, B, C, D = _fit_linear(data, linear, n_states, input, output)
+    return (A, B * u_scale[None, :], C[0] / y_scale, D[0] * u_scale / y_scale)
+
+
+def _fit_linear(data: Any, linear: str, n_states: int, input: str, output: str | None
+                ) -> tuple[NDArray[np.float64], ...]:
+    from ..estimate import fit_n4sid, fit_oe
+
+    if linear == "n4sid":
+        # short horizons: a band-limited multisine is not persistently exciting of the default
+        # order, and the start only has to be close
+        try:
+            est = fit_n4sid(data, n_states, input=input, output=output,
+                            horizon=max(2 * n_states + 2, 6))
+        except IdentifiabilityError:
+            first = data if isinstance(data, Experiment) else data[0]
+            if len(first.names_of(input)) != 1:
+                raise
+            return _fit_linear(data, "oe", n_states, input, output)  # the same model by OE
+        m = est.model
+        return (np.asarray(m.A, float), np.asarray(m.B, float), np.asarray(m.C, float),
+                np.asarray(m.D, float))
+    from ..models import StateSpace  # noqa: F401  (the OE model becomes one)
+
+    first = data if isinstance(data, Experiment) else data[0]
+    if len(first.names_of(input)) != 1:
+        raise ModelError('linear = "oe" starts a single-input model; use linear = "n4sid" '
+                         "for several inputs")
+    est = fit_oe(data, nb=n_states, nf=n_states, nk=1, input=input, output=output)
+    tf = est.model.transfer_function(0)
+    ss = tf.to_ss()
+    return (np.asarray(ss.A, float), np.asarray(ss.B, float), np.asarray(ss.C, float),
+            np.asarray(ss.D, float))
+
+
+def _balanced(A: NDArray[np.float64], B: NDArray[np.float64], C: NDArray[np.float64],
+              D: NDArray[np.float64], records: Sequence[Record]
+              ) -> tuple[NDArray[np.float64], ...]:
+    """The same linear model with states of unit covariance over the records."""
+    nx = A.shape[0]
+    states = []
+    for u, _ in records:
+        x = np.zeros(nx)
+        xs = np.empty((u.shape[0], nx))
+        for t in range(u.shape[0]):
+            xs[t] = x
+            x = A @ x + B @ u[t]
+            if not np.all(np.abs(x) < 1e12):
+                raise ConvergenceError("the linear start's simulation diverges on the record "
+                                       "(an unstable linear model); give a stable initial "
+                                       "model or try linear = \"oe\"")
+        states.append(xs)
+    cov = np.cov(np.concatenate(states).T).reshape(nx, nx)
+    try:
+        T = np.linalg.cholesky(cov + 1e-12 * np.trace(cov) * np.eye(nx))
+    except np.linalg.LinAlgError:
+        return A, B, C, D
+    Ti = np.linalg.inv(T)
+    return Ti @ A @ T, Ti @ B, C @ T, D
+
+
+# -- private ------------------------------------------------------------------------------
+
+
+def _records(data: object, role: str, output: str | None
+             ) -> tuple[list[Record], dict[str, Any]]:
+    if isinstance(data, Experiment):
+        exps = [data]
+    elif isinstance(data, ExperimentSet):
+        exps = list(data)
+    else:
+        raise type_error("data", data, "an Experiment or ExperimentSet")
+    if output is not None:
+        as_str("output", output)
+    out: list[Record] = []
+    names: dict[str, Any] = {}
+    for exp in exps:
+        y_name = output_name(exp, output)
+        u = np.asarray(exp.signal(role), dtype=float)  # type: ignore[arg-type]
+        y = np.asarray(exp[y_name], dtype=float)
+        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
+            raise DataError("the record has NaN or inf samples; remove or interpolate them")
+        if y.size < 20:
+            raise DataError(f"a PNLSS model needs at least 20 samples per record, got {y.size}")
+        out.append((u.reshape(y.size, -1), y))
+        inputs = exp.names_of(role)
+        names = {"inputs": list(inputs), "output": y_name, "output_unit": exp.unit(y_name),
+                 "input_units": [exp.unit(n) for n in inputs]}
+    return out, names
+
+
+def _check_size(nx: int, nu: int, degree: int, monomials: Monomials, n_records: int,
+                n_total: int) -> int:
+    """The number of free parameters, or a DataError when the records are too short."""
+    nm = exponents(nx, nu, degree, monomials).shape[0]
+    n_free = nx * nx + nx * nu + nx + nu + nx * nm + nm + nx * n_records
+    if n_free >= n_total - 1:
+        raise DataError(f"{n_free} parameters (with the initial states) cannot be fitted to "
+                        f"{n_total} samples; record more data, or lower n_states or degree")
+    return n_free
+
+
+def _physical(start: Sequence[NDArray[np.float64]], u_scale: NDArray[np.float64],
+              y_scale: float) -> dict[str, list[Any]]:
+    """The linear start in the data's units, as lists (a StateSpace's A, B, C, D)."""
+    A, B, C, D = start
+    return {"A": A.tolist(), "B": (B / u_scale[None, :]).tolist(),
+            "C": [(C * y_scale).tolist()], "D": [(D * y_scale / u_scale).tolist()]}
+
+
+def _inverse(H: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The pseudo-inverse of H by its eigenvalues.
+
+    A state-space model's similarity transforms leave the output alone, so
+    nx² directions of θ are not fixed by any data: the covariance is that of
+    the parameters orthogonal to them (as a minimal parametrisation would
+    give), not an infinite one.
+    """
+    w, V = np.linalg.eigh(0.5 * (H + H.T))
+    keep = w > 1e-9 * max(float(w.max()), 1e-300)
+    return (V[:, keep] / w[keep]) @ V[:, keep].T
+
+
+def _with_covariance(model: PnlssModel, cov: NDArray[np.float64], noise: float) -> PnlssModel:
+    from dataclasses import replace
+
+    return replace(model, covariance=cov if np.all(np.isfinite(cov)) else None,
+                   noise_variance=noise)

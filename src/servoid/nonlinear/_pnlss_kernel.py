@@ -1,0 +1,197 @@
+"""Compiled kernels of the polynomial nonlinear state-space model.
+
+``x(t+1) = A x + B u + E m(x, u)``, ``y(t) = C x + D u + F m(x, u)`` with
+``m`` the monomials whose exponents are the rows of ``P`` (one column per
+state, then per input).  :func:`simulate` runs the model; :func:`jacobian`
+runs it together with the exact forward sensitivity recursion
+
+    S(t+1) = (A + E ∂m/∂x) S(t) + ∂x(t+1)/∂θ|direct,
+    ∂y(t)/∂θ = (C + F ∂m/∂x) S(t) + ∂y(t)/∂θ|direct,
+
+so the Levenberg–Marquardt search never differences the simulation.  The
+parameters are ordered A (row-major), B, C, D, E, F, then the initial
+state; ``first`` skips the leading blocks (``first = n_model`` gives the
+initial state's columns alone, for the validation's initial-state fit).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+__all__ = ["jacobian", "simulate"]
+
+#: |x| past which a run counts as diverged (its output is then NaN from there on).
+LIMIT = 1e12
+
+
+@nb.njit(cache=True, nogil=True)
+def _monomials(z, P, m, dm):  # pragma: no cover - compiled
+    """m_j = Π_k z_k^P[j,k] and dm[j, i] = ∂m_j/∂x_i for the first dm.shape[1] entries of z."""
+    nm, nz = P.shape
+    nx = dm.shape[1]
+    for j in range(nm):
+        v = 1.0
+        for k in range(nz):
+            p = P[j, k]
+            if p > 0:
+                v *= z[k] ** p
+        m[j] = v
+        for i in range(nx):
+            p = P[j, i]
+            if p == 0:
+                dm[j, i] = 0.0
+                continue
+            d = p * z[i] ** (p - 1)
+            for k in range(nz):
+                q = P[j, k]
+                if k != i and q > 0:
+                    d *= z[k] ** q
+            dm[j, i] = d
+
+
+@nb.njit(cache=True, nogil=True)
+def simulate(A, B, C, D, E, F, P, u, x0, y, x):  # pragma: no cover - compiled
+    """Free run from x0; fills y (N,) and the states x (N+1, nx); returns the first sample
+    whose state left ±LIMIT (or became NaN), or -1."""
+    N, nu = u.shape
+    nx = A.shape[0]
+    nm = P.shape[0]
+    z = np.empty(nx + nu)
+    m = np.empty(nm)
+    dm = np.empty((nm, nx))
+    for i in range(nx):
+        x[0, i] = x0[i]
+    for t in range(N):
+        for i in range(nx):
+            z[i] = x[t, i]
+        for k in range(nu):
+            z[nx + k] = u[t, k]
+        _monomials(z, P, m, dm)
+        out = 0.0
+        for i in range(nx):
+            out += C[i] * z[i]
+        for k in range(nu):
+            out += D[k] * u[t, k]
+        for j in range(nm):
+            out += F[j] * m[j]
+        y[t] = out
+        bad = False
+        for i in range(nx):
+            s = 0.0
+            for k in range(nx):
+                s += A[i, k] * z[k]
+            for k in range(nu):
+                s += B[i, k] * u[t, k]
+            for j in range(nm):
+                s += E[i, j] * m[j]
+            x[t + 1, i] = s
+            if not (abs(s) < LIMIT):
+                bad = True
+        if bad:
+            for s_ in range(t + 1, N):
+                y[s_] = np.nan
+            return t + 1
+    return -1
+
+
+@nb.njit(cache=True, nogil=True)
+def jacobian(A, B, C, D, E, F, P, u, x0, first, y, J):  # pragma: no cover - compiled
+    """Simulate and fill J (N, n_par − first) with ∂y(t)/∂θ_k for k ≥ first.
+
+    Returns the first diverged sample, or -1 (then J is finite)."""
+    N, nu = u.shape
+    nx = A.shape[0]
+    nm = P.shape[0]
+    nA = nx * nx
+    nB = nx * nu
+    nE = nx * nm
+    oB = nA
+    oC = oB + nB
+    oD = oC + nx
+    oE = oD + nu
+    oF = oE + nE
+    o0 = oF + nm
+    npar = o0 + nx - first
+    z = np.empty(nx + nu)
+    xn = np.empty(nx)
+    m = np.empty(nm)
+    dm = np.empty((nm, nx))
+    Ax = np.empty((nx, nx))
+    Cx = np.empty(nx)
+    S = np.zeros((nx, npar))
+    Sn = np.empty((nx, npar))
+    for i in range(nx):
+        z[i] = x0[i]
+        S[i, o0 - first + i] = 1.0
+    for t in range(N):
+        for k in range(nu):
+            z[nx + k] = u[t, k]
+        _monomials(z, P, m, dm)
+        # linearisation of both equations at (x(t), u(t))
+        for i in range(nx):
+            Cx[i] = C[i]
+            for j in range(nm):
+                Cx[i] += F[j] * dm[j, i]
+            for k in range(nx):
+                s = A[i, k]
+                for j in range(nm):
+                    s += E[i, j] * dm[j, k]
+                Ax[i, k] = s
+        out = 0.0
+        for i in range(nx):
+            out += C[i] * z[i]
+        for k in range(nu):
+            out += D[k] * z[nx + k]
+        for j in range(nm):
+            out += F[j] * m[j]
+        y[t] = out
+        # output row: (C + F dm) S + direct terms
+        for c in range(npar):
+            s = 0.0
+            for i in range(nx):
+                s += Cx[i] * S[i, c]
+            J[t, c] = s
+        if oC >= first:
+            for i in range(nx):
+                J[t, oC + i - first] += z[i]
+            for k in range(nu):
+                J[t, oD + k - first] += z[nx + k]
+            for j in range(nm):
+                J[t, oF + j - first] += m[j]
+        # next state and its sensitivity
+        bad = False
+        for i in range(nx):
+            s = 0.0
+            for k in range(nx):
+                s += A[i, k] * z[k]
+            for k in range(nu):
+                s += B[i, k] * z[nx + k]
+            for j in range(nm):
+                s += E[i, j] * m[j]
+            xn[i] = s
+            if not (abs(s) < LIMIT):
+                bad = True
+        for i in range(nx):
+            for c in range(npar):
+                s = 0.0
+                for k in range(nx):
+                    s += Ax[i, k] * S[k, c]
+                Sn[i, c] = s
+        if first == 0:  # the model's own columns (not the initial state's alone)
+            for i in range(nx):
+                for k in range(nx):
+                    Sn[i, i * nx + k - first] += z[k]
+                for k in range(nu):
+                    Sn[i, oB + i * nu + k - first] += z[nx + k]
+                for j in range(nm):
+                    Sn[i, oE + i * nm + j - first] += m[j]
+        for i in range(nx):
+            z[i] = xn[i]
+            for c in range(npar):
+                S[i, c] = Sn[i, c]
+        if bad:
+            for s_ in range(t + 1, N):
+                y[s_] = np.nan
+            return t + 1
+    return -1

@@ -1,0 +1,307 @@
+"""``method = "pnlss"``: polynomial nonlinear state space grown from a linear model."""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._errors import ServoidError, ServoidWarning
+from ..data import Experiment, ExperimentSet, ExperimentSpec
+from ..report import Figure, Section, Table
+from ._common import keyed, parameter_table, warnings_as_notes
+from ._examples import open_loop
+from ._lti import IdentificationResult, lti_result
+from ._options import HORIZON, OUTPUT, ROLE, choice, integer, number, orders
+from ._registry import FigureWriter, Method, Option
+
+__all__ = ["METHOD", "PnlssResult"]
+
+_KEYS = {name: f"[identify] {name}" for name in
+         ("n_states", "degree", "monomials", "ridge", "linear", "max_iter", "horizon")}
+#: Share of the estimation record held out to choose n_states and degree from a grid.
+HOLDOUT = 0.25
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One (n_states, degree) of a grid, scored by its free run on held-out data."""
+
+    n_states: int
+    degree: int
+    n_parameters: int
+    rms: float  # free-run RMS error on the held-out part [output unit]; inf: failed
+    status: str
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class PnlssResult(IdentificationResult):
+    """A PNLSS model from an experiment file, validated by free run.
+
+    The fields are those of :class:`~servoid.workflows.IdentificationResult`
+    plus ``grid`` (the candidates of a (n_states, degree) search, best
+    first) and ``contribution`` (time, the full free run and the linear
+    part's on the first validation record).
+    """
+
+    grid: tuple[Candidate, ...] = ()
+    contribution: tuple[Any, ...] = field(default=(), repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Everything in ``results.json``, with the model file record and the grid."""
+        out = super().to_dict()
+        out["model"] = self.estimate.model.to_dict()
+        out["grid"] = [c.__dict__ for c in self.grid] or None
+        share = self._share()
+        out["nonlinear_share"] = None if share is None else share
+        return out
+
+    def _share(self) -> float | None:
+        """RMS of the nonlinear terms' contribution over the RMS of the output's variation."""
+        if not self.contribution:
+            return None
+        _, full, lin = self.contribution
+        ok = np.isfinite(full) & np.isfinite(lin)
+        if not ok.any():
+            return None
+        spread = float(np.std(full[ok]))
+        return float(np.sqrt(np.mean((full[ok] - lin[ok]) ** 2)) / spread) if spread > 0 else 0.0
+
+    def _headline(self) -> str:
+        est = self.estimate
+        o = est.options
+        return (f"{self.title}: output {o['output']} from {', '.join(o['inputs'])} "
+                f"({o['input']}); {est.parameters.size} parameters on {est.n_samples} samples, "
+                f"simulation-error σ̂² = {est.noise_variance:.4g}")
+
+    def _extra_lines(self) -> list[str]:
+        o = self.estimate.options
+        lines = [(f"  search: linear start RMS {o['linear_rms']:.4g} → "
+                  f"{np.sqrt(o['cost']):.4g} after {o['iterations']} Levenberg–Marquardt "
+                  f"iterations ({o['rejected']} steps rejected, {o['diverged_steps']} of them "
+                  "diverged)")]
+        share = self._share()
+        if share is not None:
+            lines.append(f"  nonlinear terms: {100 * share:.3g} % of the output's RMS variation "
+                         "on the first validation record")
+        if self.grid:
+            lines.append("  (n_states, degree) by free-run RMS on the held-out quarter:")
+            lines += [f"    {c.n_states}, {c.degree}: {c.rms:.4g} ({c.n_parameters} parameters)"
+                      for c in self.grid]
+        return lines
+
+    def figures(self) -> dict[str, FigureWriter]:
+        """The validation plots, the linear part's Bode and the nonlinear contribution."""
+        out = super().figures()
+        out["linear_bode.png"] = partial(_plot_linear, self)
+        if self.contribution:
+            out["nonlinear.png"] = partial(_plot_contribution, self)
+        return out
+
+    def _model_section(self, files: Mapping[str, Path]) -> Section:
+        est = self.estimate
+        o = est.options
+        text = (f"PNLSS model (Paduart et al. 2010) with {o['n_states']} states and "
+                f"{o['n_monomials']} monomials ({o['monomials']}, degree ≤ {o['degree']}, with "
+                f"the constant) in both equations, on the signals normalised to zero mean and "
+                f"unit variance. Started from a linear model ({o['linear']}), refined by output "
+                f"error with E = F = 0, then all coefficients and the initial state together, "
+                f"by Levenberg–Marquardt on the simulation error with the exact Jacobian "
+                f"(sensitivity recursion); {o['iterations']} iterations, {o['rejected']} steps "
+                f"rejected ({o['diverged_steps']} because the simulation diverged); "
+                f"ridge {o['ridge']:g}. Free-run RMS on the estimation data: linear "
+                f"{o['linear_rms']:.4g}, PNLSS {np.sqrt(o['cost']):.4g}. The covariance is "
+                "σ̂²(JᵀJ)⁺ with the similarity-transform directions left out.")
+        figures = []
+        if "linear_bode.png" in files:
+            figures.append(Figure.from_file(files["linear_bode.png"],
+                                            "The PNLSS model's linear part (E = F = 0) against "
+                                            "the linear model it started from"))
+        return Section("Model", paragraphs=(text, str(est.model)),
+                       tables=(parameter_table(est, "A … F on the normalised signals; std from "
+                                                    "σ̂²(JᵀJ)⁺"),),
+                       figures=tuple(figures))
+
+    def _extra_sections(self, files: Mapping[str, Path]) -> list[Section]:
+        out = []
+        share = self._share()
+        if share is not None and "nonlinear.png" in files:
+            out.append(Section(
+                "Nonlinear terms",
+                paragraphs=((f"Over the first validation record the nonlinear terms (E ζ, F η) "
+                             f"change the free run by {100 * share:.3g} % of the output's RMS "
+                             "variation: the full model's run against the same model with "
+                             "E = F = 0, from the same initial state."),),
+                figures=(Figure.from_file(files["nonlinear.png"],
+                                          "Free run of the model and of its linear part, and "
+                                          "their difference"),)))
+        if self.grid:
+            rows = tuple((str(c.n_states), str(c.degree), str(c.n_parameters),
+                          f"{c.rms:.4g}", c.status) for c in self.grid)
+            out.append(Section(
+                "States and degree",
+                paragraphs=((f"Each candidate fitted on the first {100 * (1 - HOLDOUT):g} % of "
+                             "the estimation data and scored by its free-run RMS error on the "
+                             "rest (initial state estimated); the best is refitted on all of "
+                             "it."),),
+                tables=(Table(("n_states", "degree", "parameters", "held-out RMS", "status"),
+                              rows, "Best first"),)))
+        return out
+
+    def _subtitle(self) -> str:
+        return f"{self.title}, validated by free-run simulation on data not used for fitting"
+
+
+def run(spec: ExperimentSpec, options: Mapping[str, Any],
+        truth: Mapping[str, float] | None) -> PnlssResult:
+    """Fit a PNLSS model (choosing states and degree from a grid) and validate it."""
+    estimation, validations = spec.records()
+    states = _grid(options["n_states"])
+    degrees = _grid(options["degree"])
+    grid: tuple[Candidate, ...] = ()
+    with keyed(_KEYS), warnings_as_notes() as notes:
+        if len(states) * len(degrees) > 1:
+            grid = _search(estimation, states, degrees, options)
+            best = grid[0]
+            n_states, degree = best.n_states, best.degree
+        else:
+            n_states, degree = states[0], degrees[0]
+        estimate = _fit(estimation, n_states, degree, options)
+    model = estimate.model
+    contribution: tuple[Any, ...] = ()
+    first = validations[0]
+    try:
+        u = np.asarray(first.signal(options["input"]), dtype=float)
+        y = np.asarray(first[estimate.options["output"]], dtype=float)
+        x0 = model.initial_state(y, u)
+        full, lin = model.contribution(u, x0)
+        contribution = (first.time, full, lin)
+    except ServoidError:
+        pass  # a record the model cannot run: the validation says why
+    o = estimate.options
+    title = (f"PNLSS (n_states = {o['n_states']}, degree = {o['degree']}, {o['monomials']} "
+             f"monomials)")
+    result = lti_result(spec, "pnlss", estimate, title, validations, options, notes=notes,
+                        truth=truth, modal=False, result_type=PnlssResult, records=estimation,
+                        extra={"grid": grid, "contribution": contribution},
+                        how="Levenberg–Marquardt on the simulation error")
+    assert isinstance(result, PnlssResult)
+    return result
+
+
+# -- private ------------------------------------------------------------------------------
+
+
+def _fit(data: Experiment | ExperimentSet, n_states: int, degree: int,
+         options: Mapping[str, Any]) -> Any:
+    from ..nonlinear import fit_pnlss
+
+    return fit_pnlss(data, n_states, degree, monomials=options["monomials"],
+                     linear=options["linear"], ridge=options["ridge"],
+                     input=options["input"], output=options["output"],
+                     max_iter=options["max_iter"])
+
+
+def _grid(value: int | Sequence[int]) -> list[int]:
+    return [value] if isinstance(value, int) else list(dict.fromkeys(value))
+
+
+def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Sequence[int],
+            options: Mapping[str, Any]) -> tuple[Candidate, ...]:
+    """Fit every (n_states, degree) on the first part, score the free run on the rest."""
+    records = [data] if isinstance(data, Experiment) else list(data)
+    if len(records) > 1:  # hold out the last record whole
+        fit_on: Any = ExperimentSet(records[:-1]) if len(records) > 2 else records[0]
+        held = records[-1]
+    else:
+        whole = records[0]
+        cut = round(whole.n_samples * (1 - HOLDOUT))
+        fit_on, held = whole.slice(0, cut), whole.slice(cut, None)
+    rows = []
+    for n in states:
+        for d in degrees:
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", ServoidWarning)
+                    est = _fit(fit_on, n, d, options)
+                    model = est.model
+                    u = held.signal(options["input"])
+                    y = held[est.options["output"]]
+                    y_sim, _, _ = model.replay(y, u, initial="estimate")
+                rms = float(np.sqrt(np.mean((y_sim - y) ** 2)))
+                rows.append(Candidate(n, d, est.parameters.size,
+                                      rms if np.isfinite(rms) else np.inf,
+                                      "ok" if np.isfinite(rms) else "diverged on held-out"))
+            except ServoidError as exc:
+                rows.append(Candidate(n, d, 0, np.inf, f"failed: {exc}"[:120]))
+    rows.sort(key=lambda c: (c.rms, c.n_parameters))
+    return tuple(rows)
+
+
+def _plot_linear(result: PnlssResult, path: Path, overwrite: bool) -> None:
+    from ..models import StateSpace
+    from ..report import plot_bode
+
+    model = result.estimate.model
+    o = result.estimate.options
+    start = o["linear_start"]
+    models = {"PNLSS linear part": model.linear_part().to_tf(),
+              f"linear start ({o['linear']})": StateSpace(
+                  start["A"], start["B"], start["C"], start["D"], dt=model.dt).to_tf()}
+    n = result.estimate.n_samples
+    plot_bode(models, path, f_min=max(1.0 / (n * model.dt), 1e-6),
+              title=f"{result.title}: linear part", overwrite=overwrite)
+
+
+def _plot_contribution(result: PnlssResult, path: Path, overwrite: bool) -> None:
+    from ..report import new_figure, save_figure
+
+    t, full, lin = result.contribution
+    unit = result.estimate.model.output_unit
+    fig = new_figure((8, 5))
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    ax1.plot(t, full, lw=0.8, label="PNLSS free run")
+    ax1.plot(t, lin, lw=0.8, label="its linear part (E = F = 0)")
+    ax1.set_ylabel(f"output [{unit}]" if unit else "output")
+    ax1.legend(loc="upper right", fontsize=8)
+    ax2.plot(t, full - lin, lw=0.8, color="C3")
+    ax2.set_ylabel("nonlinear terms")
+    ax2.set_xlabel("time [s]")
+    ax1.set_title("The nonlinear terms' contribution over the first validation record")
+    save_figure(fig, path, overwrite)
+
+
+METHOD = Method(
+    name="pnlss",
+    summary="polynomial nonlinear state space x⁺ = Ax + Bu + Eζ(x, u), y = Cx + Du + Fη(x, u) "
+            "from a linear start, by Levenberg–Marquardt on the simulation error; states and "
+            "degree from a grid on held-out data",
+    options=(
+        ROLE,
+        OUTPUT,
+        Option("n_states", 2, orders(1),
+               "number of states (a list: a grid, chosen on the last quarter of the "
+               "estimation data)"),
+        Option("degree", 3, orders(1),
+               "highest degree of the monomials ζ = η (1: linear; a list: a grid as for "
+               "n_states)"),
+        Option("monomials", "full", choice(("full", "state", "input")),
+               "monomials of states and inputs (full), of the states (state) or of the inputs "
+               "(input)"),
+        Option("linear", "n4sid", choice(("n4sid", "oe")),
+               "the linear start: n4sid, or OE turned into state space"),
+        Option("ridge", 0.0, number(nonneg=True),
+               "weight α of the penalty α·N·‖(E, F)‖² on the nonlinear coefficients"),
+        Option("max_iter", 100, integer(minimum=0, maximum=10000),
+               "most Levenberg–Marquardt iterations per stage"),
+        HORIZON,
+    ),
+    run=run,
+    example=partial(open_loop, kind="wiener",
+                    identify={"method": "pnlss", "n_states": 2, "degree": 3}),
+)

@@ -1,0 +1,70 @@
+"""``method = "pnlss"`` from the experiment file: grid on held-out data, report, export."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from servoid import OptionError
+from servoid.models import load_model
+from servoid.nonlinear import PnlssModel
+from servoid.workflows import identify, load_results
+from servoid.workflows._examples import open_loop
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("pnlss")
+    spec = open_loop(folder / "data", kind="wiener",
+                     identify={"method": "pnlss", "n_states": [1, 2], "degree": [1, 3]})
+    return identify(spec, folder / "out"), folder / "out"
+
+
+def test_the_grid_on_held_out_data_picks_states_and_degree_that_cover_the_system(run):
+    result, _ = run
+    best = result.grid[0]
+    # the example is a 2nd-order linear block before a cubic curve: 2 states, degree 3
+    assert (best.n_states, best.degree) == (2, 3)
+    assert len(result.grid) == 4 and result.grid[-1].rms > 5 * best.rms
+    o = result.estimate.options
+    assert (o["n_states"], o["degree"]) == (2, 3)
+
+
+def test_the_free_run_reaches_the_example_noise(run):
+    result, _ = run
+    # the example's output noise is 0.02 (workflows/_examples.py): within 10 % of it
+    assert result.validation.rmse < 1.10 * 0.02
+
+
+def test_the_report_has_the_linear_part_and_the_nonlinear_contribution(run):
+    _, out = run
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert "Nonlinear terms" in page and "States and degree" in page
+    assert (out / "linear_bode.png").is_file() and (out / "nonlinear.png").is_file()
+    data = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    assert data["model"]["type"] == "polynomial_state_space" and 0 < data["nonlinear_share"] < 5
+
+
+def test_results_load_back_bit_exact_and_export(run, tmp_path):
+    result, out = run
+    back = load_results(out / "results.json").models["G"]
+    assert isinstance(back, PnlssModel)
+    assert np.array_equal(back.E, result.estimate.model.E)
+    from servoid.cli import main
+
+    assert main(["export", str(out / "results.json"), "--to", "json", "--out",
+                 str(tmp_path / "m.json")]) == 0
+    m = load_model(tmp_path / "m.json")
+    assert np.array_equal(m.F, result.estimate.model.F)
+
+
+def test_a_degree_past_the_limit_is_refused_naming_the_key(tmp_path):
+    spec = open_loop(tmp_path, kind="wiener", identify={"method": "pnlss", "degree": 9})
+    with pytest.raises(Exception, match=r"\[identify\] degree"):
+        identify(spec, write=False)
+    spec = open_loop(tmp_path / "b", kind="wiener",
+                     identify={"method": "pnlss", "monomials": "cross"})
+    with pytest.raises(OptionError, match="monomials"):
+        identify(spec, write=False)
