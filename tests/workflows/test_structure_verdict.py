@@ -167,3 +167,11 @@ def test_a_pole_just_past_one_within_its_interval_is_an_integrator_not_a_failure
     # the same pole known to 1e-5 is unstable: its region excludes z = 1
     tight = _first_order(-1.0004, 1e-5)
     assert [c.outcome for c in structure_checks(tight.model, DT, tight)] == ["fail"]
+
+
+def test_the_floor_advice_never_names_the_covariance_in_use():
+    from servoid.estimate._diagnostics import _floor_advice
+
+    assert _floor_advice("white") == "use covariance='robust' or 'bootstrap'"
+    assert _floor_advice("robust") == "use covariance='bootstrap'"
+    assert "covariance=" not in _floor_advice("bootstrap")
