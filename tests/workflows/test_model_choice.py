@@ -132,6 +132,7 @@ def test_workers_score_the_same_as_one_process(linear_rig):
     table = {"method": ["oe", "tf"], "oe": {"nb": 2, "nf": 2}}
     with pytest.warns(Warning):
         serial = identify(_toml(linear_rig, table, "w1"), write=False)
+    with pytest.warns(Warning):
         parallel = identify(_toml(linear_rig, {**table, "workers": 2}, "w2"), write=False)
     assert [e.score.mean for e in serial.entries] == [e.score.mean for e in parallel.entries]
 

@@ -3,7 +3,8 @@
 from ._figures import residuals_figure, validation_figure
 from ._metrics import fit_percent, nrmse, relative_error, rmse, vaf
 from ._nonlinearity import NonlinearityTests, nonlinearity_tests
-from ._report import ValidationReport, compare, simulate_from_data, validate
+from ._comparison import Comparison, compare
+from ._report import ValidationReport, simulate_from_data, validate
 from ._residuals import ResidualAnalysis, residual_analysis
 from ._simulate import Replayable, discrete_model, is_replayable, simulate_model
 
@@ -15,6 +16,7 @@ from ._simulate import Initial as Initial
 from ._simulate import check_signals as check_signals
 
 __all__ = [
+    "Comparison",
     "NonlinearityTests",
     "Replayable",
     "ResidualAnalysis",

@@ -88,7 +88,7 @@ class NonlinearityTests:
     @property
     def tested(self) -> tuple[str, ...]:
         """The correlations that could be tested."""
-        return tuple(k for k, p in self.pvalues.items() if p == p)
+        return tuple(k for k, p in self.pvalues.items() if not math.isnan(p))
 
     @property
     def pvalue(self) -> float:
@@ -102,7 +102,7 @@ class NonlinearityTests:
     def detected(self) -> bool:
         """An unmodelled nonlinearity: the combined p-value below 1 − confidence."""
         p = self.pvalue
-        return bool(p == p and p < 1.0 - self.confidence)
+        return bool(not math.isnan(p) and p < 1.0 - self.confidence)
 
     @property
     def strongest(self) -> str:
@@ -112,14 +112,16 @@ class NonlinearityTests:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for JSON."""
-        return {"pvalues": {k: (None if v != v else float(v)) for k, v in self.pvalues.items()},
-                "pvalue": None if self.pvalue != self.pvalue else self.pvalue,
+        return {"pvalues": {k: (None if math.isnan(v) else float(v))
+                            for k, v in self.pvalues.items()},
+                "pvalue": None if math.isnan(self.pvalue) else self.pvalue,
                 "detected": self.detected, "confidence": self.confidence,
                 "max_lag": self.max_lag, "whitening_order": self.whitening_order,
                 "n_samples": self.n_samples}
 
     def __str__(self) -> str:
-        parts = ", ".join(f"{k} p = {v:.3g}" for k, v in self.pvalues.items() if v == v)
+        parts = ", ".join(f"{k} p = {v:.3g}" for k, v in self.pvalues.items()
+                          if not math.isnan(v))
         verdict = "unmodelled nonlinearity" if self.detected else "no nonlinearity left"
         return f"higher-order tests: {verdict} ({parts or 'not testable'})"
 

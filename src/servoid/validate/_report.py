@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -27,7 +26,7 @@ from ._simulate import (
     simulate_model,
 )
 
-__all__ = ["ValidationReport", "compare", "simulate_from_data", "validate"]
+__all__ = ["ValidationReport", "simulate_from_data", "validate"]
 
 #: Lags of the residual correlations unless asked: at most a quarter of the residuals
 #: (autocorrelations beyond N/4 lags rest on too few products; Box & Jenkins).
@@ -187,9 +186,8 @@ class ValidationReport:
                  f"(p = {r.independence_pvalue:.3g})")]
         nl = self.nonlinearity
         if nl is not None and nl.tested:
-            rows.append(("higher-order (nonlinearity) tests",
-                         f"{'NONLINEARITY LEFT' if nl.detected else 'none left'} "
-                         f"(p = {nl.pvalue:.3g})"))
+            verdict = "NONLINEARITY LEFT" if nl.detected else "none left"
+            rows.append(("higher-order (nonlinearity) tests", f"{verdict} (p = {nl.pvalue:.3g})"))
         return html_block(f"validation of {self.output}"
                           + (f" on {self.experiment}" if self.experiment else ""),
                           [("samples", str(self.measured.size - self.first))],
@@ -403,32 +401,6 @@ def validate(
         unit=experiment.unit(outputs[0]),
         noise_model=has_noise_model(model),
     )
-
-
-def compare(
-    models: Mapping[str, Any],
-    experiment: Experiment,
-    **options: Any,
-) -> dict[str, ValidationReport]:
-    """Validate several models on the same record.
-
-    Parameters
-    ----------
-    models : mapping of str to model or Estimate
-        A label per model.
-    experiment : Experiment
-        The record.
-    **options
-        Passed to :func:`validate` (``initial``, ``input``, ``output``, …).
-
-    Returns
-    -------
-    dict of str to ValidationReport
-        In the order of `models`.
-    """
-    if not isinstance(models, Mapping) or not models:
-        raise type_error("models", models, "a non-empty mapping of label to model")
-    return {label: validate(m, experiment, **options) for label, m in models.items()}
 
 
 def simulate_from_data(

@@ -245,7 +245,7 @@ def folds_of(estimation: Experiment | ExperimentSet, folds: int, holdout: float)
             raise OptionError(f"[identify] holdout = {holdout} must lie in (0, 1), e.g. 0.3")
         heads, tails = [], []
         for seg in segments:
-            cut = int(round(seg.n_samples * (1.0 - holdout)))
+            cut = round(seg.n_samples * (1.0 - holdout))
             _enough(seg, cut, seg.n_samples - cut)
             heads.append(seg.slice(0, cut))
             tails.append(seg.slice(cut, None))

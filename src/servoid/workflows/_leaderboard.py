@@ -180,9 +180,9 @@ class ChoiceResult(Displayed):
         table = self.table()
         widths = [max(len(c), *(len(r[i]) for r in table.rows))
                   for i, c in enumerate(table.columns)]
-        lines = [f"model choice among {len(self.entries)} candidates: "
-                 f"{self.scheme.text}", "  " + "  ".join(
-                     c.ljust(w) for c, w in zip(table.columns, widths, strict=True))]
+        head = f"model choice among {len(self.entries)} candidates: {self.scheme.text}"
+        lines = [head, "  " + "  ".join(c.ljust(w) for c, w in zip(table.columns, widths,
+                                                                     strict=True))]
         lines += ["  " + "  ".join(cell.ljust(w) for cell, w in zip(r, widths, strict=True))
                   for r in table.rows]
         if self.gate:
