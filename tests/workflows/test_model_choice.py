@@ -149,3 +149,21 @@ def test_workers_score_the_same_as_one_process(linear_rig):
 def test_bad_choice_tables_are_refused(linear_rig, table, match):
     with pytest.raises(OptionError, match=match):
         identify(_toml(linear_rig, table, "bad"), write=False)
+
+
+def test_export_takes_the_chosen_or_a_named_candidate(wiener_rig, tmp_path):
+    from servoid.cli import main
+    from servoid.models import load_model
+
+    path = _toml(wiener_rig, {"method": ["oe", "tf"], "oe": {"nb": 2, "nf": 2},
+                              "tf": {"n_poles": 2}}, "export")
+    with pytest.warns(Warning):
+        identify(path, tmp_path / "out")
+    results = tmp_path / "out" / "results.json"
+    assert main(["export", str(results), "--to", "json", "--out",
+                 str(tmp_path / "chosen.json")]) == 0
+    assert main(["export", str(results), "--to", "json", "--candidate", "oe (nb=2, nf=2)",
+                 "--out", str(tmp_path / "oe.json")]) == 0
+    assert type(load_model(tmp_path / "oe.json")).__name__ == "PolynomialModel"
+    assert main(["export", str(results), "--to", "json", "--candidate", "nope",
+                 "--out", str(tmp_path / "x.json")]) != 0

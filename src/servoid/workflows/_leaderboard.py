@@ -40,12 +40,11 @@ from ._choice import (
     scheme_of,
     score_candidates,
 )
-from ._lti import model_dict
 from ._methods import get_method
 from ._registry import FigureWriter
 from ._summary import Displayed, RecordSummary
 
-__all__ = ["ChoiceResult", "Entry", "choose"]
+__all__ = ["ChoiceResult", "Entry", "candidate_models", "choose"]
 
 #: Candidates drawn in the overlaid figures (the chosen and the best-scored others).
 _DRAWN = 6
@@ -79,8 +78,8 @@ class Entry:
         v = self.validation
         nl = getattr(v, "nonlinearity", None) if v is not None else None
         model = None
-        if self.result is not None and getattr(self.result, "estimate", None) is not None:
-            model = model_dict(self.result.estimate.model)
+        if self.result is not None:  # the entry load_results rebuilds a model from
+            model = self.result.to_dict().get("model")
         return {"label": self.label, "method": s.candidate.method,
                 "options": dict(s.candidate.table), "chosen": self.label == chosen,
                 "status": s.status, "held_out_fit_percent": _finite(s.mean),
@@ -406,3 +405,35 @@ def _plot_bodes(entries: Sequence[Entry], chosen: str, path: Path, overwrite: bo
         fig = new_figure((6.0, 2.0))
         fig.text(0.5, 0.5, "no frequency response to draw", ha="center")
         save_figure(fig, path, overwrite)
+
+
+def candidate_models(path: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Label → model of every candidate a multi-method run's ``results.json`` holds.
+
+    Returns the models and their leaderboard rows (label → row).
+
+    Raises
+    ------
+    OptionError
+        The file is not the results of a multi-method run (``method = [...]``
+        or ``"auto"``).
+    """
+    from .._checks import as_path, read_json
+    from .._errors import OptionError
+    from ._results import _from_model_dict
+
+    path = as_path("results file", path)
+    data = read_json(path, "results file")
+    choice = data.get("choice") if isinstance(data, Mapping) else None
+    if not isinstance(choice, Mapping) or not isinstance(choice.get("candidates"), list):
+        raise OptionError(f"{path} is not the results of a multi-method run (method = [...] "
+                          "or \"auto\"): it has no candidates")
+    out: dict[str, Any] = {}
+    rows: dict[str, Any] = {}
+    for row in choice["candidates"]:
+        if isinstance(row, Mapping) and isinstance(row.get("model"), Mapping):
+            model = _from_model_dict(row["model"], path, None)
+            if model is not None:
+                out[str(row.get("label"))] = model
+                rows[str(row.get("label"))] = row
+    return out, rows
