@@ -31,6 +31,12 @@ class Comparison(dict):  # type: ignore[type-arg]
 
     def __init__(self, reports: Mapping[str, ValidationReport],
                  parameters: Mapping[str, int] | None = None) -> None:
+        if not isinstance(reports, Mapping) or not reports or \
+                not all(isinstance(v, ValidationReport) for v in reports.values()):
+            raise type_error("reports", reports, "a non-empty mapping of label to "
+                             "ValidationReport (what compare returns)")
+        if parameters is not None and not isinstance(parameters, Mapping):
+            raise type_error("parameters", parameters, "a mapping of label to a count")
         super().__init__(reports)
         self.parameters = dict(parameters or {})
 

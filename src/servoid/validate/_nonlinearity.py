@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import as_array
+from .._checks import as_array, as_bool, as_float, as_int
 from .._errors import DataError
 from .._lazy import linalg
 from ._residuals import residual_analysis
@@ -160,11 +160,13 @@ def nonlinearity_tests(residuals: ArrayLike, u: ArrayLike, max_lag: int = 25,
     x = x[:, None] if x.ndim == 1 else x
     if x.shape[0] != e.size:
         raise DataError(f"u has {x.shape[0]} samples but the residuals {e.size}")
+    max_lag = as_int("max_lag", max_lag, minimum=1)
+    confidence = as_float("confidence", confidence)
+    causal = as_bool("causal", causal)
     if not 0.0 < confidence < 1.0:
         raise DataError(f"confidence must lie in (0, 1), e.g. 0.99, got {confidence}")
     keep = np.isfinite(e) & np.all(np.isfinite(x), axis=1)
     e, x = e[keep], x[keep]
-    max_lag = int(max_lag)
     if e.size < 4 * max_lag + 10:
         raise DataError(f"{e.size} residuals are too few for the higher-order tests up to lag "
                         f"{max_lag}; give a longer record")
