@@ -167,17 +167,3 @@ def test_export_takes_the_chosen_or_a_named_candidate(wiener_rig, tmp_path):
     assert type(load_model(tmp_path / "oe.json")).__name__ == "PolynomialModel"
     assert main(["export", str(results), "--to", "json", "--candidate", "nope",
                  "--out", str(tmp_path / "x.json")]) != 0
-
-
-def test_the_rule_pairs_the_blocks_when_both_were_scored_on_them():
-    # the bigger model is better on every block by 2 points; the blocks' spread (common to
-    # both) is 10 points: unpaired, the small one is "within one SE"; paired, it is not
-    spread = np.array([70.0, 80.0, 90.0, 100.0])
-    big = Score(Candidate("big", "wiener", {}), float(np.mean(spread)), 5.0, 6, 0.1,
-                blocks=tuple(spread))
-    small = Score(Candidate("small", "oe", {}), float(np.mean(spread - 2)), 5.0, 4, 0.1,
-                  blocks=tuple(spread - 2 + np.array([0.1, -0.1, 0.1, -0.1])))
-    assert pick([big, small], "one-se")[0].candidate.label == "big"
-    unpaired = [Score(big.candidate, big.mean, big.se, 6, 0.1),
-                Score(small.candidate, small.mean, 5.0, 4, 0.1)]
-    assert pick(unpaired, "one-se")[0].candidate.label == "small"

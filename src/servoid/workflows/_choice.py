@@ -23,9 +23,7 @@ unstable, whose free run diverges or whose fit fails is never chosen.
 Among the rest, ``rule = "one-se"`` (default) takes the candidate with
 the fewest parameters whose mean lies within one standard error of the
 best mean (Hastie, Tibshirani & Friedman, *The Elements of Statistical
-Learning*, §7.10), the standard error of the block-by-block differences
-(both are scored on the same blocks, so their common noise cancels);
-``rule = "best"`` takes the best mean.  The chosen
+Learning*, §7.10); ``rule = "best"`` takes the best mean.  The chosen
 candidate is then fitted on the whole estimation data and validated on the
 ``[validation]`` records like a single-method run; the others too, for the
 leaderboard (their validation fits are shown, never used to choose).
@@ -115,7 +113,6 @@ class Score:
     seconds: float
     status: str = "ok"
     nonlinearity: bool | None = None
-    blocks: tuple[float, ...] = ()
 
     @property
     def admissible(self) -> bool:
@@ -325,7 +322,7 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
                      "failed: no held block could be scored")
     se = float(values.std(ddof=1) / math.sqrt(values.size)) if values.size > 1 else math.nan
     return Score(candidate, float(values.mean()), se, n_par, time.perf_counter() - start,
-                 "ok", nonlinear, tuple(float(b) for b in blocks))
+                 "ok", nonlinear)
 
 
 def _status(result: Any) -> str:
@@ -398,7 +395,7 @@ def pick(scores: Sequence[Score], rule: str) -> tuple[Score | None, str]:
     if rule == "best" or not math.isfinite(best.se):
         return best, (f"the best held-out fit ({best.mean:.2f} %)" +
                       ("" if rule == "best" else "; no standard error to widen it by"))
-    near = [s for s in ok if s is best or _within(s, best)]
+    near = [s for s in ok if s.mean >= best.mean - best.se]
     chosen = min(near, key=lambda s: (s.n_parameters, -s.mean))
     if chosen is best:
         return best, (f"the best held-out fit ({best.mean:.2f} ± {best.se:.2f} %), and no "
@@ -407,19 +404,6 @@ def pick(scores: Sequence[Score], rule: str) -> tuple[Score | None, str]:
                     f"standard error of the best: {chosen.mean:.2f} % against "
                     f"{best.candidate.label}'s {best.mean:.2f} ± {best.se:.2f} % "
                     f"({best.n_parameters} parameters)")
-
-
-def _within(s: Score, best: Score) -> bool:
-    """Whether a candidate's held-out fit is within one standard error of the best's.
-
-    Scored on the same blocks, the comparison is paired: the mean of the
-    block-by-block differences against their own standard error (the
-    blocks' common noise cancels); otherwise the best's standard error.
-    """
-    if len(s.blocks) == len(best.blocks) > 1:
-        d = np.asarray(best.blocks) - np.asarray(s.blocks)
-        return bool(d.mean() <= d.std(ddof=1) / math.sqrt(d.size))
-    return s.mean >= best.mean - best.se
 
 
 @dataclass(frozen=True)
