@@ -36,6 +36,9 @@ def add_export(commands: Any, json_flag: Callable[[argparse.ArgumentParser], Non
                         help="output format")
     export.add_argument("--model", metavar="NAME",
                         help="export only this model (the command lists the names)")
+    export.add_argument("--candidate", metavar="LABEL",
+                        help="of a multi-method run (method = [...] or \"auto\"): export this "
+                        "candidate of its leaderboard instead of the chosen model")
     export.add_argument("--out", type=out_path, help="file to write (default: model.mat, "
                         "model.json or model.py beside RESULTS; model_NAME.* with --model)")
     export.add_argument("--overwrite", action="store_true", help="replace an existing file")
@@ -91,6 +94,8 @@ def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
         data = loaded.data
     else:
         models, data = {"G": record}, {}
+    if getattr(args, "candidate", None) is not None:
+        models, data = _candidate(args.results, args.candidate)
     if not models:
         method = loaded.data.get("method") or "this method"
         raise ModelError(
@@ -144,6 +149,18 @@ def _run_export(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 
 # -- private ------------------------------------------------------------------------------
+
+
+def _candidate(results: Path, label: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``--candidate``: one candidate's model of a multi-method run, as G, and its entry."""
+    from .._errors import OptionError
+    from ..workflows import candidate_models
+
+    models, rows = candidate_models(results)
+    if label not in models:
+        raise OptionError(f"--candidate must be one of {', '.join(map(repr, models))} (the "
+                          f"candidates of {results} with a model); got {label!r}")
+    return {"G": models[label]}, {"model": rows[label].get("model")}
 
 
 def _kind(model: Any) -> str:

@@ -358,8 +358,13 @@ def assess(
     multistart: MultistartSummary | None = None,
     *,
     warn: bool = True,
+    covariance_kind: str = "",
 ) -> Identifiability:
-    """The checks of :func:`check_identifiability`, inputs trusted."""
+    """The checks of :func:`check_identifiability`, inputs trusted.
+
+    ``covariance_kind`` is the covariance the fit reported (``"white"``,
+    ``"robust"``, ``"bootstrap"``): the flags' advice leaves it out.
+    """
     n = theta.size
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -372,7 +377,7 @@ def assess(
     if n and weakest[np.argmax(np.abs(weakest))] < 0:
         weakest = -weakest
     steps, ratio, floor = _finite_moves(residual_fn, theta, r0, norms, std, layout)
-    flags = _flags(theta, std, corr, sv, weakest, ratio, floor, steps, names)
+    flags = _flags(theta, std, corr, sv, weakest, ratio, floor, steps, names, covariance_kind)
     if multistart is not None:
         flags += _multistart_flags(multistart, theta, cov, float(r0 @ r0),
                                    max(r0.size - n, 1), names)
@@ -574,6 +579,7 @@ def _flags(
     floor: NDArray[np.float64],
     step: NDArray[np.float64],
     names: tuple[str, ...],
+    kind: str = "",
 ) -> list[IdentifiabilityFlag]:
     flags: list[IdentifiabilityFlag] = []
     n = theta.size
@@ -614,7 +620,7 @@ def _flags(
             f"standard deviation below what the noise and record length allow ({text}, the "
             "Hammersley–Chapman–Robbins floor with the others known): the covariance "
             "understates the error — coloured noise under a white formula, or a Jacobian "
-            "spoilt by a discontinuity; use covariance='robust' or 'bootstrap'"))
+            "spoilt by a discontinuity; " + _floor_advice(kind)))
     # a move capped at |θ_k|/2 < σ_k or raised to 1e-4·|θ_k| > σ_k does not test the quadratic
     # model over ±1σ, so there only a disagreement no nonlinearity explains counts: a spoilt
     # Jacobian column
@@ -631,6 +637,15 @@ def _flags(
             "rounding in the model that spoils the finite-difference Jacobian, or a strong "
             "nonlinearity; try covariance='bootstrap' or a smoother, better-scaled model"))
     return flags
+
+
+def _floor_advice(kind: str) -> str:
+    """What to try when a std is below its floor, without the covariance already in use."""
+    others = [k for k in ("robust", "bootstrap") if k != kind]
+    if kind == "bootstrap":
+        return ("the bootstrap in use resamples a model with a discontinuity too: smooth the "
+                "model or fix the parameter")
+    return "use covariance=" + " or ".join(f"'{k}'" for k in others)
 
 
 def _multistart_flags(

@@ -467,7 +467,7 @@ def fit_greybox(
         return raw_residuals(th)
 
     ident = assess(free_residuals, theta[fidx], r, jac / d, cov, free_names,
-                   [[n_s]] * n_out, summary)
+                   [[n_s]] * n_out, summary, covariance_kind=kind)
     per_channel = r.reshape(n_out, -1)
     channel_rms = (np.sqrt(np.mean(per_channel**2, axis=1)) / w).tolist()
     model = GreyboxModel(names, theta, tuple(bool(f) for f in free), simulate_all)

@@ -448,7 +448,11 @@ def _fit(
                 results.append(_search(problem, orders, theta_k, max_iter, tol, floor))
         except ConvergenceError as exc:
             if not multistart:
-                raise
+                # advise only what is not already in use
+                text = str(exc).replace(_ADVICE, _advice(multistart, initial))
+                if initial == "estimate":
+                    text = text.replace("initial='estimate' or ", "")
+                raise ConvergenceError(text) from None
             failure = failure or exc
             results.append(None)
     if all(r is None for r in results):
@@ -481,7 +485,7 @@ def _fit(
     if not best.converged:
         warn(
             f"the {method} search stopped at max_iter={max_iter} before converging; increase "
-            "max_iter, try multistart=5 or initial='estimate', or check the orders",
+            f"max_iter, try {_advice(multistart, initial, tail=('check the orders',))}",
             ServoidWarning)
     if singular:
         warn(
@@ -737,7 +741,7 @@ def _search(problem: Problem, orders: PemOrders, theta: NDArray[np.float64], max
             raise ConvergenceError(
                 f"the search stalled after {iterations} steps: no damped step lowers the cost "
                 f"although the predicted decrease is {predicted / cost:.2g} of it. Try "
-                "multistart=5, initial='estimate', lower orders or detrended data")
+                f"{_ADVICE}")
         theta, cost = trial, trial_cost
         reflected += n_ref
         iterations += 1
@@ -795,6 +799,18 @@ def _inside_step(problem: Problem, orders: PemOrders, theta: NDArray[np.float64]
                 return candidate, other_cost, 0
             break
     return trial, trial_cost, n_ref
+
+
+#: What a stalled search advises, before :func:`_advice` drops the settings already in use.
+_ADVICE = "multistart=5, initial='estimate', lower orders or detrended data"
+
+
+def _advice(multistart: int, initial: str,
+            tail: tuple[str, ...] = ("lower orders", "detrended data")) -> str:
+    """The remedies for a stalled search, without the ones the fit already used."""
+    parts = [*(() if multistart else ("multistart=5",)),
+             *(() if initial == "estimate" else ("initial='estimate'",)), *tail]
+    return ", ".join(parts[:-1]) + " or " + parts[-1] if len(parts) > 1 else parts[0]
 
 
 def _status(best: _Search, reflected: int, singular: bool) -> str:

@@ -6,7 +6,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import partial
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -301,9 +301,42 @@ def _project(d: _Data, past: int, future: int, n_given: int | None, cap: int,
     else:
         n, rule = n_given, "given"
     gamma, a, c_scaled = system_matrices(left, sv, unweight, n, ny)
+    if n_given is None and _is_unstable(a):
+        n, rule, gamma, a, c_scaled = _stable_order(left, sv, unweight, ny, n, rule,
+                                                    min(cap, n_max), messages,
+                                                    (gamma, a, c_scaled))
     return _Projection(layout, gram, n_columns, sv, n, rule,
                        None if n_given is not None else min(cap, n_max), messages, gamma, a,
                        c_scaled)
+
+
+def _stable_order(left: Any, sv: NDArray[np.float64], unweight: Any, ny: int, n: int,
+                  rule: str, cap: int, messages: list[str], chosen: tuple[Any, Any, Any],
+                  ) -> tuple[int, str, Any, Any, Any]:
+    """The order of the clearest singular-value gap whose model is stable.
+
+    The gap rule chose `n` and its A is unstable: the other orders up to
+    `cap` are tried in decreasing size of their log gap, and the first
+    with a stable A is taken (a message says so); when none is stable the
+    rule's order stays (its instability is reported downstream).
+    """
+    size = max(sv.size, cap + 1)
+    s = np.zeros(size)
+    s[: sv.size] = sv
+    s = np.maximum(s, sv[0] * np.finfo(float).eps)
+    gaps = np.log(s[:-1]) - np.log(s[1:])
+    for k in sorted(range(1, cap + 1), key=lambda j: -gaps[j - 1]):
+        if k == n:
+            continue
+        gamma, a, c_scaled = system_matrices(left, sv, unweight, k, ny)
+        if not _is_unstable(a):
+            messages.append(
+                f"the singular-value rule chose order {n}, whose model is unstable; order {k} "
+                f"(σ_{k}/σ_{k + 1} = {math.exp(gaps[k - 1]):.3g}), the clearest other gap with "
+                "a stable model, was taken instead (pass order= to keep another)")
+            return k, rule + "; unstable, so the clearest gap with a stable model", gamma, a, \
+                c_scaled
+    return (n, rule, *chosen)
 
 
 def _identify(d: _Data, pr: _Projection, feedthrough: bool) -> _Pass:

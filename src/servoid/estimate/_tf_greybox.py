@@ -389,7 +389,8 @@ def fit_tf_greybox(
         summary = summarise_starts(costs, [None if q is None else to_theta(q.x) for q in results],
                                    _COST_FLOOR * n_res * y_rms2)
         options_extra["multistart"] = summary.to_dict()
-    ident = assess(raw_residuals, theta, r, jac / d, cov, names, [sizes], summary)
+    ident = assess(raw_residuals, theta, r, jac / d, cov, names, [sizes], summary,
+                   covariance_kind=kind)
 
     def residual_function() -> NDArray[np.float64]:
         return raw_residuals(theta)

@@ -30,6 +30,10 @@ from ._static import (
     StaticNonlinearity,
 )
 
+# isort: split
+# A building block the workflows import (through this package, not its modules); not in __all__.
+from ._block_retry import fit_block_retrying as fit_block_retrying
+
 __all__: list[str] = [
     "MAX_CANDIDATES",
     "MONOMIALS",

@@ -31,6 +31,7 @@ the fit returns the one with a positive static gain.
 from __future__ import annotations
 
 import itertools
+import math
 import warnings
 from collections.abc import Sequence
 from typing import Any, Literal
@@ -206,8 +207,6 @@ def fit_block(
                       g0.parameters if g0 else np.empty(0), d0)
     p_hat, nfev, status = _search(problem, p0, max_iter, tol)
     p_hat = _normalise_sign(problem, p_hat)
-    if lin.unit_gain:
-        _check_not_integrating(lin, p_hat[problem.nf_: problem.nf_ + lin.size], "fit")
     discrete = linear == "oe"
     return _estimate(problem, p_hat, nfev, status, names, {
         "structure": structure, "linear": linear, "nb": nb if discrete else None,
@@ -685,6 +684,9 @@ def _estimate(problem: _Problem, p: NDArray[np.float64], nfev: int, status: str,
             "the structure")
     inv = (vt.T / sv ** 2) @ vt
     covariance = sigma2 * inv / np.outer(norms, norms)
+    if problem.lin.unit_gain:  # the pole near z = 1 judged by its confidence region
+        span = slice(problem.nf_, problem.nf_ + problem.lin.size)
+        _check_not_integrating(problem.lin, p[span], "fit", covariance[span, span])
     model = problem.model(p)
     stable_den = problem.lin.polynomials(p[problem.nf_: problem.nf_ + problem.lin.size])[1]
     if stable_den.size > 1 and np.any(np.abs(np.roots(stable_den)) >= 1.0):
@@ -705,32 +707,79 @@ def _estimate(problem: _Problem, p: NDArray[np.float64], nfev: int, status: str,
         units=units, residual_function=lambda: r.copy(), model_function=model_function)
 
 
-#: |F(1)| / Σ|f_i| below which a linear block counts as integrating (see below).
-_INTEGRATING = 1e-3
+#: Distance of the pole nearest z = 1 below which a start counts as an integrator (no
+#: covariance yet): a pole on 1 to rounding.
+_ON_ONE = 1e-6
+#: Standard deviations of |p − 1| within which the fitted pole nearest z = 1 cannot be told
+#: from an integrator (its approximate 99.7 % region contains z = 1; a unit root's estimate
+#: is not Gaussian, so a wide region).
+INTEGRATOR_SIGMAS = 3.0
 
 
-def _check_not_integrating(lin: LinearBlock, theta: NDArray[np.float64], when: str) -> None:
+def _check_not_integrating(lin: LinearBlock, theta: NDArray[np.float64], when: str,
+                           covariance: NDArray[np.float64] | None = None) -> None:
     """Refuse the convention G(1) = 1 on a linear block with a pole at z = 1.
 
     With a free-scale shape the static gain G(1) = B(1)/F(1) is fixed to 1
-    by B(1) = F(1).  A pole p near 1 makes F(1) ∝ (1 − p) vanish, so the
+    by B(1) = F(1).  A pole p at 1 makes F(1) ∝ (1 − p) vanish, so the
     shape's coefficients carry the block's gain 1/(1 − p): the product is
     right but the coefficients are huge and their intervals meaningless.
-    |F(1)|/Σ|f_i| < 1e-3 is a pole within about 1e-3 of z = 1, a time
-    constant over a thousand samples: on any record of usual length that
-    is an integrator.
+    Whether the pole *is* at 1 is a question for its confidence region,
+    not for a threshold on |F(1)| (a slow, stable process has poles at
+    0.99 that the data place well inside the unit circle): after the fit,
+    the distance |p − 1| of the pole nearest 1 and its standard deviation
+    by the delta method from the covariance of the linear block's
+    parameters; the block integrates when the distance is within
+    :data:`INTEGRATOR_SIGMAS` of them.  At the start (no covariance) only a
+    pole on 1 to rounding is refused.
     """
     _num, den = lin.polynomials(theta)
-    size = float(np.sum(np.abs(den)))
-    ratio = abs(float(den.sum())) / size if size else 0.0
-    if ratio < _INTEGRATING:
-        raise IdentifiabilityError(
-            f"the linear block integrates (a pole at z ≈ 1: its denominator at z = 1 is "
-            f"{ratio:.2g} of its size, after the {when}), so its static gain is infinite and "
-            "the scale convention of a free-scale shape (polynomial, piecewise-linear, a user "
-            "function), linear static gain G(1) = 1, cannot hold: the shape's coefficients "
-            "would carry the integrator's gain. Use a unit-slope shape (deadzone, saturation, "
-            "abs, power) so the linear block keeps the gain")
+    if den.size < 2:
+        return
+    poles = np.roots(den)
+    pole = poles[int(np.argmin(np.abs(poles - 1.0)))]
+    distance = float(abs(pole - 1.0))
+    if covariance is None:
+        if distance >= _ON_ONE:
+            return
+        region = f"z = {pole.real:.6g} at the {when}"
+    else:
+        sigma = _distance_spread(lin, theta, pole, covariance)
+        if not distance < max(INTEGRATOR_SIGMAS * sigma, _ON_ONE):
+            return
+        region = (f"z = {_complex_text(pole)}, |z − 1| = {distance:.2g} within "
+                  f"{INTEGRATOR_SIGMAS:g}σ = {INTEGRATOR_SIGMAS * sigma:.2g} of its "
+                  f"uncertainty, after the {when}")
+    raise IdentifiabilityError(
+        f"the linear block integrates (its pole nearest 1, {region}, cannot be told from "
+        "z = 1), so its static gain is infinite and the scale convention of a free-scale shape "
+        "(polynomial, piecewise-linear, a user function), linear static gain G(1) = 1, cannot "
+        "hold: the shape's coefficients would carry the integrator's gain. Use a unit-slope "
+        "shape (deadzone, saturation, abs, power) so the linear block keeps the gain")
+
+
+def _distance_spread(lin: LinearBlock, theta: NDArray[np.float64], pole: complex,
+                     covariance: NDArray[np.float64]) -> float:
+    """σ of |p − 1| for the pole p nearest 1, by central differences of the roots."""
+    grad = np.zeros(theta.size)
+    std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    for k in range(theta.size):
+        h = max(1e-3 * std[k], 1e-9 * max(abs(theta[k]), 1.0))
+        moved = []
+        for sign in (1.0, -1.0):
+            t = theta.copy()
+            t[k] += sign * h
+            roots = np.roots(lin.polynomials(t)[1])
+            moved.append(abs(roots[int(np.argmin(np.abs(roots - pole)))] - 1.0))
+        grad[k] = (moved[0] - moved[1]) / (2 * h)
+    var = float(grad @ covariance @ grad)
+    return math.sqrt(var) if var > 0 and math.isfinite(var) else 0.0
+
+
+def _complex_text(z: complex) -> str:
+    if abs(z.imag) < 1e-12:
+        return f"{z.real:.6g}"
+    return f"{z.real:.6g} {'+' if z.imag >= 0 else '−'} {abs(z.imag):.3g}j"
 
 
 def _check_regions(problem: _Problem, p: NDArray[np.float64]) -> None:

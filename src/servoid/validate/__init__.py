@@ -1,9 +1,11 @@
 """Validation: fit metrics, residual tests, the ValidationReport, and what data cannot fix."""
 
 from ._carry import DataLimit, data_limits
+from ._comparison import Comparison, compare
 from ._figures import residuals_figure, validation_figure
 from ._metrics import fit_percent, nrmse, relative_error, rmse, vaf
-from ._report import ValidationReport, compare, simulate_from_data, validate
+from ._nonlinearity import NonlinearityTests, nonlinearity_tests
+from ._report import ValidationReport, simulate_from_data, validate
 from ._residuals import ResidualAnalysis, residual_analysis
 from ._simulate import Replayable, discrete_model, is_replayable, simulate_model
 
@@ -15,7 +17,9 @@ from ._simulate import Initial as Initial
 from ._simulate import check_signals as check_signals
 
 __all__ = [
+    "Comparison",
     "DataLimit",
+    "NonlinearityTests",
     "Replayable",
     "ResidualAnalysis",
     "ValidationReport",
@@ -24,6 +28,7 @@ __all__ = [
     "discrete_model",
     "fit_percent",
     "is_replayable",
+    "nonlinearity_tests",
     "nrmse",
     "relative_error",
     "residual_analysis",

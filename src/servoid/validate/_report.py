@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -13,6 +12,7 @@ from .._checks import as_bool, as_float, as_int, type_error
 from .._errors import DataError, ModelError, SimulationDivergedError, check_option
 from ..data import Experiment, check_experiment
 from ._metrics import fit_of_moments, fit_percent, metric_set
+from ._nonlinearity import NonlinearityTests, nonlinearity_tests
 from ._residuals import ResidualAnalysis, analyse_residuals
 from ._simulate import (
     INITIALS,
@@ -26,7 +26,7 @@ from ._simulate import (
     simulate_model,
 )
 
-__all__ = ["ValidationReport", "compare", "simulate_from_data", "validate"]
+__all__ = ["ValidationReport", "simulate_from_data", "validate"]
 
 #: Lags of the residual correlations unless asked: at most a quarter of the residuals
 #: (autocorrelations beyond N/4 lags rest on too few products; Box & Jenkins).
@@ -94,6 +94,7 @@ class ValidationReport:
     clipped: int = 0
     unit: str = ""
     noise_model: bool = True
+    nonlinearity: NonlinearityTests | None = None
 
     def __getstate__(self) -> dict[str, Any]:
         # pickle the time axis itself, not the callable that builds it
@@ -121,7 +122,8 @@ class ValidationReport:
             out.append(
                 f"the residuals are coloured (Ljung–Box p = {r.whiteness_pvalue:.3g}); an "
                 "output-error model describes the dynamics, not the noise, so this alone does "
-                "not reject it (the input–residual test judges the dynamics); BJ adds a noise "
+                "not reject it (the input–residual and higher-order tests judge the dynamics); "
+                "BJ adds a noise "
                 "model when the noise itself matters"
             )
         elif not r.is_white:
@@ -129,6 +131,14 @@ class ValidationReport:
                 f"the residuals are not white (Ljung–Box p = {r.whiteness_pvalue:.3g}): the "
                 "noise model is rejected by the data; parameter intervals that assume white "
                 "residuals are too narrow — a noise model (ARMAX, BJ) or a higher order helps"
+            )
+        nl = self.nonlinearity
+        if nl is not None and nl.detected:
+            out.append(
+                f"the residuals correlate with nonlinear functions of the input ({nl.strongest} "
+                f"p = {nl.pvalues[nl.strongest]:.3g}; Billings–Voon higher-order tests, combined "
+                f"p = {nl.pvalue:.3g}): the model leaves a nonlinearity unexplained — a "
+                "block-oriented model (wiener, hammerstein) or a NARX may capture it"
             )
         if self.clipped:
             out.append(f"{self.clipped} simulated samples were clipped to the declared limits of "
@@ -154,6 +164,7 @@ class ValidationReport:
             "prediction_first": self.prediction_first,
             "clipped": self.clipped,
             "residuals": self.residuals.to_dict(),
+            "nonlinearity": None if self.nonlinearity is None else self.nonlinearity.to_dict(),
             "notes": list(self.notes()),
         }
 
@@ -173,6 +184,10 @@ class ValidationReport:
                 ("input–residual independence",
                  f"{'independent' if r.is_independent else 'CORRELATED'} "
                  f"(p = {r.independence_pvalue:.3g})")]
+        nl = self.nonlinearity
+        if nl is not None and nl.tested:
+            verdict = "NONLINEARITY LEFT" if nl.detected else "none left"
+            rows.append(("higher-order (nonlinearity) tests", f"{verdict} (p = {nl.pvalue:.3g})"))
         return html_block(f"validation of {self.output}"
                           + (f" on {self.experiment}" if self.experiment else ""),
                           [("samples", str(self.measured.size - self.first))],
@@ -378,6 +393,7 @@ def validate(
         horizon=horizon,
         prediction_fit_percent=prediction_fit,
         residuals=analyse_residuals(e_run, u[first:], max_lag, confidence, closed_loop, stats),
+        nonlinearity=_nonlinearity(e_run, u[first:], max_lag, confidence, closed_loop),
         experiment=experiment.name,
         prediction_first=p0,
         initial=initial_used,
@@ -385,32 +401,6 @@ def validate(
         unit=experiment.unit(outputs[0]),
         noise_model=has_noise_model(model),
     )
-
-
-def compare(
-    models: Mapping[str, Any],
-    experiment: Experiment,
-    **options: Any,
-) -> dict[str, ValidationReport]:
-    """Validate several models on the same record.
-
-    Parameters
-    ----------
-    models : mapping of str to model or Estimate
-        A label per model.
-    experiment : Experiment
-        The record.
-    **options
-        Passed to :func:`validate` (``initial``, ``input``, ``output``, …).
-
-    Returns
-    -------
-    dict of str to ValidationReport
-        In the order of `models`.
-    """
-    if not isinstance(models, Mapping) or not models:
-        raise type_error("models", models, "a non-empty mapping of label to model")
-    return {label: validate(m, experiment, **options) for label, m in models.items()}
 
 
 def simulate_from_data(
@@ -507,6 +497,17 @@ def _arx_outputs(
     if not (np.isfinite(moments[0, 1]) and all_finite(y[:first])) and not all_finite(y):
         raise DataError("y must be finite")
     return y_sim, m, y_pred, eps, stats, moments
+
+
+def _nonlinearity(e: NDArray[np.float64], u: NDArray[np.float64], max_lag: int,
+                  confidence: float, closed_loop: bool) -> NonlinearityTests | None:
+    """The higher-order tests, or None where the residuals are too few for them."""
+    if u.size == 0 or e.size < 4 * max_lag + 10:
+        return None
+    try:
+        return nonlinearity_tests(e, u, max_lag, confidence, closed_loop)
+    except DataError:
+        return None
 
 
 def _prediction_start(first: int, horizon: int, n: int) -> int:

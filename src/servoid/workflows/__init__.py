@@ -59,6 +59,7 @@ _HOME = {
 _HOME.update({
     "METHODS": "_methods", "method_of": "_methods", "set_command": "_provenance",
     "greybox_record": "_results", "summarise": "_summary", "toml_value": "_registry",
+    "candidate_models": "_leaderboard",
 })
 
 

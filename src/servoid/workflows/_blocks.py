@@ -31,7 +31,7 @@ from ..nonlinear import (
     Saturation,
     SignedPower,
     StaticNonlinearity,
-    fit_block,
+    fit_block_retrying,
 )
 from ..report import Figure, Section, new_figure, save_figure
 from ._common import keyed, parameter_table, warnings_as_notes
@@ -120,7 +120,7 @@ def run(structure: str, spec: ExperimentSpec, options: Mapping[str, Any],
                 "n_poles": "[identify] n_poles", "n_zeros": "[identify] n_zeros",
                 "max_iter": "[identify] max_iter", "tol": "[identify] tol"}), \
             warnings_as_notes() as notes:
-        estimate = fit_block(
+        estimate = fit_block_retrying(
             estimation, structure, offset=options["offset"], input=role,
             output=options["output"], initial=options["initial"],
             max_iter=options["max_iter"], tol=options["tol"], **settings)

@@ -235,6 +235,7 @@ def validation_section(report: ValidationReport, fig_sim: Path, fig_res: Path) -
              "n/a" if res.independence_pvalue != res.independence_pvalue else
              f"{pvalue_text(res.independence_pvalue)} → "
              f"{'independent' if res.is_independent else 'correlated'}"),
+            *_nonlinearity_rows(report),
         ),
         caption="On data not used for fitting",
     )
@@ -253,6 +254,16 @@ def validation_section(report: ValidationReport, fig_sim: Path, fig_res: Path) -
                              "cross-correlation with confidence band"),
         ),
     )
+
+
+def _nonlinearity_rows(report: ValidationReport) -> tuple[tuple[str, str], ...]:
+    """The higher-order tests beside the linear ones: each correlation, then the decision."""
+    nl = getattr(report, "nonlinearity", None)
+    if nl is None or not nl.tested:
+        return ()
+    rows = tuple((f"higher-order test {k}", pvalue_text(nl.pvalues[k])) for k in nl.tested)
+    return (*rows, ("unmodelled nonlinearity (combined)",
+                    f"{pvalue_text(nl.pvalue)} → {'detected' if nl.detected else 'none'}"))
 
 
 def _initial_text(report: ValidationReport) -> str:

@@ -52,6 +52,7 @@ from ._common import (
     warnings_as_notes,
 )
 from ._registry import FigureWriter
+from ._structure import record_dt, structure_checks, structure_notes
 from ._summary import Displayed, ParameterValue, RecordSummary, summary_of
 from ._verdict import (
     count_check,
@@ -378,6 +379,7 @@ class IdentificationResult(Displayed):
             record = " ".join(x for x in ((v.experiment or "held-back part") if several else "",
                                           v.output if multi else "") if x)
             checks += validation_checks(v, covariance=covariance, record=record)
+        checks += structure_checks(est.model, record_dt(self.validations, est.model), est)
         checks += self._verdict_checks()
         if self.feedback is not None and self.feedback.has_feedback:
             p = f"p = {self.feedback.pvalue:.2g}"
@@ -568,6 +570,7 @@ def lti_result(
                     # the model fails on this record, the run goes on; its note supersedes
                     # what the simulation warned on the way
                     reports.append(DivergedRun.from_error(exc, v.name, output, v.dt))
+    all_notes += structure_notes(estimate.model, validations[0].dt, estimate)
     if edge:
         all_notes.append(f"the chosen {', '.join(edge)} sits on the edge of the searched grid; "
                          "widen the grid to be sure the best order is inside it")

@@ -7,12 +7,13 @@ from functools import partial
 from typing import Any
 
 from .._checks import as_int_list, as_str, type_error
-from .._errors import DataError
+from .._errors import DataError, OptionError
 from ..data import ExperimentSpec
 from ..estimate import fit_n4sid, fit_oe, to_polynomial
 from ._examples import open_loop
 from ._lti import IdentificationResult, lti_result
 from ._options import HORIZON, ROLE, boolean, choice, integer, optional
+from ._pem import SEARCH
 from ._registry import Method, Option
 
 __all__ = ["N4SID"]
@@ -31,6 +32,10 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
              f"{o['horizon'][0]}/{o['horizon'][1]})")
     notes: list[str] = []
     estimate = subspace
+    used = [k for k, default in _REFINE_DEFAULTS.items() if options[k] != default]
+    if used and not options["refine"]:
+        raise OptionError(f"[identify] {', '.join(used)} set the output-error refinement; "
+                          "add refine = true, or remove them")
     if options["refine"]:
         if len(o["outputs"]) > 1:
             raise DataError("[identify] refine = true refines a single-output model by output "
@@ -38,13 +43,18 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         start = to_polynomial(subspace.model, "oe")
         estimate = fit_oe(estimation, list(start.nb), list(start.nf), list(start.nk),
                           input=options["input"], output=o["outputs"][0], init=start,
-                          initial="estimate")
+                          initial=options["initial"], multistart=options["multistart"],
+                          rng=options["seed"], max_iter=options["max_iter"], tol=options["tol"])
         title = f"OE refined from {title}"
         notes.append(f"the subspace model (order {o['order']}) started an output-error fit; "
                      "the parameters and intervals are the output-error ones")
     return lti_result(spec, "n4sid", estimate, title, validations, options,
                       singular_values=o["singular_values"], truth=truth, notes=notes,
                       estimation=estimation, how="subspace projection")
+
+
+#: The refinement's settings at their defaults (set without refine = true: refused).
+_REFINE_DEFAULTS = {"initial": "estimate", **{o.name: o.default for o in SEARCH}}
 
 
 def _outputs(value: Any, where: str, name: str) -> str | list[str]:
@@ -82,6 +92,9 @@ N4SID = Method(
         Option("feedthrough", False, boolean(), "estimate a direct term D"),
         Option("refine", False, boolean(),
                "refine a single-output model by output error from the subspace estimate"),
+        Option("initial", "estimate", choice(("zero", "estimate")),
+               "with refine: initial conditions of the output-error predictor"),
+        *SEARCH,
         HORIZON,
     ),
     run=run,

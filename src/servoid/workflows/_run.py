@@ -36,6 +36,7 @@ from .._version import __version__
 from .._warn import warn
 from .._words import option
 from ..data import ExperimentSpec, load_experiment_spec
+from ._choice import choice_method, is_choice
 from ._common import check_outputs, check_sizes, report_options, sha256, spec_inputs
 from ._methods import get_method, method_names, method_of
 from ._provenance import provenance
@@ -130,7 +131,8 @@ def _identify(spec: ExperimentSpec | str | os.PathLike[str], out: Path | None, *
     """
     if not isinstance(spec, ExperimentSpec):
         spec = load_experiment_spec(spec)
-    method = get_method(method_of(spec.identify))
+    name = method_of(spec.identify)
+    method = choice_method(spec.identify) if is_choice(name) else get_method(name)
     options = method.parse(spec.identify)
     # the other tables of the method's own keys ([loop]), checked like [identify] when read
     options.update(method.parse_tables({name: getattr(spec, name, None) or {}

@@ -27,8 +27,8 @@ from ..report import Check, Conditions, Verdict, pvalue_text
 from ..validate import ValidationReport
 
 __all__ = ["BAND_DB", "NO_PEAK", "count_check", "covariance_is_robust", "diverged_check",
-           "excited_band", "interval_check", "loop_verdict", "record_conditions",
-           "spec_conditions", "spec_text", "validation_checks"]
+           "excited_band", "interval_check", "loop_verdict", "nonlinearity_checks",
+           "record_conditions", "spec_conditions", "spec_text", "validation_checks"]
 
 #: Level below the input spectrum's peak that bounds the excited band [dB]: the -3 dB band
 #: servoid's excitation designers declare (servoid.signals), read from the spectrum.
@@ -203,6 +203,7 @@ def validation_checks(report: ValidationReport, *, covariance: object = None,
             out.append(Check(f"input–residual independence{on}", pvalue_text(p_ind), "fail",
                              "the residuals correlate with the input: the dynamics from the "
                              "input are not captured"))
+    out += nonlinearity_checks(report, on)
     robust = covariance_is_robust(covariance)
     p_white = pvalue_text(r.whiteness_pvalue)
     if r.is_white:
@@ -212,8 +213,8 @@ def validation_checks(report: ValidationReport, *, covariance: object = None,
     elif not report.noise_model:
         out.append(Check(f"residual whiteness{on}", p_white, "info",
                          "coloured; an output-error model describes the dynamics, not the "
-                         "noise, so this does not reject it (the independence test judges the "
-                         "dynamics)"))
+                         "noise, so this does not reject it (the input–residual and "
+                         "higher-order tests judge the dynamics)"))
     else:
         out.append(Check(f"residual whiteness{on}", p_white, "caution",
                          "not white: the noise model is rejected by the data"
@@ -225,6 +226,28 @@ def validation_checks(report: ValidationReport, *, covariance: object = None,
                          f"simulated samples clipped to the declared limits of "
                          f"{report.output!r}"))
     return out
+
+
+def nonlinearity_checks(report: ValidationReport, on: str = "") -> list[Check]:
+    """The higher-order correlation tests of one validation, as a check (none untested).
+
+    Beside the linear input–residual test: a model whose residuals correlate
+    with u², ε²·u² or ε·u leaves a nonlinearity unexplained
+    (:func:`~servoid.validate.nonlinearity_tests`), a caution that names the
+    families that could capture it.
+    """
+    nl = getattr(report, "nonlinearity", None)
+    if nl is None or not nl.tested:
+        return []
+    name = f"higher-order (nonlinearity) tests{on}"
+    if nl.detected:
+        return [Check(name, pvalue_text(nl.pvalue), "caution",
+                      f"the residuals correlate with nonlinear functions of the input "
+                      f"({nl.strongest} strongest): the model leaves a nonlinearity "
+                      "unexplained — a block-oriented model or a NARX may capture it")]
+    return [Check(name, pvalue_text(nl.pvalue), "pass",
+                  "no nonlinear function of the input (" + ", ".join(nl.tested) + ") left in "
+                  "the residuals")]
 
 
 def interval_check(covariance: object) -> Check:

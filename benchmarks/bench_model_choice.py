@@ -1,0 +1,143 @@
+"""Model choice (issue 25): ``method = "auto"`` time, its picks, and the higher-order tests' level.
+
+Cases
+-----
+auto-1e4
+    ``identify()`` with ``[identify] method = "auto"`` (the default candidate
+    set, one hold-out of 30 %) on a 1e4-sample record of a Wiener plant (a
+    continuous second-order plant simulated far above the rate by
+    ``servoid.bench.simulate_lti``, then tanh, AR(1) coloured noise), on
+    ``workers = 2``; a validation record of the same length. One timed call
+    (the choice is a single run); ``extra`` holds each candidate's fit time on
+    the folds and its held-out score, so the leaderboard's times are here.
+picks
+    ``auto`` on ``SEEDS`` seeds of each generator family — linear (the
+    plant alone), Wiener (tanh after it) and Hammerstein (u + 0.5·u² before
+    it) — 3000-sample records: the share of seeds whose chosen candidate is
+    of the true family (linear: a linear method; Wiener: a Wiener model;
+    Hammerstein: a Hammerstein model or NARX), and the share within 2 fit
+    points of the best candidate on the validation record.
+level / power
+    ``nonlinearity_tests`` on the residuals of the true linear model with
+    AR(1)-coloured noise (200 seeds: the false-alarm rate at the 1 % level)
+    and of an FIR least-squares fit to a Wiener and a Hammerstein plant (200
+    seeds each: the detection rate), N = 2000.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from pathlib import Path
+from tempfile import TemporaryDirectory
+
+import numpy as np
+from _harness import Result
+from scipy.signal import lfilter
+
+from servoid.bench import simulate_lti
+from servoid.data import Experiment, write_csv, write_experiment_spec
+from servoid.models import TransferFunction
+from servoid.validate import nonlinearity_tests
+from servoid.workflows import identify
+
+SUITE = "model-choice"
+DT = 0.01
+WN = 2 * np.pi * 2.0
+PLANT = TransferFunction([WN**2], [1.0, 2 * 0.5 * WN, WN**2])
+FAMILY = {"linear": {"arx", "oe", "bj", "tf", "n4sid"}, "wiener": {"wiener"},
+          "hammerstein": {"hammerstein", "narx"}}
+
+
+def _record(kind: str, n: int, seed: int) -> Experiment:
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.standard_normal(n // 2), 2)
+    w = u + 0.5 * u**2 if kind == "hammerstein" else u
+    x = simulate_lti(PLANT, w, DT, rng=seed)["y"]
+    y = np.tanh(1.2 * x) if kind == "wiener" else x
+    y = y + lfilter([1.0], [1.0, -0.9], 0.01 * rng.standard_normal(u.size))
+    return Experiment.from_arrays(DT, u=u, y=y)
+
+
+def _auto(folder: Path, kind: str, n: int, seed: int, workers: int = 1) -> tuple[object, float]:
+    write_csv(_record(kind, n, seed), folder / "est.csv", overwrite=True)
+    write_csv(_record(kind, n, seed + 10_000), folder / "val.csv", overwrite=True)
+    path = folder / "auto.toml"
+    write_experiment_spec({"data": {"file": "est.csv"},
+                           "channels": {"u": {"source": "u", "role": "u"},
+                                        "y": {"source": "y", "role": "y"}},
+                           "validation": {"file": "val.csv"},
+                           "identify": {"method": "auto", "workers": workers}}, path,
+                          overwrite=True)
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = identify(path, write=False)
+    return result, time.perf_counter() - start
+
+
+def _linear_residual(seed: int, kind: str, n: int = 2000) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    noise = lfilter([1.0, 0.5], [1.0, -0.8], 0.05 * rng.standard_normal(n))
+    if kind == "linear":
+        return noise, u  # the true model's residuals
+    if kind == "wiener":
+        y = np.tanh(1.5 * lfilter([0.0, 0.3], [1.0, -0.7], u))
+    else:
+        y = lfilter([0.0, 0.3], [1.0, -0.7], u + 0.5 * u**2)
+    y = y + noise
+    lags = np.column_stack([np.ones(n), *(np.roll(u, k) for k in range(1, 25))])[25:]
+    theta = np.linalg.lstsq(lags, y[25:], rcond=None)[0]
+    return y[25:] - lags @ theta, u[25:]
+
+
+def run(quick: bool = False) -> list[Result]:
+    out: list[Result] = []
+    n_big = 2000 if quick else 10_000
+    seeds = 2 if quick else 10
+    tests = 20 if quick else 200
+    with TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        result, seconds = _auto(folder, "wiener", n_big, 1, workers=2)
+        per = {e.label: {"fit_s": round(e.score.seconds, 3),
+                         "held_out": None if not np.isfinite(e.score.mean) else
+                         round(e.score.mean, 2), "status": e.score.status}
+               for e in result.entries}  # type: ignore[attr-defined]
+        out.append(Result(SUITE, f"auto-{n_big:g}", n_big, "identify(method = \"auto\")",
+                          seconds * 1e3, seconds * 1e3, 1,
+                          note=f"chosen {result.label}; {len(per)} candidates, workers = 2",  # type: ignore[attr-defined]
+                          extra={"candidates": per}))
+        for kind in ("linear", "wiener", "hammerstein"):
+            right = near = 0
+            chosen = []
+            for seed in range(seeds):
+                res, _ = _auto(folder, kind, 3000, 100 + seed)
+                entry = next(e for e in res.entries if e.label == res.label)  # type: ignore[attr-defined]
+                chosen.append(res.label)  # type: ignore[attr-defined]
+                right += entry.score.candidate.method in FAMILY[kind]
+                fits = [e.validation.fit_percent for e in res.entries  # type: ignore[attr-defined]
+                        if e.validation is not None]
+                near += entry.validation.fit_percent > max(fits) - 2.0
+            out.append(Result(SUITE, f"picks-{kind}", 3000, "auto", float("nan"),
+                              float("nan"), seeds,
+                              note=f"true family {right}/{seeds}, within 2 points {near}/{seeds}",
+                              extra={"true_family": right / seeds, "within_2": near / seeds,
+                                     "chosen": chosen}))
+    for kind in ("linear", "wiener", "hammerstein"):
+        start = time.perf_counter()
+        hits = sum(nonlinearity_tests(*_linear_residual(s, kind)).detected for s in range(tests))
+        ms = (time.perf_counter() - start) * 1e3 / tests
+        what = "false alarms" if kind == "linear" else "detections"
+        out.append(Result(SUITE, f"{'level' if kind == 'linear' else 'power'}-{kind}", 2000,
+                          "nonlinearity_tests", ms, ms, tests,
+                          note=f"{what} {hits}/{tests} at the 1 % level",
+                          extra={"rate": hits / tests}))
+    return out
+
+
+if __name__ == "__main__":
+    import sys
+
+    for r in run("--quick" in sys.argv):
+        print(f"{r.case:<20} {r.median_ms:10.1f} ms  {r.note}")

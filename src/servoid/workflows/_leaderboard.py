@@ -1,0 +1,439 @@
+"""The leaderboard of a multi-method run: every candidate side by side, the chosen one marked.
+
+:func:`choose` scores the candidates on held-out data (:mod:`._choice`),
+picks one, fits every admissible candidate on the whole estimation data and
+validates it on the ``[validation]`` records, and returns a
+:class:`ChoiceResult`: the chosen candidate's result (its model, verdict,
+report sections and ``results.json``) with the leaderboard beside it — a
+console table, a ``"choice"`` entry in ``results.json`` (every candidate's
+scores, status, fit time and model), and a report section with the table,
+the candidates' simulations overlaid on the first validation record and
+their Bode diagrams overlaid with ±2σ bands.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._errors import ConvergenceError, ServoidError
+from ..data import ExperimentSpec
+from ..report import Check, Figure, Page, Section, Table, Verdict, new_figure, save_figure
+from ..validate import ValidationReport
+from ._choice import (
+    Scheme,
+    Score,
+    auto_candidates,
+    candidates_of,
+    folds_of,
+    parsed_options,
+    pick,
+    scheme_of,
+    score_candidates,
+)
+from ._methods import get_method
+from ._registry import FigureWriter
+from ._summary import Displayed, RecordSummary
+
+__all__ = ["ChoiceResult", "Entry", "candidate_models", "choose"]
+
+#: Candidates drawn in the overlaid figures (the chosen and the best-scored others).
+_DRAWN = 6
+
+
+@dataclass(frozen=True, eq=False)
+class Entry:
+    """One candidate of the leaderboard: its held-out score and its full fit."""
+
+    score: Score
+    result: Any = None
+    error: str = ""
+    seconds: float = math.nan
+
+    @property
+    def label(self) -> str:
+        """The candidate's name."""
+        return self.score.candidate.label
+
+    @property
+    def validation(self) -> ValidationReport | None:
+        """Its validation on the first ``[validation]`` record (None: not run, or diverged)."""
+        if self.result is None:
+            return None
+        first = self.result.validations[0]
+        return first if isinstance(first, ValidationReport) else None
+
+    def row(self, chosen: str) -> dict[str, Any]:
+        """Plain data for ``results.json``."""
+        s = self.score
+        v = self.validation
+        nl = getattr(v, "nonlinearity", None) if v is not None else None
+        model = None
+        if self.result is not None:  # the entry load_results rebuilds a model from
+            model = self.result.to_dict().get("model")
+        return {"label": self.label, "method": s.candidate.method,
+                "options": dict(s.candidate.table), "chosen": self.label == chosen,
+                "status": s.status, "held_out_fit_percent": _finite(s.mean),
+                "held_out_se": _finite(s.se), "n_parameters": s.n_parameters,
+                "fit_seconds": _finite(s.seconds), "full_fit_seconds": _finite(self.seconds),
+                "held_out_nonlinearity": s.nonlinearity,
+                "validation_fit_percent": None if v is None else _finite(v.fit_percent),
+                "validation_independence_pvalue": None if v is None else
+                _finite(v.residuals.independence_pvalue),
+                "validation_nonlinearity": None if nl is None else nl.to_dict(),
+                "error": self.error or None, "model": model}
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class ChoiceResult(Displayed):
+    """Several candidates scored on held-out data, one chosen, all validated.
+
+    Attributes
+    ----------
+    spec : ExperimentSpec
+    chosen : Identification
+        The chosen candidate's result on the whole estimation data.
+    entries : tuple of Entry
+        Every candidate, in the order scored.
+    label : str
+        The chosen candidate's name.
+    reason : str
+        Why it was chosen, in words.
+    scheme : Scheme
+        How the candidates were scored.
+    gate : str
+        For ``auto``: whether the nonlinear families were added, and why.
+    """
+
+    spec: ExperimentSpec
+    chosen: Any
+    entries: tuple[Entry, ...]
+    label: str
+    reason: str
+    scheme: Scheme
+    gate: str = ""
+    folder: Path | None = None
+    files: tuple[Path, ...] = field(default=())
+    digests: dict[str, str] = field(default_factory=dict, repr=False)
+
+    @property
+    def method(self) -> str:
+        """The chosen candidate's method."""
+        return str(getattr(self.chosen, "method", self.entries[0].score.candidate.method))
+
+    @property
+    def estimate(self) -> Any:
+        """The chosen candidate's estimate."""
+        return getattr(self.chosen, "estimate", None)
+
+    @property
+    def validations(self) -> tuple[Any, ...]:
+        """The chosen candidate's validations."""
+        return tuple(getattr(self.chosen, "validations", ()))
+
+    def candidate(self, label: str) -> Any:
+        """The full-fit result of a candidate by its label (as the leaderboard names it)."""
+        for e in self.entries:
+            if e.label == label:
+                if e.result is None:
+                    raise ConvergenceError(f"candidate {label!r} has no model ({e.score.status}"
+                                           f"{': ' + e.error if e.error else ''})")
+                return e.result
+        raise KeyError(f"no candidate {label!r}; the candidates are "
+                       f"{', '.join(e.label for e in self.entries)}")
+
+    # -- console, JSON ----------------------------------------------------------------------
+    def table(self) -> Table:
+        """The leaderboard as a report table, best held-out score first."""
+        rows = []
+        for e in _ranked(self.entries):
+            s = e.score
+            v = e.validation
+            nl = getattr(v, "nonlinearity", None) if v is not None else None
+            rows.append((
+                ("▶ " if e.label == self.label else "") + e.label,
+                str(s.n_parameters) if s.n_parameters else "—",
+                "—" if not math.isfinite(s.mean) else
+                f"{s.mean:.2f}" + ("" if not math.isfinite(s.se) else f" ± {s.se:.2f}"),
+                "—" if v is None else f"{v.fit_percent:.2f}",
+                "—" if v is None else ("independent" if v.residuals.is_independent else
+                                       "correlated"),
+                "—" if nl is None or not nl.tested else
+                ("LEFT" if nl.detected else "none"),
+                f"{s.seconds:.2f}",
+                s.status if s.status == "ok" else s.status[:60]))
+        return Table(("candidate", "parameters", "held-out fit %", "validation fit %",
+                      "input–residual", "nonlinearity", "fit time s", "status"),
+                     tuple(rows), f"Leaderboard: ▶ chosen — {self.reason}")
+
+    def __str__(self) -> str:
+        table = self.table()
+        widths = [max(len(c), *(len(r[i]) for r in table.rows))
+                  for i, c in enumerate(table.columns)]
+        head = f"model choice among {len(self.entries)} candidates: {self.scheme.text}"
+        lines = [head, "  " + "  ".join(c.ljust(w) for c, w in zip(table.columns, widths,
+                                                                     strict=True))]
+        lines += ["  " + "  ".join(cell.ljust(w) for cell, w in zip(r, widths, strict=True))
+                  for r in table.rows]
+        if self.gate:
+            lines.append(f"  {self.gate}")
+        lines.append(f"  chosen: {self.label} — {self.reason}")
+        return "\n".join(lines + [str(self.chosen)])
+
+    def to_dict(self) -> dict[str, Any]:
+        """The chosen candidate's ``results.json`` with the leaderboard under ``"choice"``."""
+        out = dict(self.chosen.to_dict())
+        out["choice"] = {"chosen": self.label, "reason": self.reason, "scheme": self.scheme.text,
+                         "folds": self.scheme.folds, "holdout": self.scheme.holdout,
+                         "purpose": self.scheme.purpose, "rule": self.scheme.rule,
+                         "gate": self.gate or None,
+                         "candidates": [e.row(self.label) for e in self.entries]}
+        out["verdict"] = self.verdict().to_dict()
+        return out
+
+    def summary(self) -> RecordSummary:
+        """The chosen candidate's summary (the fleet row)."""
+        return self.chosen.summary()
+
+    def models(self) -> dict[str, Any]:
+        """The chosen candidate's models."""
+        return dict(self.chosen.models())
+
+    def verdict(self) -> Verdict:
+        """The chosen candidate's verdict, with the choice and the leaderboard."""
+        v = self.chosen.verdict()
+        check = Check("model choice", self.label, "info",
+                      f"chosen among {len(self.entries)} candidates on held-out data: "
+                      f"{self.reason}")
+        return Verdict(v.tested, (*v.checks, check), v.conditions, (*v.tables, self.table()))
+
+    def inputs(self) -> tuple[Path, ...]:
+        """Every file the run read."""
+        return tuple(self.chosen.inputs())
+
+    def figures(self) -> dict[str, FigureWriter]:
+        """The chosen candidate's figures, and the candidates overlaid."""
+        out = dict(self.chosen.figures())
+        drawn = self._drawn()
+        if drawn:
+            out["candidates.png"] = partial(_plot_overlay, drawn, self.label)
+        bands = [e for e in drawn if _has_band(e.result)]
+        if bands:
+            out["candidates-bode.png"] = partial(_plot_bodes, bands, self.label)
+        return out
+
+    def page(self, files: Mapping[str, Path]) -> Page:
+        """The chosen candidate's page, opened by the model choice."""
+        page = self.chosen.page(files)
+        figures = []
+        if "candidates.png" in files:
+            figures.append(Figure.from_file(files["candidates.png"],
+                                            "The candidates simulated on the first validation "
+                                            "record, over the measurement"))
+        if "candidates-bode.png" in files:
+            figures.append(Figure.from_file(files["candidates-bode.png"],
+                                            "Bode diagrams of the linear candidates (±2σ)"))
+        section = Section("Model choice", paragraphs=tuple(p for p in (
+            f"{len(self.entries)} candidates {self.scheme.text}.", self.gate,
+            f"Chosen: {self.label} — {self.reason}.") if p),
+            tables=(self.table(),), figures=tuple(figures))
+        return dataclasses.replace(page, sections=(section, *page.sections),
+                                   subtitle=f"{self.label}, chosen among "
+                                            f"{len(self.entries)} candidates")
+
+    def _drawn(self) -> list[Entry]:
+        ranked = [e for e in _ranked(self.entries) if e.validation is not None]
+        chosen = [e for e in ranked if e.label == self.label]
+        others = [e for e in ranked if e.label != self.label]
+        return (chosen + others)[:_DRAWN]
+
+
+def choose(spec: ExperimentSpec, options: Mapping[str, Any],
+           truth: Mapping[str, float] | None) -> ChoiceResult:
+    """Score, choose, fit and validate: the run of ``method = [...]`` and ``"auto"``."""
+    candidates = candidates_of(spec, options)
+    estimation, _validations = spec.records()
+    folds = folds_of(estimation, int(options["folds"]), float(options["holdout"]))
+    scores = score_candidates(spec, candidates, options, folds)
+    gate = ""
+    if spec.identify.get("method") == "auto":
+        scores, gate = _gate(spec, options, folds, scores)
+    chosen, reason = pick(scores, options["rule"])
+    if chosen is None:
+        listed = "; ".join(f"{s.candidate.label}: {s.status}" for s in scores)
+        raise ConvergenceError(f"no candidate gave a stable model that could be scored on the "
+                               f"held-out data ({listed}); try other orders or methods")
+    entries = []
+    result = None
+    for s in scores:
+        if not s.admissible:
+            entries.append(Entry(s))
+            continue
+        start = time.perf_counter()
+        try:
+            with warnings.catch_warnings():
+                if s is not chosen:  # only the chosen model's notes are the run's warnings
+                    warnings.simplefilter("ignore")
+                fitted = get_method(s.candidate.method).run(
+                    spec, parsed_options(s.candidate, options, spec),
+                    truth if s is chosen else None)
+        except ServoidError as exc:
+            if s is chosen:
+                raise
+            entries.append(Entry(s, error=str(exc)))
+            continue
+        entries.append(Entry(s, fitted, seconds=time.perf_counter() - start))
+        if s is chosen:
+            result = fitted
+    assert result is not None
+    return ChoiceResult(spec, result, tuple(entries), chosen.candidate.label, reason,
+                        scheme_of(options), gate, digests=getattr(result, "digests", {}))
+
+
+def _gate(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Any],
+          scores: list[Score]) -> tuple[list[Score], str]:
+    """``auto``: add the nonlinear families when the best linear candidate leaves structure."""
+    ok = [s for s in scores if s.admissible]
+    if not ok:
+        return scores, ""
+    best = max(ok, key=lambda s: s.mean)
+    if not _leaves_nonlinearity(spec, options, best, folds):
+        return scores, (f"the higher-order tests found no nonlinearity left by the best linear "
+                        f"candidate ({best.candidate.label}); no nonlinear family was fitted")
+    added = score_candidates(spec, auto_candidates(nonlinear=True), options, folds)
+    return scores + added, (f"the higher-order tests found a nonlinearity left by the best "
+                            f"linear candidate ({best.candidate.label}): the block-oriented "
+                            "and NARX candidates were added")
+
+
+def _leaves_nonlinearity(spec: ExperimentSpec, options: Mapping[str, Any], best: Score,
+                         folds: Sequence[Any]) -> bool:
+    """The higher-order tests on the best linear candidate's residuals, held part and whole.
+
+    The held parts are short; the candidate refitted on the whole estimation data and
+    tested on it has the power of the whole record (a test of structure, not a score).
+    """
+    if best.nonlinearity:
+        return True
+    from ..data import as_segments
+    from ._choice import Fold, _HeldSpec
+
+    estimation = spec.records()[0]
+    whole = Fold(estimation, as_segments(estimation))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = get_method(best.candidate.method).run(
+                _HeldSpec(spec, whole), parsed_options(best.candidate, options, spec),  # type: ignore[arg-type]
+                None)
+    except ServoidError:
+        return False
+    return any(getattr(getattr(v, "nonlinearity", None), "detected", False)
+               for v in getattr(result, "validations", ()))
+
+
+def _ranked(entries: Sequence[Entry]) -> list[Entry]:
+    return sorted(entries, key=lambda e: (not e.score.admissible,
+                                          -e.score.mean if math.isfinite(e.score.mean) else 0))
+
+
+def _finite(x: Any) -> float | None:
+    try:
+        value = float(x)
+    except (TypeError, ValueError):
+        return None
+    return value if math.isfinite(value) else None
+
+
+def _has_band(result: Any) -> bool:
+    est = getattr(result, "estimate", None)
+    model = getattr(est, "model", None)
+    return model is not None and (hasattr(model, "freqresp") or
+                                  hasattr(model, "transfer_function")) and \
+        est.model_function is not None
+
+
+def _plot_overlay(entries: Sequence[Entry], chosen: str, path: Path, overwrite: bool) -> None:
+    fig = new_figure((8.0, 4.2))
+    ax = fig.add_subplot(1, 1, 1)
+    first = entries[0].validation
+    assert first is not None
+    ax.plot(first.time, first.measured, color="0.3", lw=1.0, label="measured")
+    for e in entries:
+        v = e.validation
+        assert v is not None
+        style = {"lw": 1.8} if e.label == chosen else {"lw": 0.9, "alpha": 0.8}
+        ax.plot(v.time[v.first:], v.simulated[v.first:],
+                label=f"{'▶ ' if e.label == chosen else ''}{e.label} ({v.fit_percent:.1f} %)",
+                **style)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(f"{first.output}" + (f" [{first.unit}]" if first.unit else ""))
+    ax.set_title(f"Candidates simulated on {first.experiment or 'the validation record'}")
+    ax.legend(fontsize=7, loc="best")
+    save_figure(fig, path, overwrite)
+
+
+def _plot_bodes(entries: Sequence[Entry], chosen: str, path: Path, overwrite: bool) -> None:
+    from ..estimate import frequency_band
+    from ..report import plot_bode_bands
+
+    first = entries[0].validation
+    assert first is not None
+    dt = float(first.time[1] - first.time[0])
+    nyquist = 0.5 / dt
+    f = np.logspace(np.log10(nyquist / max(first.measured.size, 1000)),
+                    np.log10(nyquist * 0.999), 300)
+    bands = {}
+    for e in entries:
+        try:
+            bands[("▶ " if e.label == chosen else "") + e.label] = frequency_band(
+                e.result.estimate, f)
+        except (ServoidError, ValueError, np.linalg.LinAlgError):
+            continue
+    if bands:
+        plot_bode_bands(bands, path, title="Candidates (±2σ)", overwrite=overwrite)
+    else:  # nothing to draw: an empty figure says so
+        fig = new_figure((6.0, 2.0))
+        fig.text(0.5, 0.5, "no frequency response to draw", ha="center")
+        save_figure(fig, path, overwrite)
+
+
+def candidate_models(path: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Label → model of every candidate a multi-method run's ``results.json`` holds.
+
+    Returns the models and their leaderboard rows (label → row).
+
+    Raises
+    ------
+    OptionError
+        The file is not the results of a multi-method run (``method = [...]``
+        or ``"auto"``).
+    """
+    from .._checks import as_path, read_json
+    from .._errors import OptionError
+    from ._results import _from_model_dict
+
+    path = as_path("results file", path)
+    data = read_json(path, "results file")
+    choice = data.get("choice") if isinstance(data, Mapping) else None
+    if not isinstance(choice, Mapping) or not isinstance(choice.get("candidates"), list):
+        raise OptionError(f"{path} is not the results of a multi-method run (method = [...] "
+                          "or \"auto\"): it has no candidates")
+    out: dict[str, Any] = {}
+    rows: dict[str, Any] = {}
+    for row in choice["candidates"]:
+        if isinstance(row, Mapping) and isinstance(row.get("model"), Mapping):
+            model = _from_model_dict(row["model"], path, None)
+            if model is not None:
+                out[str(row.get("label"))] = model
+                rows[str(row.get("label"))] = row
+    return out, rows
