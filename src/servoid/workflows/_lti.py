@@ -379,7 +379,8 @@ class IdentificationResult(Displayed):
             record = " ".join(x for x in ((v.experiment or "held-back part") if several else "",
                                           v.output if multi else "") if x)
             checks += validation_checks(v, covariance=covariance, record=record)
-        checks += structure_checks(est.model, record_dt(self.validations, est.model), est)
+        checks += structure_checks(est.model, record_dt(self.validations, est.model), est,
+                                   in_loop=bool(est.options.get("validated_in_loop")))
         checks += self._verdict_checks()
         if self.feedback is not None and self.feedback.has_feedback:
             p = f"p = {self.feedback.pvalue:.2g}"
@@ -570,7 +571,8 @@ def lti_result(
                     # the model fails on this record, the run goes on; its note supersedes
                     # what the simulation warned on the way
                     reports.append(DivergedRun.from_error(exc, v.name, output, v.dt))
-    all_notes += structure_notes(estimate.model, validations[0].dt, estimate)
+    all_notes += structure_notes(estimate.model, validations[0].dt, estimate,
+                                 in_loop=loop_model is not None)
     if edge:
         all_notes.append(f"the chosen {', '.join(edge)} sits on the edge of the searched grid; "
                          "widen the grid to be sure the best order is inside it")

@@ -156,7 +156,8 @@ def _issues(model: Any, dt: float | None, estimate: Any = None
     return unstable, marginal, fast
 
 
-def structure_checks(model: Any, dt: float | None, estimate: Any = None) -> list[Check]:
+def structure_checks(model: Any, dt: float | None, estimate: Any = None, *,
+                     in_loop: bool = False) -> list[Check]:
     """Verdict checks on a model's poles: unstable fails, beyond Nyquist cautions.
 
     Parameters
@@ -167,6 +168,11 @@ def structure_checks(model: Any, dt: float | None, estimate: Any = None) -> list
     dt : float or None
         The record's sample time [s] (Nyquist for a continuous model);
         None skips the Nyquist check of a continuous model.
+    estimate
+        The estimate behind the model (its covariance places a pole near 1).
+    in_loop : bool
+        The plant came from a closed-loop record and was validated inside its
+        loop: an unstable plant is then what was identified, not a failure.
     """
     unstable, marginal, fast = _issues(model, dt, estimate)
     out = []
@@ -176,7 +182,13 @@ def structure_checks(model: Any, dt: float | None, estimate: Any = None) -> list
                          f"{MARGINAL_SIGMAS:g}σ of it (" + "; ".join(marginal) + "): the data "
                          "cannot tell an integrator from a slightly unstable pole; its free run "
                          "drifts on a long record"))
-    if unstable:
+    if unstable and in_loop:
+        out.append(Check("stability", f"unstable plant ({len(unstable)} pole"
+                         f"{'s' if len(unstable) > 1 else ''})", "info",
+                         "the identified plant is unstable (" + "; ".join(unstable) + "), as a "
+                         "plant its loop stabilises may be: it was validated inside that loop; "
+                         "it runs free only with its controller"))
+    elif unstable:
         out.append(Check("stability", f"unstable ({len(unstable)} pole"
                          f"{'s' if len(unstable) > 1 else ''})", "fail",
                          "the returned model is unstable (" + "; ".join(unstable) + "): its "
@@ -188,12 +200,13 @@ def structure_checks(model: Any, dt: float | None, estimate: Any = None) -> list
     return out
 
 
-def structure_notes(model: Any, dt: float | None, estimate: Any = None) -> list[str]:
+def structure_notes(model: Any, dt: float | None, estimate: Any = None, *,
+                    in_loop: bool = False) -> list[str]:
     """The same findings as notes in words (the console and ``results.json``)."""
     unstable, marginal, fast = _issues(model, dt, estimate)
     out = [f"a pole at the stability boundary within its uncertainty ({m}): an integrator "
            "or a slightly unstable pole" for m in marginal]
-    if unstable:
+    if unstable and not in_loop:  # validated in its loop: the loop's note says it
         out.append("the returned model is unstable (" + "; ".join(unstable) + "): its free run "
                    "grows without bound on a long record; choose another order or method")
     out += [f"pole {f}" for f in fast]
