@@ -51,6 +51,19 @@ def _monomials(z, P, m, dm):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, nogil=True)
+def _values(z, P, m):  # pragma: no cover - compiled
+    """m_j = Π_k z_k^P[j,k] alone (a free run needs no derivatives), as :func:`_monomials`."""
+    nm, nz = P.shape
+    for j in range(nm):
+        v = 1.0
+        for k in range(nz):
+            p = P[j, k]
+            if p > 0:
+                v *= z[k] ** p
+        m[j] = v
+
+
+@nb.njit(cache=True, nogil=True)
 def simulate(A, B, C, D, E, F, P, u, x0, y, x):  # pragma: no cover - compiled
     """Free run from x0; fills y (N,) and the states x (N+1, nx); returns the first sample
     whose state left ±LIMIT (or became NaN), or -1."""
@@ -59,7 +72,6 @@ def simulate(A, B, C, D, E, F, P, u, x0, y, x):  # pragma: no cover - compiled
     nm = P.shape[0]
     z = np.empty(nx + nu)
     m = np.empty(nm)
-    dm = np.empty((nm, nx))
     for i in range(nx):
         x[0, i] = x0[i]
     for t in range(N):
@@ -67,7 +79,7 @@ def simulate(A, B, C, D, E, F, P, u, x0, y, x):  # pragma: no cover - compiled
             z[i] = x[t, i]
         for k in range(nu):
             z[nx + k] = u[t, k]
-        _monomials(z, P, m, dm)
+        _values(z, P, m)
         out = 0.0
         for i in range(nx):
             out += C[i] * z[i]
