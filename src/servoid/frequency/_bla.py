@@ -52,9 +52,9 @@ from .._errors import DataError, OptionTypeError, ServoidWarning
 from .._lazy import stats
 from .._warn import warn
 from ..data import Experiment
+from ..estimate import check_varies as _check_varies
+from ..estimate import frf_channel as _channel
 from ..signals import MultisinePlan
-from ._channels import channel as _channel
-from ._channels import check_varies as _check_varies
 from ._measured import DistortionLevels, FrfMeasurement
 
 __all__ = ["estimate_bla"]

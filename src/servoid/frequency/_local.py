@@ -60,8 +60,8 @@ from numpy.typing import NDArray
 from .._checks import as_float, as_int
 from .._errors import DataError, OptionTypeError
 from ..data import Experiment
-from ._channels import channel as _channel
-from ._channels import check_varies as _check_varies
+from ..estimate import check_varies as _check_varies
+from ..estimate import frf_channel as _channel
 from ._measured import FrfMeasurement
 
 __all__ = ["estimate_lpm", "estimate_lrm"]

@@ -26,10 +26,9 @@ LIMIT = 1e12
 
 
 @nb.njit(cache=True, nogil=True)
-def _monomials(z, P, m, dm):  # pragma: no cover - compiled
-    """m_j = Π_k z_k^P[j,k] and dm[j, i] = ∂m_j/∂x_i for the first dm.shape[1] entries of z."""
+def _values(z, P, m):  # pragma: no cover - compiled
+    """m_j = Π_k z_k^P[j,k]: the monomials alone (a free run needs no derivatives)."""
     nm, nz = P.shape
-    nx = dm.shape[1]
     for j in range(nm):
         v = 1.0
         for k in range(nz):
@@ -37,6 +36,15 @@ def _monomials(z, P, m, dm):  # pragma: no cover - compiled
             if p > 0:
                 v *= z[k] ** p
         m[j] = v
+
+
+@nb.njit(cache=True, nogil=True)
+def _monomials(z, P, m, dm):  # pragma: no cover - compiled
+    """m_j = Π_k z_k^P[j,k] and dm[j, i] = ∂m_j/∂x_i for the first dm.shape[1] entries of z."""
+    _values(z, P, m)
+    nm, nz = P.shape
+    nx = dm.shape[1]
+    for j in range(nm):
         for i in range(nx):
             p = P[j, i]
             if p == 0:
@@ -48,19 +56,6 @@ def _monomials(z, P, m, dm):  # pragma: no cover - compiled
                 if k != i and q > 0:
                     d *= z[k] ** q
             dm[j, i] = d
-
-
-@nb.njit(cache=True, nogil=True)
-def _values(z, P, m):  # pragma: no cover - compiled
-    """m_j = Π_k z_k^P[j,k] alone (a free run needs no derivatives), as :func:`_monomials`."""
-    nm, nz = P.shape
-    for j in range(nm):
-        v = 1.0
-        for k in range(nz):
-            p = P[j, k]
-            if p > 0:
-                v *= z[k] ** p
-        m[j] = v
 
 
 @nb.njit(cache=True, nogil=True)
