@@ -1,16 +1,16 @@
 """PNLSS on the real Wiener–Hammerstein benchmark (SYSID 2009), if its record is here.
 
-Reads ``../shared/data/wiener_hammerstein/WienerHammerBenchmark.csv`` (or the
-file named by ``$SERVOID_WH_CSV``) at run time; servoid ships none of it.
-Skips with a message when the file is absent. The split is the benchmark's
+Reads the benchmark's ``WienerHammerBenchmark.csv`` from the path given as the
+first argument (or ``$SERVOID_WH_CSV``); servoid ships none of it and looks
+nowhere else. Skips with a message when no record is given or found. The split is the benchmark's
 (its PROVENANCE): samples [5200:184000], estimation the first 100 000,
 test the remaining 78 800, the first 50 test samples only for the initial
 state and left out of the score. Prints the test RMSE of the free run.
 
 Usage::
 
-    PYTHONPATH=src python benchmarks/study_pnlss_wh.py [n_states] [degree] [monomials] \\
-        [n_fit] [max_iter]
+    PYTHONPATH=src python benchmarks/study_pnlss_wh.py RECORD.csv [n_states] [degree] \\
+        [monomials] [n_fit] [max_iter]
 
 ``n_fit`` takes the first n_fit estimation samples (default all 100 000).
 """
@@ -29,19 +29,16 @@ from servoid import ServoidWarning
 from servoid.data import Experiment
 from servoid.nonlinear import fit_pnlss
 
-_REPO = Path(__file__).resolve().parents[1]
-#: ../shared beside the checkout (or beside the folder of worktrees)
-CANDIDATES = [base / "shared/data/wiener_hammerstein/WienerHammerBenchmark.csv"
-              for base in (_REPO.parent, _REPO.parent.parent)]
-
 
 def main(argv: list[str]) -> int:
-    given = os.environ.get("SERVOID_WH_CSV")
-    found = [p for p in CANDIDATES if p.is_file()]
-    path = Path(given) if given else (found[0] if found else CANDIDATES[0])
-    if not path.is_file():
-        print(f"skipped: no Wiener–Hammerstein record at {path} (set SERVOID_WH_CSV)")
+    given = argv[0] if argv and argv[0].endswith(".csv") else os.environ.get("SERVOID_WH_CSV")
+    if argv and argv[0].endswith(".csv"):
+        argv = argv[1:]
+    if not given or not Path(given).is_file():
+        print(f"skipped: no Wiener–Hammerstein record {'at ' + given if given else 'given'} "
+              "(pass WienerHammerBenchmark.csv as the first argument or set SERVOID_WH_CSV)")
         return 0
+    path = Path(given)
     nx = int(argv[0]) if argv else 6
     degree = int(argv[1]) if len(argv) > 1 else 3
     monomials = argv[2] if len(argv) > 2 else "state"
