@@ -433,7 +433,7 @@ CASES = [
     case("model-type-list", model_call("tf-continuous", put("type", ["StateSpace"])),
          FileFormatError, r"\"type\" must be one of .*got \['StateSpace'\]"),
     case("model-type-long", model_call("tf-continuous", put("type", "T" * 5000)),
-         FileFormatError, r"got 'TTTT.*… \(5002 characters\)"),
+         FileFormatError, r"got 'TTTT.*…T*' \(5002 characters\)"),
     case("model-block-linear-block",
          model_call("block-hw", lambda d: put("linear", json.loads(json.dumps(d)))(d)),
          FileFormatError, r"the BlockModel's \"linear\" must be the record of a TransferFunction "

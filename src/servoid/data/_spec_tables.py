@@ -16,6 +16,7 @@ from typing import Any, Literal
 
 from .._checks import file_name_problem, type_error
 from .._errors import DataError, FileFormatError, OptionError, ServoidError, check_option
+from .._shown import shown
 from ._experiment import ROLES, Experiment, Role
 from ._formats import RIG_FORMATS, format_of
 
@@ -309,7 +310,7 @@ def _check_keys(
     unknown = [k for k in table if k not in valid]
     if unknown:
         raise OptionError(
-            f"{origin}: unknown key(s) in {where}: {', '.join(_shown(k) for k in unknown)}; "
+            f"{origin}: unknown key(s) in {where}: {', '.join(shown(k) for k in unknown)}; "
             f"valid keys: {', '.join(valid)}"
         )
     missing = [k for k in required if k not in table]
@@ -321,16 +322,7 @@ def _check_keys(
 
 
 def _kind(value: object) -> str:
-    return f"{type(value).__name__} {_shown(value)}"
-
-
-def _shown(value: object) -> str:
-    """``repr(value)`` cut to a readable length for a message."""
-    try:
-        text = repr(value)
-    except ValueError:  # an integer past str()'s digit limit
-        return "(an integer of more than 4300 digits)"
-    return text if len(text) <= 80 else f"{text[:60]}… ({len(text)} characters)"
+    return f"{type(value).__name__} {shown(value)}"
 
 
 def _like(exc: ServoidError, message: str) -> ServoidError:
@@ -340,16 +332,13 @@ def _like(exc: ServoidError, message: str) -> ServoidError:
     except TypeError:  # an error class with a richer constructor keeps its family
         return ServoidError(message)
 
-
 def _optional(where: str, key: str, value: Any, check: Any) -> Any:
     return None if value is None else check(where, key, value)
-
 
 def _string(where: str, key: str, value: Any) -> str:
     if not isinstance(value, str) or not value:
         raise FileFormatError(f"{where} {key} must be a non-empty string, got {_kind(value)}")
     return value
-
 
 def _csv_options(where: str, data: Mapping[str, Any]) -> dict[str, Any]:
     """The CSV reading options of ``[data]``, each checked, and how they combine."""
@@ -363,7 +352,6 @@ def _csv_options(where: str, data: Mapping[str, Any]) -> dict[str, Any]:
                               "file with decimal commas")
     return options
 
-
 def _csv_option(where: str, key: str, value: Any) -> Any:
     """A CSV reading option of ``[data]``, checked (lists become tuples)."""
     if key in _CSV_TEXT_KEYS:
@@ -371,11 +359,11 @@ def _csv_option(where: str, key: str, value: Any) -> Any:
         valid = _CSV_TEXT_VALUES.get(key)
         if valid is not None and text not in valid:
             raise FileFormatError(f"{where} {key} must be one of "
-                                  f"{', '.join(repr(v) for v in valid)}, got {_shown(text)}")
+                                  f"{', '.join(repr(v) for v in valid)}, got {shown(text)}")
         if key == "delimiter" and (len(text) != 1 or text in _NOT_DELIMITERS):
             raise FileFormatError(
                 f"{where} delimiter must be the one character between fields (\",\", \";\" "
-                f"or \"\\t\" for a tab), got {_shown(text)}; set it to the separator the "
+                f"or \"\\t\" for a tab), got {shown(text)}; set it to the separator the "
                 "file uses, or remove it for a comma")
         return text
     if key == "skip_rows":
@@ -394,7 +382,6 @@ def _csv_option(where: str, key: str, value: Any) -> Any:
                               "remove the repeat")
     return tuple(value)
 
-
 def _number(where: str, key: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise FileFormatError(f"{where} {key} must be a finite number, got {_kind(value)}")
@@ -407,13 +394,11 @@ def _number(where: str, key: str, value: Any) -> float:
                               f"{_kind(value)}")
     return number
 
-
 def _positive(where: str, key: str, value: Any) -> float:
     number = _number(where, key, value)
     if number <= 0:
         raise FileFormatError(f"{where} {key} must be > 0, got {value!r}")
     return number
-
 
 def _integer(where: str, key: str, value: Any, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
@@ -421,7 +406,6 @@ def _integer(where: str, key: str, value: Any, minimum: int) -> int:
     if value >= 2**63:  # past what numpy indexes and counts with
         raise FileFormatError(f"{where} {key} must be an integer below 2**63, got {_kind(value)}")
     return value
-
 
 def _channels(origin: str, table: Any) -> tuple[ChannelSpec, ...]:
     if not isinstance(table, Mapping) or not table:
@@ -454,7 +438,6 @@ def _channels(origin: str, table: Any) -> tuple[ChannelSpec, ...]:
         )
     return tuple(out)
 
-
 def _file_list(where: str, key: str, value: Any) -> tuple[str, ...]:
     if isinstance(value, (list, tuple)):
         if not value:
@@ -462,16 +445,14 @@ def _file_list(where: str, key: str, value: Any) -> tuple[str, ...]:
         return tuple(_file_name(where, key, v) for v in value)
     return (_file_name(where, key, value),)
 
-
 def _file_name(where: str, key: str, value: Any) -> str:
     """A file's path as the experiment file writes it: text the file system can take."""
     text = _string(where, key, value)
     problem = file_name_problem(text)
     if problem is not None:
-        raise FileFormatError(f"{where} {key} = {_shown(text)} {problem}: write the rig file's "
+        raise FileFormatError(f"{where} {key} = {shown(text)} {problem}: write the rig file's "
                               "name")
     return text
-
 
 def _validation(origin: str, table: Any, fmt: str) -> ValidationSpec:
     _check_keys(origin, "[validation]", table, _VALIDATION_KEYS)
@@ -494,14 +475,12 @@ def _validation(origin: str, table: Any, fmt: str) -> ValidationSpec:
     transient = _integer(where, "transient", table.get("transient", 0), 0)
     return ValidationSpec(files, initial, transient)
 
-
 def _check_like(estimation: Experiment, validation: Experiment) -> None:
     if not math.isclose(estimation.dt, validation.dt, rel_tol=1e-9):
         raise FileFormatError(
             f"the validation record {validation.name!r} has dt = {validation.dt:g} s but the "
             f"estimation data {estimation.dt:g} s: record both at one rate, or resample one"
         )
-
 
 def _limits(where: str, value: Any) -> tuple[float, float] | None:
     if value is None:
@@ -513,7 +492,6 @@ def _limits(where: str, value: Any) -> tuple[float, float] | None:
         raise FileFormatError(f"{where} limits must be [low, high] with low < high, got {value!r}")
     return lo, hi
 
-
 def _preprocess(origin: str, table: Any) -> PreprocessSpec:
     _check_keys(origin, "[preprocess]", table, _PREPROCESS_KEYS)
     where = f"{origin}: [preprocess]"
@@ -524,7 +502,6 @@ def _preprocess(origin: str, table: Any) -> PreprocessSpec:
         decimate=_integer(where, "decimate", table.get("decimate", 1), 1),
         detrend=kind,
     )
-
 
 def _rig(origin: str, table: Any) -> RigSpec:
     _check_keys(origin, "[rig]", table, _RIG_KEYS)
@@ -544,7 +521,6 @@ def _rig(origin: str, table: Any) -> RigSpec:
         check_option(f"{where} reference", reference, _RIG_REFERENCES)
     return RigSpec(order, cutoff, reference)
 
-
 def _split(origin: str, table: Any) -> SplitSpec:
     _check_keys(origin, "[split]", table, _SPLIT_KEYS)
     where = f"{origin}: [split]"
@@ -563,7 +539,6 @@ def _split(origin: str, table: Any) -> SplitSpec:
                               "per excitation period>, or remove skip_periods")
     return SplitSpec(fraction=fraction, index=index, period=period, skip_periods=skip)
 
-
 def _free(origin: str, key: str, table: Any, depth: int = 0) -> Mapping[str, Any]:
     where = f"{origin}: [{key}]"
     if not isinstance(table, Mapping):
@@ -572,7 +547,7 @@ def _free(origin: str, key: str, table: Any, depth: int = 0) -> Mapping[str, Any
     for k, v in table.items():
         if isinstance(v, Mapping):
             if depth >= 1:
-                raise FileFormatError(f"{where}: table {_shown(k)} is nested more than one level "
+                raise FileFormatError(f"{where}: table {shown(k)} is nested more than one level "
                                       "deep; a free-form table holds values and tables of values "
                                       "only: flatten it (key = value, or dotted names)")
             out[k] = _free(origin, f"{key}.{k}", v, depth + 1)
@@ -591,10 +566,8 @@ def _free(origin: str, key: str, table: Any, depth: int = 0) -> Mapping[str, Any
             )
     return MappingProxyType(out)
 
-
 def _is_scalar(value: object) -> bool:
     return isinstance(value, (str, bool, int, float))
-
 
 def _thaw(table: Mapping[str, Any]) -> dict[str, Any]:
     return {

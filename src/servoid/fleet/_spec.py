@@ -39,6 +39,7 @@ from typing import Any
 
 from .._checks import file_name_problem
 from .._errors import DataError, FileFormatError, OptionError, OptionTypeError
+from .._shown import shown
 from ..data import read_toml
 from ._files import REGULAR_ONLY, file_problem
 from ._limits import Limit, parse_limits
@@ -163,7 +164,7 @@ def _records(table: Mapping[str, Any], base: Path) -> list[FleetRecord]:
             raise OptionTypeError(f"[records] manifest must be a file name; got {manifest!r}")
         problem = file_name_problem(manifest)
         if problem is not None:
-            raise OptionError(f"[records] manifest = {_short(manifest)} {problem}; name the "
+            raise OptionError(f"[records] manifest = {shown(manifest)} {problem}; name the "
                               "manifest CSV or Parquet file beside the fleet file")
         records = _manifest(base / manifest)
     _check_unique(records)
@@ -187,10 +188,10 @@ def _glob(pattern: Any, base: Path) -> list[Path]:
                           "\"units/**/*.toml\", relative to the fleet file's folder")
     problem = file_name_problem(pattern)
     if problem is not None:
-        raise OptionError(f"[records] glob = {_short(pattern)} {problem}; write a pattern "
+        raise OptionError(f"[records] glob = {shown(pattern)} {problem}; write a pattern "
                           "like \"units/**/*.toml\", relative to the fleet file's folder")
     if len(PurePath(pattern).parts) > _MAX_PARTS:  # the walk recurses once per part
-        raise OptionError(f"[records] glob = {_short(pattern)} has "
+        raise OptionError(f"[records] glob = {shown(pattern)} has "
                           f"{len(PurePath(pattern).parts)} folder levels; a glob of records "
                           f"goes at most {_MAX_PARTS} deep (\"units/**/*.toml\" reaches any "
                           "depth)")
@@ -246,10 +247,6 @@ def _text(path: Path, what: str) -> str:
                               f"line {line}); save it as UTF-8") from None
 
 
-def _short(text: str) -> str:
-    """A value for a message: its repr, cut to 80 characters."""
-    shown = repr(text)
-    return shown if len(shown) <= 80 else f"{shown[:60]}… ({len(text)} characters)"
 
 
 def _listing(items: list[str]) -> str:

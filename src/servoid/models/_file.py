@@ -61,6 +61,7 @@ from .._errors import (
     ServoidError,
     ServoidWarning,
 )
+from .._shown import shown
 from .._warn import warn
 from ._polynomial import PolynomialModel
 from ._statespace import StateSpace
@@ -337,21 +338,21 @@ def model_from_record(data: object, *, where: str, allow_code: bool = False) -> 
     version = data["servoid_model"]
     if version != FORMAT_VERSION or isinstance(version, bool):
         raise FileFormatError(
-            f"{where} has format version {_shown(version)}; this servoid reads version "
+            f"{where} has format version {shown(version)}; this servoid reads version "
             f"{FORMAT_VERSION}: read it with the servoid that wrote it (pip install -U servoid "
             f"for a newer one) and {fix}"
         )
     kind = data.get("type")
     if not isinstance(kind, str) or (kind not in _TYPES and kind not in RECORD_TYPES):
         listed = ", ".join(repr(t) for t in (*_TYPES, *RECORD_TYPES))
-        raise FileFormatError(f"{where}: \"type\" must be one of {listed}, got {_shown(kind)} (a "
+        raise FileFormatError(f"{where}: \"type\" must be one of {listed}, got {shown(kind)} (a "
                               f"model type this servoid does not know: read the file with the "
                               f"servoid that wrote it, pip install -U servoid for a newer one); "
                               f"{fix}")
     for key in ("model_file", "output_file") if kind == "OdeModel" else ():
         problem = file_name_problem(data[key]) if isinstance(data.get(key), str) else None
         if problem is not None:  # before any file system call on it
-            raise FileFormatError(f"{where}: {key} = {_shown(data[key])} {problem}; the file is "
+            raise FileFormatError(f"{where}: {key} = {shown(data[key])} {problem}; the file is "
                                   f"damaged: {fix}")
     if kind in RECORD_TYPES and getattr(_record_class(kind), "runs_code", False):
         return _record_class(kind).from_record(data, allow_code=allow_code, where=where)
@@ -360,7 +361,7 @@ def model_from_record(data: object, *, where: str, allow_code: bool = False) -> 
             "TransferFunction", "PolynomialModel"):  # not a block in a block in a block ...
         raise FileFormatError(f"{where}: the BlockModel's \"linear\" must be the record of a "
                               f"TransferFunction or PolynomialModel, got "
-                              f"{_shown(linear.get('type'))}; the file is damaged: {fix}")
+                              f"{shown(linear.get('type'))}; the file is damaged: {fix}")
     try:
         if kind in RECORD_TYPES:
             return _record_class(kind).from_record(data)
@@ -484,14 +485,6 @@ def _list(data: Mapping[str, Any], key: str) -> list[Any]:
         raise DataError(f"{key} must be a list, got {value!r}")
     return value
 
-
-def _shown(value: object) -> str:
-    """``repr(value)`` cut to a readable length for a message."""
-    try:
-        text = repr(value)
-    except ValueError:  # an integer past str()'s digit limit
-        return "an integer of more than 4300 digits"
-    return text if len(text) <= 80 else f"{text[:60]}… ({len(text)} characters)"
 
 
 def _covariance(value: ArrayLike) -> list[list[float]]:

@@ -16,13 +16,13 @@ them.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from .._checks import file_name_problem, parse_json, read_text
 from .._errors import FileFormatError, MissingFileError
+from .._shown import shown
 from ..models import past_float
 
 __all__ = ["check_results", "read_manifest"]
@@ -316,14 +316,8 @@ def _kind(value: object) -> str:
 
 def _shown(value: object) -> str:
     """``repr(value)`` cut to a readable length for a message."""
-    try:
-        text = repr(value)
-    except ValueError:  # an integer past str()'s digit limit
-        return "an integer of more than 4300 digits"
     if value is None:
         return "null"
     if isinstance(value, bool):
         return "true" if value else "false"
-    if isinstance(value, float) and not math.isfinite(value):
-        return text
-    return text if len(text) <= 80 else f"{text[:60]}… ({len(text)} characters)"
+    return shown(value)
