@@ -32,7 +32,6 @@ from ..validate import ValidationReport
 from ._choice import (
     Scheme,
     Score,
-    auto_candidates,
     candidates_of,
     folds_of,
     parsed_options,
@@ -40,6 +39,7 @@ from ._choice import (
     scheme_of,
     score_candidates,
 )
+from ._gate import gate as gate_of
 from ._methods import get_method
 from ._registry import FigureWriter
 from ._summary import Displayed, RecordSummary
@@ -266,7 +266,7 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
     scores = score_candidates(spec, candidates, options, folds)
     gate = ""
     if spec.identify.get("method") == "auto":
-        scores, gate = _gate(spec, options, folds, scores)
+        scores, gate = gate_of(spec, options, folds, scores)
     chosen, reason = pick(scores, options["rule"])
     if chosen is None:
         listed = "; ".join(f"{s.candidate.label}: {s.status}" for s in scores)
@@ -297,48 +297,6 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
     assert result is not None
     return ChoiceResult(spec, result, tuple(entries), chosen.candidate.label, reason,
                         scheme_of(options), gate, digests=getattr(result, "digests", {}))
-
-
-def _gate(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Any],
-          scores: list[Score]) -> tuple[list[Score], str]:
-    """``auto``: add the nonlinear families when the best linear candidate leaves structure."""
-    ok = [s for s in scores if s.admissible]
-    if not ok:
-        return scores, ""
-    best = max(ok, key=lambda s: s.mean)
-    if not _leaves_nonlinearity(spec, options, best, folds):
-        return scores, (f"the higher-order tests found no nonlinearity left by the best linear "
-                        f"candidate ({best.candidate.label}); no nonlinear family was fitted")
-    added = score_candidates(spec, auto_candidates(nonlinear=True), options, folds)
-    return scores + added, (f"the higher-order tests found a nonlinearity left by the best "
-                            f"linear candidate ({best.candidate.label}): the block-oriented "
-                            "and NARX candidates were added")
-
-
-def _leaves_nonlinearity(spec: ExperimentSpec, options: Mapping[str, Any], best: Score,
-                         folds: Sequence[Any]) -> bool:
-    """The higher-order tests on the best linear candidate's residuals, held part and whole.
-
-    The held parts are short; the candidate refitted on the whole estimation data and
-    tested on it has the power of the whole record (a test of structure, not a score).
-    """
-    if best.nonlinearity:
-        return True
-    from ..data import as_segments
-    from ._choice import Fold, _HeldSpec
-
-    estimation = spec.records()[0]
-    whole = Fold(estimation, as_segments(estimation))
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            result = get_method(best.candidate.method).run(
-                _HeldSpec(spec, whole), parsed_options(best.candidate, options, spec),  # type: ignore[arg-type]
-                None)
-    except ServoidError:
-        return False
-    return any(getattr(getattr(v, "nonlinearity", None), "detected", False)
-               for v in getattr(result, "validations", ()))
 
 
 def _ranked(entries: Sequence[Entry]) -> list[Entry]:
