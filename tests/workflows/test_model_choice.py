@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -188,3 +189,59 @@ def test_the_output_power_test_sees_an_odd_output_nonlinearity_and_holds_its_lev
     alarms = sum(output_power_pvalue(*record(s, wiener=False)) < 0.01 for s in range(40))
     assert alarms <= 3  # 1 % level: P(≥ 4 of 40) < 0.001
     assert math.isnan(output_power_pvalue(np.zeros(100), np.ones(100), np.ones(100)))
+
+
+@pytest.fixture(scope="module")
+def noisy_rig(tmp_path_factory):
+    # the linear plant with strong, slowly drifting noise (AR(1), pole 0.98): an ARX model
+    # predicts that noise a few steps ahead; an OE model simulates the plant without bias
+    folder = tmp_path_factory.mktemp("noisy")
+    for k, seed in enumerate((31, 32)):
+        rng = np.random.default_rng(seed)
+        u = np.repeat(rng.standard_normal(1500), 2)
+        x = simulate_lti(PLANT, u, DT, rng=seed)["y"]
+        y = x + lfilter([1.0], [1.0, -0.98], 0.05 * rng.standard_normal(u.size))
+        write_csv(Experiment.from_arrays(DT, u=u, y=y), folder / f"run{k}.csv", overwrite=True)
+    return folder
+
+
+@pytest.mark.parametrize(("purpose", "winner"), [("simulation", "oe"), ("prediction", "arx")])
+def test_the_purpose_decides_between_simulation_and_prediction(noisy_rig, purpose, winner):
+    # equal parameter counts: the rule takes the better score, and the score is the purpose's
+    table = {"method": ["oe", "arx"], "oe": {"nb": 2, "nf": 2}, "arx": {"na": 2, "nb": 2},
+             "purpose": purpose, "horizon": 5}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = identify(_toml(noisy_rig, table, purpose), write=False)
+    assert result.label.startswith(winner)
+    words = ("free-run simulation" if purpose == "simulation" else "5-step prediction")
+    assert words in result.reason and words in result.scheme.text
+    assert result.to_dict()["choice"]["purpose"] == purpose
+
+
+def test_a_chosen_model_whose_whole_fit_fails_is_passed_over(linear_rig, monkeypatch):
+    # OE fits its fold but (here, by construction) not the whole estimation data: the run
+    # takes the next choice and says so, instead of failing with the OE error
+    from servoid import ConvergenceError
+    from servoid.workflows import _leaderboard
+
+    real = _leaderboard.get_method
+
+    class Failing:
+        def __init__(self, method):
+            self._method = method
+
+        def run(self, *args, **kwargs):
+            raise ConvergenceError("the search stalled (a test's stand-in)")
+
+    monkeypatch.setattr(_leaderboard, "get_method",
+                        lambda name: Failing(real(name)) if name == "oe" else real(name))
+    path = _toml(linear_rig, {"method": ["oe", "arx"], "oe": {"nb": 2, "nf": 2},
+                              "arx": {"na": 1, "nb": 1}}, "passed")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = identify(path, write=False)
+    assert result.label.startswith("arx")
+    assert "oe (nb=2, nf=2) scored better but failed" in result.reason
+    oe = next(e for e in result.entries if e.label.startswith("oe"))
+    assert oe.result is None and "stalled" in oe.error

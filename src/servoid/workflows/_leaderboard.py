@@ -38,6 +38,7 @@ from ._choice import (
     pick,
     scheme_of,
     score_candidates,
+    score_name,
 )
 from ._gate import gate as gate_of
 from ._methods import get_method
@@ -267,34 +268,51 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
     gate = ""
     if spec.identify.get("method") == "auto":
         scores, gate = gate_of(spec, options, folds, scores)
-    chosen, reason = pick(scores, options["rule"])
+    what = score_name(options)
+    chosen, reason = pick(scores, options["rule"], what)
     if chosen is None:
         listed = "; ".join(f"{s.candidate.label}: {s.status}" for s in scores)
         raise ConvergenceError(f"no candidate gave a stable model that could be scored on the "
                                f"held-out data ({listed}); try other orders or methods")
+    # the chosen one is fitted first, with the run's warnings and the truth; a chosen model
+    # whose fit on the whole estimation data fails is passed over for the next choice
+    fitted: dict[int, tuple[Any, str, float]] = {}
+    passed: list[str] = []
+    while True:
+        start = time.perf_counter()
+        try:
+            result = get_method(chosen.candidate.method).run(
+                spec, parsed_options(chosen.candidate, options, spec), truth)
+        except ServoidError as exc:
+            fitted[id(chosen)] = (None, str(exc), math.nan)
+            passed.append(chosen.candidate.label)
+            rest = [s for s in scores if id(s) not in fitted]
+            chosen, reason = pick(rest, options["rule"], what)
+            if chosen is None:
+                raise
+            continue
+        fitted[id(chosen)] = (result, "", time.perf_counter() - start)
+        break
+    if passed:
+        reason += (f" ({', '.join(passed)} scored better but failed on the whole estimation "
+                   "data: passed over)")
     entries = []
-    result = None
     for s in scores:
         if not s.admissible:
             entries.append(Entry(s))
             continue
-        start = time.perf_counter()
-        try:
-            with warnings.catch_warnings():
-                if s is not chosen:  # only the chosen model's notes are the run's warnings
-                    warnings.simplefilter("ignore")
-                fitted = get_method(s.candidate.method).run(
-                    spec, parsed_options(s.candidate, options, spec),
-                    truth if s is chosen else None)
-        except ServoidError as exc:
-            if s is chosen:
-                raise
-            entries.append(Entry(s, error=str(exc)))
-            continue
-        entries.append(Entry(s, fitted, seconds=time.perf_counter() - start))
-        if s is chosen:
-            result = fitted
-    assert result is not None
+        if id(s) not in fitted:
+            start = time.perf_counter()
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # only the chosen model's notes are warned
+                    other = get_method(s.candidate.method).run(
+                        spec, parsed_options(s.candidate, options, spec), None)
+                fitted[id(s)] = (other, "", time.perf_counter() - start)
+            except ServoidError as exc:
+                fitted[id(s)] = (None, str(exc), math.nan)
+        model, error, seconds = fitted[id(s)]
+        entries.append(Entry(s, model, error=error, seconds=seconds))
     return ChoiceResult(spec, result, tuple(entries), chosen.candidate.label, reason,
                         scheme_of(options), gate, digests=getattr(result, "digests", {}))
 
