@@ -245,3 +245,36 @@ def test_a_chosen_model_whose_whole_fit_fails_is_passed_over(linear_rig, monkeyp
     assert "oe (nb=2, nf=2) scored better but failed" in result.reason
     oe = next(e for e in result.entries if e.label.startswith("oe"))
     assert oe.result is None and "stalled" in oe.error
+
+
+def test_auto_adds_the_closed_loop_candidates_when_the_file_declares_a_loop(tmp_path):
+    # a reference channel declares the loop; [loop] open = true takes it back
+    import dataclasses
+    from types import MappingProxyType
+
+    from servoid.data import load_experiment_spec
+    from servoid.workflows._choice import candidates_of
+    from servoid.workflows._examples import closed_loop
+
+    spec = load_experiment_spec(closed_loop(tmp_path, identify={"method": "auto"}))
+    labels = [c.label for c in candidates_of(spec, {})]
+    assert [c for c in labels if c.startswith("closedloop-auto")] == [
+        "closedloop-auto (nb=1, nf=1)", "closedloop-auto (nb=2, nf=2)",
+        "closedloop-auto (nb=3, nf=3)"]
+    assert "oe (nb=2, nf=2, nk=1)" in labels  # the linear set stays
+    opened = dataclasses.replace(spec, loop=MappingProxyType({"open": True}))
+    assert not any(c.method == "closedloop-auto" for c in candidates_of(opened, {}))
+
+
+@pytest.mark.slow
+def test_auto_scores_the_closed_loop_candidates_like_the_others(tmp_path):
+    from servoid.workflows._examples import closed_loop
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = identify(closed_loop(tmp_path, identify={"method": "auto"}), write=False)
+    loop = [e for e in result.entries if e.score.candidate.method == "closedloop-auto"]
+    assert len(loop) == 3 and all(e.score.status == "ok" for e in loop)
+    assert all(math.isfinite(e.score.mean) and e.validation is not None for e in loop)
+    rows = result.to_dict()["choice"]["candidates"]
+    assert sum(r["method"] == "closedloop-auto" for r in rows) == 3
