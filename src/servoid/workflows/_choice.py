@@ -55,8 +55,8 @@ from ._options import choice, integer, number, optional
 from ._registry import Method, Option
 
 __all__ = ["AUTO_CLOSED_LOOP", "AUTO_LINEAR", "AUTO_NONLINEAR", "BLOCKS", "Candidate", "Score", "auto_candidates",
-           "choice_method", "declares_loop", "is_choice", "score_candidates",
-           "score_name"]
+           "choice_method", "declares_loop", "is_choice", "listed_methods", "method_for",
+           "score_candidates", "score_name"]
 
 #: Blocks each held part is scored on (mean and standard error of their fits).
 BLOCKS = 4
@@ -170,6 +170,27 @@ def _table(value: Any, where: str, name: str) -> dict[str, Any]:
         raise OptionError(f"{where} {name} must be a table of that method's keys, e.g. "
                           f"[identify.{name}] with its keys below it; got {value!r}")
     return dict(value)
+
+
+def method_for(identify: Mapping[str, Any] | None) -> Method:
+    """The :class:`Method` an ``[identify]`` table runs: one method, a list or ``"auto"``."""
+    from ._methods import method_of
+
+    name = method_of(identify)
+    return choice_method(identify or {}) if is_choice(name) else get_method(name)
+
+
+def listed_methods(identify: Mapping[str, Any] | None) -> tuple[str, ...]:
+    """The registered methods a run of ``[identify]`` may fit (auto: its candidate set)."""
+    from ._methods import method_of
+
+    name = method_of(identify)
+    if name == "auto":
+        pairs = AUTO_LINEAR + AUTO_CLOSED_LOOP + AUTO_NONLINEAR
+        return tuple(dict.fromkeys(m for m, _ in pairs))
+    if isinstance(name, (list, tuple)):
+        return tuple(dict.fromkeys(str(m) for m in name))
+    return (str(name),)
 
 
 def choice_method(identify: Mapping[str, Any]) -> Method:
