@@ -27,7 +27,7 @@ def _unit(folder, seed):
 
 
 def test_a_fleet_with_a_method_list_shows_the_chosen_candidate_per_unit(tmp_path):
-    paths = [_unit(tmp_path, k) for k in range(2)]
+    [_unit(tmp_path, k) for k in range(2)]
     (tmp_path / "fleet.toml").write_text(
         '[records]\nglob = "unit*.toml"\n\n'
         '[identify]\nmethod = ["arx", "oe"]\n\n[identify.arx]\nna = 1\nnb = 1\n\n'
