@@ -11,17 +11,25 @@ auto-1e4
     (the choice is a single run); ``extra`` holds each candidate's fit time on
     the folds and its held-out score, so the leaderboard's times are here.
 picks
-    ``auto`` on ``SEEDS`` seeds of each generator family — linear (the
-    plant alone), Wiener (tanh after it) and Hammerstein (u + 0.5·u² before
-    it) — 3000-sample records: the share of seeds whose chosen candidate is
-    of the true family (linear: a linear method; Wiener: a Wiener model;
-    Hammerstein: a Hammerstein model or NARX), and the share within 2 fit
-    points of the best candidate on the validation record.
+    ``auto`` on 20 seeds (2 under ``--quick``) of each generator family —
+    linear (the plant alone), Wiener (tanh after it), Hammerstein
+    (u + 0.5·u² before it) and NARX (a discrete NARX with a y·u cross term,
+    which no block model has) — 3000-sample records with AR(1) noise: the
+    share of seeds whose chosen candidate is of the true family (linear: a
+    linear method; Wiener: a Wiener model; Hammerstein: a Hammerstein model
+    or NARX; NARX: NARX), the share within 2 fit points of the best
+    candidate on the validation record, and which test opened ``auto``'s
+    gate to the nonlinear families.
 level / power
     ``nonlinearity_tests`` on the residuals of the true linear model with
     AR(1)-coloured noise (200 seeds: the false-alarm rate at the 1 % level)
     and of an FIR least-squares fit to a Wiener and a Hammerstein plant (200
     seeds each: the detection rate), N = 2000.
+output-power
+    The gate's output-power test (``servoid.workflows._gate``) on the
+    same 3000-sample generator as the picks: the true linear model's
+    residuals (200 seeds: false alarms at 1 %) and the best linear
+    approximation's residuals of the Wiener plant (200 seeds: detections).
 """
 
 from __future__ import annotations
@@ -40,18 +48,26 @@ from servoid.data import Experiment, write_csv, write_experiment_spec
 from servoid.models import TransferFunction
 from servoid.validate import nonlinearity_tests
 from servoid.workflows import identify
+from servoid.workflows._gate import output_power_pvalue
 
 SUITE = "model-choice"
 DT = 0.01
 WN = 2 * np.pi * 2.0
 PLANT = TransferFunction([WN**2], [1.0, 2 * 0.5 * WN, WN**2])
 FAMILY = {"linear": {"arx", "oe", "bj", "tf", "n4sid"}, "wiener": {"wiener"},
-          "hammerstein": {"hammerstein", "narx"}}
+          "hammerstein": {"hammerstein", "narx"}, "narx": {"narx"}}
 
 
 def _record(kind: str, n: int, seed: int) -> Experiment:
     rng = np.random.default_rng(seed)
     u = np.repeat(rng.standard_normal(n // 2), 2)
+    if kind == "narx":
+        y = np.zeros(n)
+        for t in range(2, n):
+            y[t] = (1.2 * y[t - 1] - 0.5 * y[t - 2] + 0.3 * u[t - 1] + 0.15 * u[t - 2]
+                    + 0.1 * y[t - 1] * u[t - 1])
+        y = y + lfilter([1.0], [1.0, -0.9], 0.01 * rng.standard_normal(n))
+        return Experiment.from_arrays(DT, u=u, y=y)
     w = u + 0.5 * u**2 if kind == "hammerstein" else u
     x = simulate_lti(PLANT, w, DT, rng=seed)["y"]
     y = np.tanh(1.2 * x) if kind == "wiener" else x
@@ -92,10 +108,24 @@ def _linear_residual(seed: int, kind: str, n: int = 2000) -> tuple[np.ndarray, n
     return y[25:] - lags @ theta, u[25:]
 
 
+def _power_residual(seed: int, kind: str, n: int = 3000) -> tuple[np.ndarray, ...]:
+    """(residuals, simulated output, input) of the true linear model, or of the best linear
+    approximation of the Wiener plant, on the picks' generator."""
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.standard_normal(n // 2), 2)
+    x = simulate_lti(PLANT, u, DT, rng=seed)["y"]
+    noise = lfilter([1.0], [1.0, -0.9], 0.01 * rng.standard_normal(u.size))
+    if kind == "linear":
+        return noise, x, u
+    y = np.tanh(1.2 * x) + noise
+    yhat = np.polyval(np.polyfit(x, y, 1), x)
+    return y - yhat, yhat, u
+
+
 def run(quick: bool = False) -> list[Result]:
     out: list[Result] = []
     n_big = 2000 if quick else 10_000
-    seeds = 2 if quick else 10
+    seeds = 2 if quick else 20
     tests = 20 if quick else 200
     with TemporaryDirectory() as tmp:
         folder = Path(tmp)
@@ -108,13 +138,16 @@ def run(quick: bool = False) -> list[Result]:
                           seconds * 1e3, seconds * 1e3, 1,
                           note=f"chosen {result.label}; {len(per)} candidates, workers = 2",  # type: ignore[attr-defined]
                           extra={"candidates": per}))
-        for kind in ("linear", "wiener", "hammerstein"):
+        for kind in ("linear", "wiener", "hammerstein", "narx"):
             right = near = 0
-            chosen = []
+            chosen, gates = [], []
             for seed in range(seeds):
                 res, _ = _auto(folder, kind, 3000, 100 + seed)
                 entry = next(e for e in res.entries if e.label == res.label)  # type: ignore[attr-defined]
                 chosen.append(res.label)  # type: ignore[attr-defined]
+                gate = res.gate  # type: ignore[attr-defined]
+                gates.append("closed" if "no nonlinear family" in gate else
+                             "output-power" if "output-power" in gate else "higher-order")
                 right += entry.score.candidate.method in FAMILY[kind]
                 fits = [e.validation.fit_percent for e in res.entries  # type: ignore[attr-defined]
                         if e.validation is not None]
@@ -123,7 +156,7 @@ def run(quick: bool = False) -> list[Result]:
                               float("nan"), seeds,
                               note=f"true family {right}/{seeds}, within 2 points {near}/{seeds}",
                               extra={"true_family": right / seeds, "within_2": near / seeds,
-                                     "chosen": chosen}))
+                                     "chosen": chosen, "gate": gates}))
     for kind in ("linear", "wiener", "hammerstein"):
         start = time.perf_counter()
         hits = sum(nonlinearity_tests(*_linear_residual(s, kind)).detected for s in range(tests))
@@ -132,6 +165,14 @@ def run(quick: bool = False) -> list[Result]:
         out.append(Result(SUITE, f"{'level' if kind == 'linear' else 'power'}-{kind}", 2000,
                           "nonlinearity_tests", ms, ms, tests,
                           note=f"{what} {hits}/{tests} at the 1 % level",
+                          extra={"rate": hits / tests}))
+    for kind in ("linear", "wiener"):
+        start = time.perf_counter()
+        hits = sum(output_power_pvalue(*_power_residual(s, kind)) < 0.01 for s in range(tests))
+        ms = (time.perf_counter() - start) * 1e3 / tests
+        what = "false alarms" if kind == "linear" else "detections"
+        out.append(Result(SUITE, f"output-power-{kind}", 3000, "output_power_pvalue", ms, ms,
+                          tests, note=f"{what} {hits}/{tests} at the 1 % level",
                           extra={"rate": hits / tests}))
     return out
 

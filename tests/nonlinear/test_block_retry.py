@@ -16,7 +16,7 @@ from servoid import IdentifiabilityError
 from servoid.bench import simulate_lti
 from servoid.data import Experiment
 from servoid.models import TransferFunction
-from servoid.nonlinear import _block_retry, fit_block_retrying
+from servoid.nonlinear import Saturation, _block_retry, fit_block_retrying
 
 DT = 0.01
 WN = 2 * np.pi * 1.5
@@ -91,3 +91,56 @@ def test_a_refusal_about_the_data_is_not_retried(monkeypatch):
     with pytest.raises(IdentifiabilityError, match="not determined"):
         fit_block_retrying(_wiener_abs(2), "wiener", output_nonlinearity="deadzone")
     assert len(calls) == 1
+
+
+def test_random_starts_are_tried_after_the_others_and_seeded(monkeypatch):
+    # every named start made to stall; the random starts are real fits from seeded breakpoints
+    real = _block_retry.fit_block
+    calls = []
+
+    def stalled_unless_random(data, structure, **kw):
+        calls.append(kw)
+        if not isinstance(kw.get("output_nonlinearity"), Saturation):
+            raise IdentifiabilityError(_block_retry.CHANCE + " (0.1 of 5)")
+        return real(data, structure, **kw)
+
+    monkeypatch.setattr(_block_retry, "fit_block", stalled_unless_random)
+    data = _wiener_abs(4)
+    with pytest.warns(Warning, match="tried other starts.*the fit from random start 1"):
+        est = fit_block_retrying(data, "wiener", output_nonlinearity="saturation",
+                                 multistart=3, seed=7)
+    assert [s["start"] for s in est.options["starts"]] == [
+        "the default start", "a continuous linear block (2 poles)", "random start 1"]
+    first = calls[2]["output_nonlinearity"]
+    assert first.lower < first.upper  # breakpoints at sorted random quantiles of y
+    calls.clear()
+    with pytest.warns(Warning):
+        again = fit_block_retrying(data, "wiener", output_nonlinearity="saturation",
+                                   multistart=3, seed=7)
+    assert calls[2]["output_nonlinearity"].parameters.tolist() == \
+        first.parameters.tolist()  # the same seed, the same start
+    np.testing.assert_array_equal(again.parameters, est.parameters)
+
+
+def test_the_cannot_explain_message_counts_the_random_starts(monkeypatch):
+    def chance(data, structure, **kw):
+        raise IdentifiabilityError(_block_retry.CHANCE + " (0.1 of 5)")
+
+    monkeypatch.setattr(_block_retry, "fit_block", chance)
+    with pytest.raises(IdentifiabilityError, match="the structure cannot explain the data: "
+                       "from the default start, .*a continuous linear block .* and 2 random "
+                       "starts"):
+        fit_block_retrying(_wiener_abs(2), "wiener", output_nonlinearity="abs", multistart=2)
+
+
+def test_no_start_found_a_fit_suggests_more_starts_only_when_none_were_asked(monkeypatch):
+    def failing(data, structure, **kw):
+        raise IdentifiabilityError("the linear block integrates (test)")
+
+    monkeypatch.setattr(_block_retry, "fit_block", failing)
+    with pytest.raises(IdentifiabilityError, match="more starts: multistart = 10"):
+        fit_block_retrying(_wiener_abs(2), "wiener", output_nonlinearity="saturation")
+    with pytest.raises(IdentifiabilityError, match="random start 2: the linear") as info:
+        fit_block_retrying(_wiener_abs(2), "wiener", output_nonlinearity="saturation",
+                           multistart=2)
+    assert "more starts" not in str(info.value)

@@ -199,6 +199,8 @@ def assemble(spec: FleetSpec, outcomes: Mapping[int, Mapping[str, Any]], keys: S
             else None
     meta = [c for c in spec.meta_columns if c != "serial"]
     cols = columns(["serial", *meta], list(names), limited)
+    if any(row.get("candidate") for row in rows):  # a multi-method run: the chosen candidate
+        cols.insert(cols.index("method") + 1, "candidate")
     return FleetResult(spec, tuple(rows), tuple(cols), tuple(stats), folder, interrupted)
 
 
@@ -209,7 +211,8 @@ def _row(row: dict[str, Any], outcome: Mapping[str, Any] | None, names: Mapping[
                    **{f"pass_{lim.parameter}": None for lim in spec.limits}, **{"pass": False})
         return row
     row.update(status=outcome["status"], error=outcome.get("error", ""),
-               method=outcome.get("method"), seconds=_float(outcome.get("seconds")),
+               method=outcome.get("method"), candidate=outcome.get("candidate"),
+               seconds=_float(outcome.get("seconds")),
                peak_rss_mb=outcome.get("peak_rss_mb"))
     summary = outcome.get("summary")
     if not summary:

@@ -31,7 +31,7 @@ from .._errors import DataError, OptionError, OptionTypeError
 from .._lock import FolderLock, hold_folder, ledger, sha256_file, write_ledger
 from .._progress import Progress, stage
 from .._words import option
-from ..workflows import method_of
+from ..workflows import listed_methods
 from ._cluster import check_scheduler, connect, dashboard_link, quiet_dask, start_local
 from ._result import FleetResult, assemble
 from ._spec import FleetRecord, FleetSpec, load_fleet_spec
@@ -162,7 +162,7 @@ def _run_locked(spec: FleetSpec, folder: Path, lock: FolderLock, *, scheduler: s
     early = force or sum(1 for _ in store.glob("*.json")) < len(spec.records)
     pool = _Pool(scheduler, workers, len(spec.records) if early else 0, security=security,
                  dashboard=dashboard, verbose=verbose,
-                 methods=() if spec.identify is None else (method_of(spec.identify),))
+                 methods=() if spec.identify is None else listed_methods(spec.identify))
     try:
         try:
             keys = _keys(spec, allow_duplicates)

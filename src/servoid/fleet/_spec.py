@@ -109,7 +109,7 @@ class FleetSpec:
 
 def load_fleet_spec(path: str | os.PathLike[str]) -> FleetSpec:
     """Read and check a fleet file (see the module docstring for its tables)."""
-    from ..workflows import get_method, method_of
+    from ..workflows import method_for
 
     source = Path(path)
     problem = file_problem(source)
@@ -129,7 +129,7 @@ def load_fleet_spec(path: str | os.PathLike[str]) -> FleetSpec:
     identify = doc.get("identify")
     if identify is not None:
         identify = _table(doc, "identify")
-        method = get_method(method_of(identify))
+        method = method_for(identify)  # one method, a list of candidates or "auto"
         method.parse(identify)  # every option checked before any record runs
     limits = parse_limits(doc.get("limits", {}))
     trend = _trend(_table(doc, "trend", required=False), records)

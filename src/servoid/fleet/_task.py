@@ -116,6 +116,8 @@ def identify_record(path: str, identify: Mapping[str, Any] | None, *,
             summary = result.summary()
             out["summary"] = summary.to_dict()
             out["method"] = summary.method or method_of(spec.identify)
+            if getattr(result, "entries", None) is not None:  # several candidates: the chosen
+                out["candidate"] = result.label
             out["status"] = "ok"
         except ServoidError as exc:
             out["error"] = f"{type(exc).__name__}: {exc}"

@@ -59,7 +59,7 @@ _HOME = {
 _HOME.update({
     "METHODS": "_methods", "method_of": "_methods", "set_command": "_provenance",
     "greybox_record": "_results", "summarise": "_summary", "toml_value": "_registry",
-    "candidate_models": "_leaderboard",
+    "candidate_models": "_leaderboard", "method_for": "_choice", "listed_methods": "_choice",
 })
 
 

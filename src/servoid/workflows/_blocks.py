@@ -123,7 +123,8 @@ def run(structure: str, spec: ExperimentSpec, options: Mapping[str, Any],
         estimate = fit_block_retrying(
             estimation, structure, offset=options["offset"], input=role,
             output=options["output"], initial=options["initial"],
-            max_iter=options["max_iter"], tol=options["tol"], **settings)
+            max_iter=options["max_iter"], tol=options["tol"],
+            multistart=options["multistart"], seed=options["seed"], **settings)
     if estimate.status != "ok":
         notes.append(f"the search ended with status: {estimate.status}")
     o = estimate.options
@@ -269,6 +270,9 @@ def _method(structure: str, summary: str) -> Method:
             Option("offset", False, boolean(), "fit a constant output offset"),
             Option("initial", "estimate", choice(("estimate", "zero")),
                    "initial state of the linear block in the fit: estimated or rest"),
+            Option("multistart", 0, integer(minimum=0, maximum=1000),
+                   "random starts tried when the others give no stable linear block"),
+            Option("seed", 0, integer(minimum=0), "seed of the random starts"),
             Option("max_iter", 200, integer(minimum=1), "most iterations of the joint search"),
             Option("tol", 1e-10, number(positive=True), "relative tolerance of the search"),
             HORIZON,

@@ -3,7 +3,9 @@
 ``[identify] method = ["oe", "bj", "wiener", …]`` fits each listed method
 with its own options (``[identify.oe]``, ``[identify.wiener]``, …; the
 shared keys ``input`` and ``output`` go to every candidate that has them);
-``method = "auto"`` fits the documented candidate set :func:`auto_candidates`.
+``method = "auto"`` fits the documented candidate set :func:`auto_candidates`
+(with ``closedloop-auto`` over plant orders 1–3 among them when the file
+declares a loop: a reference channel or ``[loop] controller``).
 
 **Scoring.**  Each candidate is fitted on part of the estimation record(s)
 and scored on the rest, never on the ``[validation]`` records, which stay
@@ -52,8 +54,9 @@ from ._methods import get_method
 from ._options import choice, integer, number, optional
 from ._registry import Method, Option
 
-__all__ = ["AUTO_LINEAR", "AUTO_NONLINEAR", "BLOCKS", "Candidate", "Score", "auto_candidates",
-           "choice_method", "is_choice", "score_candidates"]
+__all__ = ["AUTO_CLOSED_LOOP", "AUTO_LINEAR", "AUTO_NONLINEAR", "BLOCKS", "Candidate", "Score", "auto_candidates",
+           "choice_method", "declares_loop", "is_choice", "listed_methods", "method_for",
+           "score_candidates", "score_name"]
 
 #: Blocks each held part is scored on (mean and standard error of their fits).
 BLOCKS = 4
@@ -75,6 +78,10 @@ AUTO_NONLINEAR: tuple[tuple[str, dict[str, Any]], ...] = (
     ("hammerstein", {"input_nonlinearity": "polynomial", "input_degree": 3}),
     ("narx", {"na": 2, "nb": 2, "degree": 2}),
 )
+#: The closed-loop candidates of ``auto`` when the experiment file declares a loop: the
+#: ``closedloop-auto`` method (the methods the loop's facts allow) over plant orders.
+AUTO_CLOSED_LOOP: tuple[tuple[str, dict[str, Any]], ...] = tuple(
+    ("closedloop-auto", {"nb": n, "nf": n}) for n in (1, 2, 3))
 #: Keys of the choice itself (the others in [identify] are tables of candidates, or shared).
 _SHARED = ("input", "output")
 
@@ -125,10 +132,27 @@ def is_choice(name: Any) -> bool:
     return isinstance(name, (list, tuple)) or name == "auto"
 
 
-def auto_candidates(nonlinear: bool = False) -> list[Candidate]:
-    """The candidate set of ``method = "auto"`` (nonlinear: the block shapes and NARX)."""
-    pairs = AUTO_NONLINEAR if nonlinear else AUTO_LINEAR
+def auto_candidates(nonlinear: bool = False, loop: bool = False) -> list[Candidate]:
+    """The candidate set of ``method = "auto"``.
+
+    ``nonlinear``: the block shapes and NARX instead of the linear set;
+    ``loop``: the linear set with the closed-loop candidates after it.
+    """
+    pairs = AUTO_NONLINEAR if nonlinear else AUTO_LINEAR + (AUTO_CLOSED_LOOP if loop else ())
     return [Candidate(_label(m, t), m, t) for m, t in pairs]
+
+
+def declares_loop(spec: ExperimentSpec) -> bool:
+    """Whether the experiment file declares a feedback loop.
+
+    A reference channel (role ``r``) or a known controller (``[loop]
+    controller``), unless ``[loop] open = true``.
+    """
+    loop = getattr(spec, "loop", None) or {}
+    if loop.get("open") is True:
+        return False
+    return loop.get("controller") is not None or any(
+        getattr(c, "role", None) == "r" for c in getattr(spec, "channels", ()))
 
 
 def _label(method: str, table: Mapping[str, Any]) -> str:
@@ -146,6 +170,27 @@ def _table(value: Any, where: str, name: str) -> dict[str, Any]:
         raise OptionError(f"{where} {name} must be a table of that method's keys, e.g. "
                           f"[identify.{name}] with its keys below it; got {value!r}")
     return dict(value)
+
+
+def method_for(identify: Mapping[str, Any] | None) -> Method:
+    """The :class:`Method` an ``[identify]`` table runs: one method, a list or ``"auto"``."""
+    from ._methods import method_of
+
+    name = method_of(identify)
+    return choice_method(identify or {}) if is_choice(name) else get_method(name)
+
+
+def listed_methods(identify: Mapping[str, Any] | None) -> tuple[str, ...]:
+    """The registered methods a run of ``[identify]`` may fit (auto: its candidate set)."""
+    from ._methods import method_of
+
+    name = method_of(identify)
+    if name == "auto":
+        pairs = AUTO_LINEAR + AUTO_CLOSED_LOOP + AUTO_NONLINEAR
+        return tuple(dict.fromkeys(m for m, _ in pairs))
+    if isinstance(name, (list, tuple)):
+        return tuple(dict.fromkeys(str(m) for m in name))
+    return (str(name),)
 
 
 def choice_method(identify: Mapping[str, Any]) -> Method:
@@ -197,7 +242,7 @@ def candidates_of(spec: ExperimentSpec, options: Mapping[str, Any]) -> list[Cand
     """The listed candidates with their tables checked (auto: the linear set)."""
     name = spec.identify.get("method")
     if name == "auto":
-        return auto_candidates()
+        return auto_candidates(loop=declares_loop(spec))
     out = []
     for m in dict.fromkeys(name):
         table = dict(options.get(m) or {})
@@ -386,24 +431,32 @@ def score_candidates(spec: ExperimentSpec, candidates: Sequence[Candidate],
         _JOB.clear()
 
 
-def pick(scores: Sequence[Score], rule: str) -> tuple[Score | None, str]:
-    """The chosen score and the reason, in words."""
+def pick(scores: Sequence[Score], rule: str,
+         what: str = "held-out fit") -> tuple[Score | None, str]:
+    """The chosen score and the reason, in words (``what``: the score's name in them)."""
     ok = [s for s in scores if s.admissible]
     if not ok:
         return None, "no candidate could be scored stable on the held-out data"
     best = max(ok, key=lambda s: s.mean)
     if rule == "best" or not math.isfinite(best.se):
-        return best, (f"the best held-out fit ({best.mean:.2f} %)" +
+        return best, (f"the best {what} ({best.mean:.2f} %)" +
                       ("" if rule == "best" else "; no standard error to widen it by"))
     near = [s for s in ok if s.mean >= best.mean - best.se]
     chosen = min(near, key=lambda s: (s.n_parameters, -s.mean))
     if chosen is best:
-        return best, (f"the best held-out fit ({best.mean:.2f} ± {best.se:.2f} %), and no "
+        return best, (f"the best {what} ({best.mean:.2f} ± {best.se:.2f} %), and no "
                       "simpler candidate lies within one standard error of it")
     return chosen, (f"the simplest candidate ({chosen.n_parameters} parameters) within one "
-                    f"standard error of the best: {chosen.mean:.2f} % against "
+                    f"standard error of the best {what}: {chosen.mean:.2f} % against "
                     f"{best.candidate.label}'s {best.mean:.2f} ± {best.se:.2f} % "
                     f"({best.n_parameters} parameters)")
+
+
+def score_name(options: Mapping[str, Any]) -> str:
+    """The score in words: the held-out fit of the free run or of the k-step prediction."""
+    if options["purpose"] == "prediction":
+        return f"held-out fit of the {options['horizon']}-step prediction"
+    return "held-out fit of the free-run simulation"
 
 
 @dataclass(frozen=True)

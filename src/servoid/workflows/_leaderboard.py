@@ -32,14 +32,15 @@ from ..validate import ValidationReport
 from ._choice import (
     Scheme,
     Score,
-    auto_candidates,
     candidates_of,
     folds_of,
     parsed_options,
     pick,
     scheme_of,
     score_candidates,
+    score_name,
 )
+from ._gate import gate as gate_of
 from ._methods import get_method
 from ._registry import FigureWriter
 from ._summary import Displayed, RecordSummary
@@ -266,79 +267,54 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
     scores = score_candidates(spec, candidates, options, folds)
     gate = ""
     if spec.identify.get("method") == "auto":
-        scores, gate = _gate(spec, options, folds, scores)
-    chosen, reason = pick(scores, options["rule"])
+        scores, gate = gate_of(spec, options, folds, scores)
+    what = score_name(options)
+    chosen, reason = pick(scores, options["rule"], what)
     if chosen is None:
         listed = "; ".join(f"{s.candidate.label}: {s.status}" for s in scores)
         raise ConvergenceError(f"no candidate gave a stable model that could be scored on the "
                                f"held-out data ({listed}); try other orders or methods")
+    # the chosen one is fitted first, with the run's warnings and the truth; a chosen model
+    # whose fit on the whole estimation data fails is passed over for the next choice
+    fitted: dict[int, tuple[Any, str, float]] = {}
+    passed: list[str] = []
+    while True:
+        start = time.perf_counter()
+        try:
+            result = get_method(chosen.candidate.method).run(
+                spec, parsed_options(chosen.candidate, options, spec), truth)
+        except ServoidError as exc:
+            fitted[id(chosen)] = (None, str(exc), math.nan)
+            passed.append(chosen.candidate.label)
+            rest = [s for s in scores if id(s) not in fitted]
+            chosen, reason = pick(rest, options["rule"], what)
+            if chosen is None:
+                raise
+            continue
+        fitted[id(chosen)] = (result, "", time.perf_counter() - start)
+        break
+    if passed:
+        reason += (f" ({', '.join(passed)} scored better but failed on the whole estimation "
+                   "data: passed over)")
     entries = []
-    result = None
     for s in scores:
         if not s.admissible:
             entries.append(Entry(s))
             continue
-        start = time.perf_counter()
-        try:
-            with warnings.catch_warnings():
-                if s is not chosen:  # only the chosen model's notes are the run's warnings
-                    warnings.simplefilter("ignore")
-                fitted = get_method(s.candidate.method).run(
-                    spec, parsed_options(s.candidate, options, spec),
-                    truth if s is chosen else None)
-        except ServoidError as exc:
-            if s is chosen:
-                raise
-            entries.append(Entry(s, error=str(exc)))
-            continue
-        entries.append(Entry(s, fitted, seconds=time.perf_counter() - start))
-        if s is chosen:
-            result = fitted
-    assert result is not None
+        if id(s) not in fitted:
+            start = time.perf_counter()
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # only the chosen model's notes are warned
+                    other = get_method(s.candidate.method).run(
+                        spec, parsed_options(s.candidate, options, spec), None)
+                fitted[id(s)] = (other, "", time.perf_counter() - start)
+            except ServoidError as exc:
+                fitted[id(s)] = (None, str(exc), math.nan)
+        model, error, seconds = fitted[id(s)]
+        entries.append(Entry(s, model, error=error, seconds=seconds))
     return ChoiceResult(spec, result, tuple(entries), chosen.candidate.label, reason,
                         scheme_of(options), gate, digests=getattr(result, "digests", {}))
-
-
-def _gate(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Any],
-          scores: list[Score]) -> tuple[list[Score], str]:
-    """``auto``: add the nonlinear families when the best linear candidate leaves structure."""
-    ok = [s for s in scores if s.admissible]
-    if not ok:
-        return scores, ""
-    best = max(ok, key=lambda s: s.mean)
-    if not _leaves_nonlinearity(spec, options, best, folds):
-        return scores, (f"the higher-order tests found no nonlinearity left by the best linear "
-                        f"candidate ({best.candidate.label}); no nonlinear family was fitted")
-    added = score_candidates(spec, auto_candidates(nonlinear=True), options, folds)
-    return scores + added, (f"the higher-order tests found a nonlinearity left by the best "
-                            f"linear candidate ({best.candidate.label}): the block-oriented "
-                            "and NARX candidates were added")
-
-
-def _leaves_nonlinearity(spec: ExperimentSpec, options: Mapping[str, Any], best: Score,
-                         folds: Sequence[Any]) -> bool:
-    """The higher-order tests on the best linear candidate's residuals, held part and whole.
-
-    The held parts are short; the candidate refitted on the whole estimation data and
-    tested on it has the power of the whole record (a test of structure, not a score).
-    """
-    if best.nonlinearity:
-        return True
-    from ..data import as_segments
-    from ._choice import Fold, _HeldSpec
-
-    estimation = spec.records()[0]
-    whole = Fold(estimation, as_segments(estimation))
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            result = get_method(best.candidate.method).run(
-                _HeldSpec(spec, whole), parsed_options(best.candidate, options, spec),  # type: ignore[arg-type]
-                None)
-    except ServoidError:
-        return False
-    return any(getattr(getattr(v, "nonlinearity", None), "detected", False)
-               for v in getattr(result, "validations", ()))
 
 
 def _ranked(entries: Sequence[Entry]) -> list[Entry]:

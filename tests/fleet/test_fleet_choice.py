@@ -1,0 +1,44 @@
+"""A fleet that chooses per unit: [identify] method = [...] or "auto" in the fleet file."""
+
+from __future__ import annotations
+
+import csv
+import warnings
+
+import numpy as np
+from scipy.signal import lfilter
+
+from servoid.data import Experiment, write_csv, write_experiment_spec
+from servoid.fleet import run_fleet
+
+
+def _unit(folder, seed):
+    # ARX(1, 1) data for one unit, another for the next: each unit's choice is its own
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(600)
+    y = lfilter([0.0, 0.5], [1.0, -0.8], u) + 0.02 * rng.standard_normal(u.size)
+    write_csv(Experiment.from_arrays(0.01, u=u, y=y), folder / f"unit{seed}.csv", overwrite=True)
+    path = folder / f"unit{seed}.toml"
+    write_experiment_spec({"data": {"file": f"unit{seed}.csv"},
+                           "channels": {"u": {"source": "u", "role": "u"},
+                                        "y": {"source": "y", "role": "y"}},
+                           "split": {"fraction": 0.5}}, path, overwrite=True)
+    return path
+
+
+def test_a_fleet_with_a_method_list_shows_the_chosen_candidate_per_unit(tmp_path):
+    [_unit(tmp_path, k) for k in range(2)]
+    (tmp_path / "fleet.toml").write_text(
+        '[records]\nglob = "unit*.toml"\n\n'
+        '[identify]\nmethod = ["arx", "oe"]\n\n[identify.arx]\nna = 1\nnb = 1\n\n'
+        "[identify.oe]\nnb = 2\nnf = 2\n", encoding="utf-8")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = run_fleet(tmp_path / "fleet.toml", workers=1, progress=False)
+    assert result.count("ok") == 2, [r["error"] for r in result.rows]
+    # the simpler ARX(1, 1) is the true structure: within one SE of OE(2, 2), it is chosen
+    assert [r["candidate"] for r in result.rows] == ["arx (na=1, nb=1)"] * 2
+    assert all(r["method"] == "arx" for r in result.rows)
+    with open(result.folder / "fleet.csv", encoding="utf-8") as fh:
+        header = next(csv.reader(fh))
+    assert header[header.index("method") + 1] == "candidate"
