@@ -18,7 +18,7 @@ from servoid import DataError, Experiment, OptionError, OptionTypeError, Servoid
 from servoid.models import StateSpace, c2d, load_model, save_model
 from servoid.nonlinear import MONOMIALS, PnlssModel, fit_pnlss
 from servoid.nonlinear._pnlss import exponents
-from servoid.nonlinear._pnlss_kernel import jacobian
+from servoid.nonlinear._pnlss_kernel import jacobian, jacobian_block
 from servoid.validate import Replayable, validate
 
 
@@ -188,6 +188,23 @@ def test_the_initial_state_columns_alone_match_the_full_jacobian():
     jacobian(*m._kernel_args(), un, x0, 0, y1, full)
     jacobian(*m._kernel_args(), un, x0, m.n_parameters, y2, only)
     assert np.array_equal(y1, y2) and np.allclose(full[:, -2:], only, rtol=1e-12, atol=0)
+
+
+def test_the_jacobian_in_blocks_is_the_whole_jacobian_bit_for_bit():
+    est = fit_pnlss(_record("duffing", 1, 0.005, n=600), 2, 2)
+    m = est.model
+    un = np.ascontiguousarray(((_record("duffing", 2, 0.0, 600)["u"])[:, None] - m.u_mean)
+                              / m.u_scale)
+    x0 = np.array([0.3, -0.1])
+    npar = m.n_parameters + 2
+    y1, whole = np.empty(600), np.empty((600, npar))
+    jacobian(*m._kernel_args(), un, x0, 0, y1, whole)
+    x, S = x0.copy(), np.zeros((2, npar))
+    S[:, -2:] = np.eye(2)
+    y2, blocks = np.empty(600), np.empty((600, npar))
+    for a, b in ((0, 1), (1, 250), (250, 600)):  # uneven blocks, one of a single sample
+        jacobian_block(*m._kernel_args(), un[a:b], x, S, 0, y2[a:b], blocks[a:b])
+    assert np.array_equal(y1, y2) and np.array_equal(whole, blocks)
 
 
 # -- the model as a servoid model ---------------------------------------------------------------

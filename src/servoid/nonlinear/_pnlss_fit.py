@@ -34,12 +34,16 @@ from .._errors import (
 from ..data import Experiment, ExperimentSet
 from ..estimate import Estimate, output_name
 from ._pnlss import MONOMIALS, Monomials, PnlssModel, exponents
-from ._pnlss_kernel import jacobian, simulate
+from ._pnlss_kernel import jacobian_block, simulate
 
 __all__ = ["LINEAR_STARTS", "fit_pnlss"]
 
 #: Where the linear start comes from when no ``initial`` model is given.
 LINEAR_STARTS = ("n4sid", "oe")
+
+#: Samples per block of the Jacobian: JᵀJ and Jᵀr are summed block by block, so memory is
+#: BLOCK × parameters, not N × parameters.
+BLOCK = 4096
 
 Record = tuple[NDArray[np.float64], NDArray[np.float64]]  # (u (N, nu), y (N,))
 
@@ -150,11 +154,10 @@ def fit_pnlss(
     search = _Search(model, normal, ridge)
     theta, x0s, info = search.run(max_iter, tol)
     fitted = model.with_parameters(theta)
-    J, r = search.jacobian(theta, x0s)
+    H, _, r = search.normal_equations(theta, x0s)
     n_model = model.n_parameters
     sse = float(r @ r)
     sigma2 = sse / max(n_total - n_free, 1)  # normalised units
-    H = J.T @ J
     H[:n_model, :n_model] += search.penalty_matrix()
     cov_all = _inverse(H)
     cov = sigma2 * cov_all[:n_model, :n_model]
@@ -217,26 +220,42 @@ class _Search:
             total += float(np.sum((ys - y) ** 2))
         return total
 
-    def jacobian(self, theta: NDArray[np.float64], x0s: Sequence[NDArray[np.float64]]
-                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """J (N, n_model + nx·records) and r = simulated − measured; ConvergenceError if it
-        diverges (it cannot: only accepted points are differentiated)."""
+    def normal_equations(self, theta: NDArray[np.float64], x0s: Sequence[NDArray[np.float64]]
+                         ) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                    NDArray[np.float64]]:
+        """JᵀJ, Jᵀr and r = simulated − measured, J (N, n_model + nx·records) the exact
+        Jacobian, accumulated over blocks of :data:`BLOCK` samples so that J is never held
+        whole (a block's rows are those of the whole record, bit for bit).  ConvergenceError
+        if the run diverges (it cannot: only accepted points are differentiated)."""
         args = self._args(theta)
-        nx, nm_ = self.model.n_states, self.n_model
-        J = np.zeros((self.n_total, nm_ + nx * len(self.records)))
+        nx, nmod = self.model.n_states, self.n_model
+        n_all = nmod + nx * len(self.records)
+        H = np.zeros((n_all, n_all))
+        g = np.zeros(n_all)
         r = np.empty(self.n_total)
         row = 0
         for k, ((u, y), x0) in enumerate(zip(self.records, x0s, strict=True)):
-            ys = np.empty(y.size)
-            Jk = np.empty((y.size, nm_ + nx))
-            if jacobian(*args, u, x0, 0, ys, Jk) >= 0:
-                raise ConvergenceError("the PNLSS simulation diverged at an accepted point; "
-                                       "lower the degree or n_states")
-            J[row:row + y.size, :nm_] = Jk[:, :nm_]
-            J[row:row + y.size, nm_ + k * nx: nm_ + (k + 1) * nx] = Jk[:, nm_:]
-            r[row:row + y.size] = ys - y
+            cols = np.r_[np.arange(nmod), nmod + k * nx + np.arange(nx)]
+            x = np.array(x0, dtype=float)
+            S = np.zeros((nx, nmod + nx))
+            S[:, nmod:] = np.eye(nx)
+            Hk = np.zeros((nmod + nx, nmod + nx))
+            gk = np.zeros(nmod + nx)
+            Jb = np.empty((min(BLOCK, y.size), nmod + nx))
+            for a in range(0, y.size, BLOCK):
+                b = min(a + BLOCK, y.size)
+                Jk, ys = Jb[:b - a], np.empty(b - a)
+                if jacobian_block(*args, u[a:b], x, S, 0, ys, Jk) >= 0:
+                    raise ConvergenceError("the PNLSS simulation diverged at an accepted "
+                                           "point; lower the degree or n_states")
+                rk = ys - y[a:b]
+                Hk += Jk.T @ Jk
+                gk += Jk.T @ rk
+                r[row + a:row + b] = rk
+            H[np.ix_(cols, cols)] += Hk
+            g[cols] += gk
             row += y.size
-        return J, r
+        return H, g, r
 
     def run(self, max_iter: int, tol: float
             ) -> tuple[NDArray[np.float64], list[NDArray[np.float64]], dict[str, Any]]:
@@ -271,19 +290,18 @@ class _Search:
         small = 0
         n_model = self.n_model
         for it in range(max_iter):
-            J, r = self.jacobian(theta, x0s)
+            H, g, _ = self.normal_equations(theta, x0s)
             info["iterations"] = it + 1
-            H = J.T @ J
             H[:n_model, :n_model] += self.penalty_matrix()
-            g = J.T @ r
             g[self.ef] += self.rho * theta[self.ef]
+            H_all = H.shape[0]
             H = H[np.ix_(free, free)]
             g = g[free]
             d = np.diag(H).copy()
             d = np.maximum(d, 1e-12 * max(float(d.max()), 1e-300))
             accepted = False
             while lam < 1e10:
-                step = np.zeros(J.shape[1])
+                step = np.zeros(H_all)
                 try:
                     step[free] = -np.linalg.solve(H + lam * np.diag(d), g)
                 except np.linalg.LinAlgError:
