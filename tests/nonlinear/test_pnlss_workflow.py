@@ -68,3 +68,9 @@ def test_a_degree_past_the_limit_is_refused_naming_the_key(tmp_path):
                      identify={"method": "pnlss", "monomials": "cross"})
     with pytest.raises(OptionError, match="monomials"):
         identify(spec, write=False)
+
+
+def test_a_pruning_level_of_one_or_more_is_refused_naming_the_key(tmp_path):
+    spec = open_loop(tmp_path, kind="wiener", identify={"method": "pnlss", "prune": 5})
+    with pytest.raises(OptionError, match=r"\[identify\] prune.*significance level"):
+        identify(spec, write=False)

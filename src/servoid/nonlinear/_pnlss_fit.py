@@ -28,6 +28,7 @@ from .._errors import (
     DataError,
     IdentifiabilityError,
     ModelError,
+    OptionError,
     ServoidWarning,
     check_option,
 )
@@ -57,6 +58,7 @@ def fit_pnlss(
     initial: Any = None,
     linear: Literal["n4sid", "oe"] = "n4sid",
     ridge: float = 0.0,
+    prune: float = 0.0,
     input: Literal["u", "r"] = "u",
     output: str | None = None,
     max_iter: int = 100,
@@ -86,6 +88,12 @@ def fit_pnlss(
     ridge : float
         Weight α ≥ 0 of the penalty α·N·‖(E, F)‖² on the normalised
         coefficients (0: none).
+    prune : float
+        Significance level α of the pruning (0: none, else 0 < α < 1): a
+        monomial whose coefficients (its column of E and its entry of F)
+        the Wald test cannot tell from zero at level α is removed (fixed at
+        0) and the rest refitted, in rounds until none is removed.  The
+        removed monomials are ``options["pruned"]``.
     input : {"u", "r"}
         Role of the input channel(s).
     output : str, optional
@@ -122,6 +130,10 @@ def fit_pnlss(
     n_states = as_int("n_states", n_states, minimum=1, maximum=20)
     degree = as_int("degree", degree, minimum=1, maximum=6)
     ridge = as_float("ridge", ridge, nonneg=True)
+    prune = as_float("prune", prune, nonneg=True)
+    if prune >= 1:
+        raise OptionError(f"prune is a significance level: 0 (no pruning) or between 0 and 1, "
+                          f"e.g. 0.01; got {prune:g}")
     max_iter = as_int("max_iter", max_iter, minimum=0)
     tol = as_float("tol", tol, positive=True)
     records, names = _records(data, input, output)
@@ -153,14 +165,15 @@ def fit_pnlss(
     n_free = _check_size(nx, nu, degree, monomials, len(records), n_total)
     search = _Search(model, normal, ridge)
     theta, x0s, info = search.run(max_iter, tol)
+    fixed = np.zeros(0, dtype=np.int64)
+    pruned: list[str] = []
+    if prune > 0 and search.ef.size:
+        theta, x0s, fixed, pruned = _prune(search, theta, x0s, prune, info, max_iter, tol)
     fitted = model.with_parameters(theta)
-    H, _, r = search.normal_equations(theta, x0s)
     n_model = model.n_parameters
+    cov, r, _ = search.covariance(theta, x0s, fixed, n_free - fixed.size)
     sse = float(r @ r)
-    sigma2 = sse / max(n_total - n_free, 1)  # normalised units
-    H[:n_model, :n_model] += search.penalty_matrix()
-    cov_all = _inverse(H)
-    cov = sigma2 * cov_all[:n_model, :n_model]
+    sigma2 = sse / max(n_total - n_free + fixed.size, 1)  # normalised units
     noise = sigma2 * y_scale**2
     fitted = _with_covariance(fitted, cov, noise)
     resid = r * y_scale
@@ -169,7 +182,8 @@ def fit_pnlss(
         "n_states": nx, "degree": degree, "monomials": monomials, "ridge": ridge,
         "linear": "given" if initial is not None else linear, "input": input,
         "inputs": list(names["inputs"]), "output": names["output"],
-        "max_iter": max_iter, "tol": tol, "iterations": info["iterations"],
+        "max_iter": max_iter, "tol": tol, "prune": prune, "pruned": pruned,
+        "iterations": info["iterations"],
         "rejected": info["rejected"], "diverged_steps": info["diverged"],
         "cost_start": info["cost_start"] * y_scale**2 / n_total,
         "cost": sse * y_scale**2 / n_total,
@@ -257,6 +271,19 @@ class _Search:
             row += y.size
         return H, g, r
 
+    def covariance(self, theta: NDArray[np.float64], x0s: Sequence[NDArray[np.float64]],
+                   fixed: NDArray[np.int64], n_free: int
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+        """σ̂²(JᵀJ + penalty)⁺ of the model's parameters (the initial states marginalised,
+        the ``fixed`` ones zero), the residuals and σ̂² (normalised units)."""
+        H, _, r = self.normal_equations(theta, x0s)
+        H[:self.n_model, :self.n_model] += self.penalty_matrix()
+        sigma2 = float(r @ r) / max(self.n_total - n_free, 1)
+        keep = np.setdiff1d(np.arange(H.shape[0]), fixed)
+        cov_all = np.zeros_like(H)
+        cov_all[np.ix_(keep, keep)] = _inverse(H[np.ix_(keep, keep)])
+        return sigma2 * cov_all[:self.n_model, :self.n_model], r, sigma2
+
     def run(self, max_iter: int, tol: float
             ) -> tuple[NDArray[np.float64], list[NDArray[np.float64]], dict[str, Any]]:
         """The linear part alone first (E = F = 0, as the start of Paduart et al.), then all."""
@@ -331,6 +358,65 @@ class _Search:
                 info["status"] = f"stopped after max_iter = {max_iter} iterations"
         info["cost"] = cost
         return theta, x0s, info
+
+
+# -- pruning ------------------------------------------------------------------------------
+
+
+def _prune(search: _Search, theta: NDArray[np.float64], x0s: list[NDArray[np.float64]],
+           alpha: float, info: dict[str, Any], max_iter: int, tol: float
+           ) -> tuple[NDArray[np.float64], list[NDArray[np.float64]], NDArray[np.int64],
+                      list[str]]:
+    """Remove the monomials the data cannot tell from zero, refit, until none is removed.
+
+    A monomial's group is its column of E and its entry of F; the Wald
+    statistic θ_gᵀ C_g⁺ θ_g of the group (C_g its block of the
+    covariance) is χ² with rank(C_g) degrees of freedom when the
+    coefficients are zero.  Whether a column of E is zero does not depend
+    on the states' basis, so the test means the same in any realisation.
+    """
+    from scipy.stats import chi2
+
+    model = search.model
+    nx, nm, n_model = model.n_states, model.n_monomials, search.n_model
+    o_e, o_f = n_model - nx * nm - nm, n_model - nm
+    groups = [np.r_[o_e + np.arange(nx) * nm + j, o_f + j] for j in range(nm)]
+    gone: set[int] = set()
+    n_all = n_model + nx * len(search.records)
+    n_free = n_all
+    for _ in range(10):
+        fixed = np.array(sorted(k for j in gone for k in groups[j]), dtype=np.int64)
+        cov, _, _ = search.covariance(theta, x0s, fixed, n_free - fixed.size)
+        drop = []
+        for j, g in enumerate(groups):
+            if j in gone:
+                continue
+            c = cov[np.ix_(g, g)]
+            w, V = np.linalg.eigh(0.5 * (c + c.T))
+            keep = w > 1e-12 * max(float(w.max()), 1e-300)
+            if not keep.any():
+                continue
+            z = V[:, keep].T @ theta[g]
+            stat = float(np.sum(z**2 / w[keep]))
+            if chi2.sf(stat, int(keep.sum())) > alpha:
+                drop.append(j)
+        if not drop:
+            break
+        fixed = np.array(sorted(k for j in gone | set(drop) for k in groups[j]),
+                         dtype=np.int64)
+        trial = theta.copy()
+        trial[fixed] = 0.0
+        if not np.isfinite(search.cost(trial, x0s)):
+            break  # the model without them diverges: they are needed after all
+        gone.update(drop)
+        free = np.setdiff1d(np.arange(n_all), fixed)
+        theta, x0s, again = search._lm(trial, x0s, max_iter, tol, free)
+        info.update(status=again["status"], cost=again["cost"])
+        for key in ("iterations", "rejected", "diverged"):
+            info[key] += again[key]
+    fixed = np.array(sorted(k for j in gone for k in groups[j]), dtype=np.int64)
+    names = model.monomial_names
+    return theta, x0s, fixed, [names[j] for j in sorted(gone)]
 
 
 # -- the linear start ---------------------------------------------------------------------

@@ -23,7 +23,8 @@ from ._registry import FigureWriter, Method, Option
 __all__ = ["METHOD", "PnlssResult"]
 
 _KEYS = {name: f"[identify] {name}" for name in
-         ("n_states", "degree", "monomials", "ridge", "linear", "max_iter", "horizon")}
+         ("n_states", "degree", "monomials", "ridge", "prune", "linear", "max_iter",
+          "horizon")}
 #: Share of the estimation record held out to choose n_states and degree from a grid.
 HOLDOUT = 0.25
 
@@ -85,6 +86,9 @@ class PnlssResult(IdentificationResult):
                   f"{np.sqrt(o['cost']):.4g} after {o['iterations']} Levenberg–Marquardt "
                   f"iterations ({o['rejected']} steps rejected, {o['diverged_steps']} of them "
                   "diverged)")]
+        if o.get("pruned"):
+            lines.append(f"  pruned at α = {o['prune']:g}: {len(o['pruned'])} of "
+                         f"{o['n_monomials']} monomials ({', '.join(o['pruned'])})")
         share = self._share()
         if share is not None:
             lines.append(f"  nonlinear terms: {100 * share:.3g} % of the output's RMS variation "
@@ -114,7 +118,7 @@ class PnlssResult(IdentificationResult):
                 f"by Levenberg–Marquardt on the simulation error with the exact Jacobian "
                 f"(sensitivity recursion); {o['iterations']} iterations, {o['rejected']} steps "
                 f"rejected ({o['diverged_steps']} because the simulation diverged); "
-                f"ridge {o['ridge']:g}. Free-run RMS on the estimation data: linear "
+                f"ridge {o['ridge']:g}{_pruned(o)}. Free-run RMS on the estimation data: linear "
                 f"{o['linear_rms']:.4g}, PNLSS {np.sqrt(o['cost']):.4g}. The covariance is "
                 "σ̂²(JᵀJ)⁺ with the similarity-transform directions left out.")
         figures = []
@@ -202,9 +206,18 @@ def _fit(data: Experiment | ExperimentSet, n_states: int, degree: int,
     from ..nonlinear import fit_pnlss
 
     return fit_pnlss(data, n_states, degree, monomials=options["monomials"],
-                     linear=options["linear"], ridge=options["ridge"],
+                     linear=options["linear"], ridge=options["ridge"], prune=options["prune"],
                      input=options["input"], output=options["output"],
                      max_iter=options["max_iter"])
+
+
+def _pruned(o: Mapping[str, Any]) -> str:
+    """The pruning, for the model section's text ("" when none)."""
+    if not o.get("prune"):
+        return ""
+    gone = o.get("pruned") or []
+    return (f"; pruning at α = {o['prune']:g} removed {len(gone)} of {o['n_monomials']} "
+            f"monomials" + (f" ({', '.join(gone)})" if gone else ""))
 
 
 def _grid(value: int | Sequence[int]) -> list[int]:
@@ -297,6 +310,10 @@ METHOD = Method(
                "the linear start: n4sid, or OE turned into state space"),
         Option("ridge", 0.0, number(nonneg=True),
                "weight α of the penalty α·N·‖(E, F)‖² on the nonlinear coefficients"),
+        Option("prune", 0.0, number(nonneg=True),
+               "significance level α of the pruning: monomials whose E column and F entry the "
+               "Wald test cannot tell from zero at α are removed and the rest refitted "
+               "(0: none)"),
         Option("max_iter", 100, integer(minimum=0, maximum=10000),
                "most Levenberg–Marquardt iterations per stage"),
         HORIZON,
