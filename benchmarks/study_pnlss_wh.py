@@ -1,18 +1,23 @@
-"""PNLSS on the real Wiener–Hammerstein benchmark (SYSID 2009), if its record is here.
+"""PNLSS on the real Wiener–Hammerstein benchmark (SYSID 2009).
 
-Reads the benchmark's ``WienerHammerBenchmark.csv`` from the path given as the
-first argument (or ``$SERVOID_WH_CSV``); servoid ships none of it and looks
-nowhere else. Skips with a message when no record is given or found. The split is the benchmark's
+Reads the parts shipped with servoid (:func:`servoid.datasets.load_wiener_hammerstein`),
+or the original ``WienerHammerBenchmark.csv`` from the path given as the first argument (or
+``$SERVOID_WH_CSV``); the two give the same samples. The split is the benchmark's
 (its PROVENANCE): samples [5200:184000], estimation the first 100 000,
 test the remaining 78 800, the first 50 test samples only for the initial
 state and left out of the score. Prints the test RMSE of the free run.
 
 Usage::
 
-    PYTHONPATH=src python benchmarks/study_pnlss_wh.py RECORD.csv [n_states] [degree] \\
+    PYTHONPATH=src python benchmarks/study_pnlss_wh.py [RECORD.csv] [n_states] [degree] \\
         [monomials] [n_fit] [max_iter]
 
 ``n_fit`` takes the first n_fit estimation samples (default all 100 000).
+
+    PYTHONPATH=src python benchmarks/study_pnlss_wh.py --score RESULTS/results.json
+
+scores the model a ``servoid identify`` run wrote by the benchmark's rule: the initial state
+from the first 50 test samples only, the RMSE over the rest.
 """
 
 from __future__ import annotations
@@ -27,25 +32,45 @@ import numpy as np
 
 from servoid import ServoidWarning
 from servoid.data import Experiment
+from servoid.datasets import load_wiener_hammerstein
 from servoid.nonlinear import fit_pnlss
 
 
+def score(results: str) -> int:
+    """The benchmark's score of a fitted model: x(0) from the first 50 test samples alone."""
+    from servoid.workflows import load_results
+
+    model = load_results(results).models["G"]
+    test = load_wiener_hammerstein("test")
+    u, y = test["u"], test["y"]
+    x0 = model.initial_state(y[:50], u[:50])
+    rmse = float(np.sqrt(np.mean((model.simulate(u, x0)[50:] - y[50:]) ** 2)))
+    print(f"{results}: test RMSE {1e3 * rmse:.3f} mV (initial state from the first 50 test "
+          "samples, scored on the other 78 750)")
+    return 0
+
+
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["--score"]:
+        return score(argv[1])
     given = argv[0] if argv and argv[0].endswith(".csv") else os.environ.get("SERVOID_WH_CSV")
     if argv and argv[0].endswith(".csv"):
         argv = argv[1:]
-    if not given or not Path(given).is_file():
-        print(f"skipped: no Wiener–Hammerstein record {'at ' + given if given else 'given'} "
-              "(pass WienerHammerBenchmark.csv as the first argument or set SERVOID_WH_CSV)")
-        return 0
-    path = Path(given)
+    if given and not Path(given).is_file():
+        print(f"no Wiener–Hammerstein record at {given}")
+        return 1
     nx = int(argv[0]) if argv else 6
     degree = int(argv[1]) if len(argv) > 1 else 3
     monomials = argv[2] if len(argv) > 2 else "state"
     n_fit = int(argv[3]) if len(argv) > 3 else 100_000
     max_iter = int(argv[4]) if len(argv) > 4 else 100
-    data = np.genfromtxt(path, delimiter=",", skip_header=1, usecols=(0, 1))
-    u, y = data[5200:184000, 0], data[5200:184000, 1]
+    if given:
+        data = np.genfromtxt(given, delimiter=",", skip_header=1, usecols=(0, 1))
+        u, y = data[5200:184000, 0], data[5200:184000, 1]
+    else:
+        parts = [load_wiener_hammerstein(p) for p in ("estimation", "test")]
+        u = np.concatenate([p["u"] for p in parts])
+        y = np.concatenate([p["y"] for p in parts])
     dt = 1 / 51200.0
     est_u, est_y = u[:100_000][:n_fit], y[:100_000][:n_fit]
     test_u, test_y = u[100_000:], y[100_000:]

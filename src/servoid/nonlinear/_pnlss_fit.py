@@ -28,18 +28,23 @@ from .._errors import (
     DataError,
     IdentifiabilityError,
     ModelError,
+    OptionError,
     ServoidWarning,
     check_option,
 )
 from ..data import Experiment, ExperimentSet
 from ..estimate import Estimate, output_name
 from ._pnlss import MONOMIALS, Monomials, PnlssModel, exponents
-from ._pnlss_kernel import jacobian, simulate
+from ._pnlss_kernel import jacobian_block, simulate
 
 __all__ = ["LINEAR_STARTS", "fit_pnlss"]
 
 #: Where the linear start comes from when no ``initial`` model is given.
 LINEAR_STARTS = ("n4sid", "oe")
+
+#: Samples per block of the Jacobian: JᵀJ and Jᵀr are summed block by block, so memory is
+#: BLOCK × parameters, not N × parameters.
+BLOCK = 4096
 
 Record = tuple[NDArray[np.float64], NDArray[np.float64]]  # (u (N, nu), y (N,))
 
@@ -53,6 +58,7 @@ def fit_pnlss(
     initial: Any = None,
     linear: Literal["n4sid", "oe"] = "n4sid",
     ridge: float = 0.0,
+    prune: float = 0.0,
     input: Literal["u", "r"] = "u",
     output: str | None = None,
     max_iter: int = 100,
@@ -82,6 +88,12 @@ def fit_pnlss(
     ridge : float
         Weight α ≥ 0 of the penalty α·N·‖(E, F)‖² on the normalised
         coefficients (0: none).
+    prune : float
+        Significance level α of the pruning (0: none, else 0 < α < 1): a
+        monomial whose coefficients (its column of E and its entry of F)
+        the Wald test cannot tell from zero at level α is removed (fixed at
+        0) and the rest refitted, in rounds until none is removed.  The
+        removed monomials are ``options["pruned"]``.
     input : {"u", "r"}
         Role of the input channel(s).
     output : str, optional
@@ -118,6 +130,10 @@ def fit_pnlss(
     n_states = as_int("n_states", n_states, minimum=1, maximum=20)
     degree = as_int("degree", degree, minimum=1, maximum=6)
     ridge = as_float("ridge", ridge, nonneg=True)
+    prune = as_float("prune", prune, nonneg=True)
+    if prune >= 1:
+        raise OptionError(f"prune is a significance level: 0 (no pruning) or between 0 and 1, "
+                          f"e.g. 0.01; got {prune:g}")
     max_iter = as_int("max_iter", max_iter, minimum=0)
     tol = as_float("tol", tol, positive=True)
     records, names = _records(data, input, output)
@@ -149,15 +165,15 @@ def fit_pnlss(
     n_free = _check_size(nx, nu, degree, monomials, len(records), n_total)
     search = _Search(model, normal, ridge)
     theta, x0s, info = search.run(max_iter, tol)
+    fixed = np.zeros(0, dtype=np.int64)
+    pruned: list[str] = []
+    if prune > 0 and search.ef.size:
+        theta, x0s, fixed, pruned = _prune(search, theta, x0s, prune, info, max_iter, tol)
     fitted = model.with_parameters(theta)
-    J, r = search.jacobian(theta, x0s)
     n_model = model.n_parameters
+    cov, r, _ = search.covariance(theta, x0s, fixed, n_free - fixed.size)
     sse = float(r @ r)
-    sigma2 = sse / max(n_total - n_free, 1)  # normalised units
-    H = J.T @ J
-    H[:n_model, :n_model] += search.penalty_matrix()
-    cov_all = _inverse(H)
-    cov = sigma2 * cov_all[:n_model, :n_model]
+    sigma2 = sse / max(n_total - n_free + fixed.size, 1)  # normalised units
     noise = sigma2 * y_scale**2
     fitted = _with_covariance(fitted, cov, noise)
     resid = r * y_scale
@@ -166,7 +182,8 @@ def fit_pnlss(
         "n_states": nx, "degree": degree, "monomials": monomials, "ridge": ridge,
         "linear": "given" if initial is not None else linear, "input": input,
         "inputs": list(names["inputs"]), "output": names["output"],
-        "max_iter": max_iter, "tol": tol, "iterations": info["iterations"],
+        "max_iter": max_iter, "tol": tol, "prune": prune, "pruned": pruned,
+        "iterations": info["iterations"],
         "rejected": info["rejected"], "diverged_steps": info["diverged"],
         "cost_start": info["cost_start"] * y_scale**2 / n_total,
         "cost": sse * y_scale**2 / n_total,
@@ -217,26 +234,55 @@ class _Search:
             total += float(np.sum((ys - y) ** 2))
         return total
 
-    def jacobian(self, theta: NDArray[np.float64], x0s: Sequence[NDArray[np.float64]]
-                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """J (N, n_model + nx·records) and r = simulated − measured; ConvergenceError if it
-        diverges (it cannot: only accepted points are differentiated)."""
+    def normal_equations(self, theta: NDArray[np.float64], x0s: Sequence[NDArray[np.float64]]
+                         ) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                    NDArray[np.float64]]:
+        """JᵀJ, Jᵀr and r = simulated − measured, J (N, n_model + nx·records) the exact
+        Jacobian, accumulated over blocks of :data:`BLOCK` samples so that J is never held
+        whole (a block's rows are those of the whole record, bit for bit).  ConvergenceError
+        if the run diverges (it cannot: only accepted points are differentiated)."""
         args = self._args(theta)
-        nx, nm_ = self.model.n_states, self.n_model
-        J = np.zeros((self.n_total, nm_ + nx * len(self.records)))
+        nx, nmod = self.model.n_states, self.n_model
+        n_all = nmod + nx * len(self.records)
+        H = np.zeros((n_all, n_all))
+        g = np.zeros(n_all)
         r = np.empty(self.n_total)
         row = 0
         for k, ((u, y), x0) in enumerate(zip(self.records, x0s, strict=True)):
-            ys = np.empty(y.size)
-            Jk = np.empty((y.size, nm_ + nx))
-            if jacobian(*args, u, x0, 0, ys, Jk) >= 0:
-                raise ConvergenceError("the PNLSS simulation diverged at an accepted point; "
-                                       "lower the degree or n_states")
-            J[row:row + y.size, :nm_] = Jk[:, :nm_]
-            J[row:row + y.size, nm_ + k * nx: nm_ + (k + 1) * nx] = Jk[:, nm_:]
-            r[row:row + y.size] = ys - y
+            cols = np.r_[np.arange(nmod), nmod + k * nx + np.arange(nx)]
+            x = np.array(x0, dtype=float)
+            S = np.zeros((nx, nmod + nx))
+            S[:, nmod:] = np.eye(nx)
+            Hk = np.zeros((nmod + nx, nmod + nx))
+            gk = np.zeros(nmod + nx)
+            Jb = np.empty((min(BLOCK, y.size), nmod + nx))
+            for a in range(0, y.size, BLOCK):
+                b = min(a + BLOCK, y.size)
+                Jk, ys = Jb[:b - a], np.empty(b - a)
+                if jacobian_block(*args, u[a:b], x, S, 0, ys, Jk) >= 0:
+                    raise ConvergenceError("the PNLSS simulation diverged at an accepted "
+                                           "point; lower the degree or n_states")
+                rk = ys - y[a:b]
+                Hk += Jk.T @ Jk
+                gk += Jk.T @ rk
+                r[row + a:row + b] = rk
+            H[np.ix_(cols, cols)] += Hk
+            g[cols] += gk
             row += y.size
-        return J, r
+        return H, g, r
+
+    def covariance(self, theta: NDArray[np.float64], x0s: Sequence[NDArray[np.float64]],
+                   fixed: NDArray[np.int64], n_free: int
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+        """σ̂²(JᵀJ + penalty)⁺ of the model's parameters (the initial states marginalised,
+        the ``fixed`` ones zero), the residuals and σ̂² (normalised units)."""
+        H, _, r = self.normal_equations(theta, x0s)
+        H[:self.n_model, :self.n_model] += self.penalty_matrix()
+        sigma2 = float(r @ r) / max(self.n_total - n_free, 1)
+        keep = np.setdiff1d(np.arange(H.shape[0]), fixed)
+        cov_all = np.zeros_like(H)
+        cov_all[np.ix_(keep, keep)] = _inverse(H[np.ix_(keep, keep)])
+        return sigma2 * cov_all[:self.n_model, :self.n_model], r, sigma2
 
     def run(self, max_iter: int, tol: float
             ) -> tuple[NDArray[np.float64], list[NDArray[np.float64]], dict[str, Any]]:
@@ -271,19 +317,18 @@ class _Search:
         small = 0
         n_model = self.n_model
         for it in range(max_iter):
-            J, r = self.jacobian(theta, x0s)
+            H, g, _ = self.normal_equations(theta, x0s)
             info["iterations"] = it + 1
-            H = J.T @ J
             H[:n_model, :n_model] += self.penalty_matrix()
-            g = J.T @ r
             g[self.ef] += self.rho * theta[self.ef]
+            H_all = H.shape[0]
             H = H[np.ix_(free, free)]
             g = g[free]
             d = np.diag(H).copy()
             d = np.maximum(d, 1e-12 * max(float(d.max()), 1e-300))
             accepted = False
             while lam < 1e10:
-                step = np.zeros(J.shape[1])
+                step = np.zeros(H_all)
                 try:
                     step[free] = -np.linalg.solve(H + lam * np.diag(d), g)
                 except np.linalg.LinAlgError:
@@ -313,6 +358,65 @@ class _Search:
                 info["status"] = f"stopped after max_iter = {max_iter} iterations"
         info["cost"] = cost
         return theta, x0s, info
+
+
+# -- pruning ------------------------------------------------------------------------------
+
+
+def _prune(search: _Search, theta: NDArray[np.float64], x0s: list[NDArray[np.float64]],
+           alpha: float, info: dict[str, Any], max_iter: int, tol: float
+           ) -> tuple[NDArray[np.float64], list[NDArray[np.float64]], NDArray[np.int64],
+                      list[str]]:
+    """Remove the monomials the data cannot tell from zero, refit, until none is removed.
+
+    A monomial's group is its column of E and its entry of F; the Wald
+    statistic θ_gᵀ C_g⁺ θ_g of the group (C_g its block of the
+    covariance) is χ² with rank(C_g) degrees of freedom when the
+    coefficients are zero.  Whether a column of E is zero does not depend
+    on the states' basis, so the test means the same in any realisation.
+    """
+    from scipy.stats import chi2
+
+    model = search.model
+    nx, nm, n_model = model.n_states, model.n_monomials, search.n_model
+    o_e, o_f = n_model - nx * nm - nm, n_model - nm
+    groups = [np.r_[o_e + np.arange(nx) * nm + j, o_f + j] for j in range(nm)]
+    gone: set[int] = set()
+    n_all = n_model + nx * len(search.records)
+    n_free = n_all
+    for _ in range(10):
+        fixed = np.array(sorted(k for j in gone for k in groups[j]), dtype=np.int64)
+        cov, _, _ = search.covariance(theta, x0s, fixed, n_free - fixed.size)
+        drop = []
+        for j, g in enumerate(groups):
+            if j in gone:
+                continue
+            c = cov[np.ix_(g, g)]
+            w, V = np.linalg.eigh(0.5 * (c + c.T))
+            keep = w > 1e-12 * max(float(w.max()), 1e-300)
+            if not keep.any():
+                continue
+            z = V[:, keep].T @ theta[g]
+            stat = float(np.sum(z**2 / w[keep]))
+            if chi2.sf(stat, int(keep.sum())) > alpha:
+                drop.append(j)
+        if not drop:
+            break
+        fixed = np.array(sorted(k for j in gone | set(drop) for k in groups[j]),
+                         dtype=np.int64)
+        trial = theta.copy()
+        trial[fixed] = 0.0
+        if not np.isfinite(search.cost(trial, x0s)):
+            break  # the model without them diverges: they are needed after all
+        gone.update(drop)
+        free = np.setdiff1d(np.arange(n_all), fixed)
+        theta, x0s, again = search._lm(trial, x0s, max_iter, tol, free)
+        info.update(status=again["status"], cost=again["cost"])
+        for key in ("iterations", "rejected", "diverged"):
+            info[key] += again[key]
+    fixed = np.array(sorted(k for j in gone for k in groups[j]), dtype=np.int64)
+    names = model.monomial_names
+    return theta, x0s, fixed, [names[j] for j in sorted(gone)]
 
 
 # -- the linear start ---------------------------------------------------------------------

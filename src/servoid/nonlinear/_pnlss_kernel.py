@@ -19,7 +19,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-__all__ = ["jacobian", "simulate"]
+__all__ = ["jacobian", "jacobian_block", "simulate"]
 
 #: |x| past which a run counts as diverged (its output is then NaN from there on).
 LIMIT = 1e12
@@ -107,6 +107,24 @@ def jacobian(A, B, C, D, E, F, P, u, x0, first, y, J):  # pragma: no cover - com
     """Simulate and fill J (N, n_par − first) with ∂y(t)/∂θ_k for k ≥ first.
 
     Returns the first diverged sample, or -1 (then J is finite)."""
+    nx = A.shape[0]
+    npar = J.shape[1]
+    z = np.empty(nx)
+    S = np.zeros((nx, npar))
+    for i in range(nx):
+        z[i] = x0[i]
+        S[i, npar - nx + i] = 1.0
+    return jacobian_block(A, B, C, D, E, F, P, u, z, S, first, y, J)
+
+
+@nb.njit(cache=True, nogil=True)
+def jacobian_block(A, B, C, D, E, F, P, u, x, S, first, y, J):  # pragma: no cover - compiled
+    """:func:`jacobian` over one block of a record, from the state x (nx,) and its sensitivity
+    S (nx, n_par − first), both updated in place to those after the block's last sample.
+
+    A record cut into consecutive blocks, each started from the previous block's x and S,
+    gives the rows of :func:`jacobian` bit for bit, so J need never be held whole.  Returns
+    the first diverged sample of the block, or -1."""
     N, nu = u.shape
     nx = A.shape[0]
     nm = P.shape[0]
@@ -118,19 +136,16 @@ def jacobian(A, B, C, D, E, F, P, u, x0, first, y, J):  # pragma: no cover - com
     oD = oC + nx
     oE = oD + nu
     oF = oE + nE
-    o0 = oF + nm
-    npar = o0 + nx - first
+    npar = S.shape[1]
     z = np.empty(nx + nu)
     xn = np.empty(nx)
     m = np.empty(nm)
     dm = np.empty((nm, nx))
     Ax = np.empty((nx, nx))
     Cx = np.empty(nx)
-    S = np.zeros((nx, npar))
     Sn = np.empty((nx, npar))
     for i in range(nx):
-        z[i] = x0[i]
-        S[i, o0 - first + i] = 1.0
+        z[i] = x[i]
     for t in range(N):
         for k in range(nu):
             z[nx + k] = u[t, k]
@@ -153,12 +168,13 @@ def jacobian(A, B, C, D, E, F, P, u, x0, first, y, J):  # pragma: no cover - com
         for j in range(nm):
             out += F[j] * m[j]
         y[t] = out
-        # output row: (C + F dm) S + direct terms
+        # output row: (C + F dm) S + direct terms (rows of S are contiguous: inner loop on c)
         for c in range(npar):
-            s = 0.0
-            for i in range(nx):
-                s += Cx[i] * S[i, c]
-            J[t, c] = s
+            J[t, c] = 0.0
+        for i in range(nx):
+            a = Cx[i]
+            for c in range(npar):
+                J[t, c] += a * S[i, c]
         if oC >= first:
             for i in range(nx):
                 J[t, oC + i - first] += z[i]
@@ -181,10 +197,11 @@ def jacobian(A, B, C, D, E, F, P, u, x0, first, y, J):  # pragma: no cover - com
                 bad = True
         for i in range(nx):
             for c in range(npar):
-                s = 0.0
-                for k in range(nx):
-                    s += Ax[i, k] * S[k, c]
-                Sn[i, c] = s
+                Sn[i, c] = 0.0
+            for k in range(nx):
+                a = Ax[i, k]
+                for c in range(npar):
+                    Sn[i, c] += a * S[k, c]
         if first == 0:  # the model's own columns (not the initial state's alone)
             for i in range(nx):
                 for k in range(nx):
@@ -195,6 +212,7 @@ def jacobian(A, B, C, D, E, F, P, u, x0, first, y, J):  # pragma: no cover - com
                     Sn[i, oE + i * nm + j - first] += m[j]
         for i in range(nx):
             z[i] = xn[i]
+            x[i] = xn[i]
             for c in range(npar):
                 S[i, c] = Sn[i, c]
         if bad:

@@ -11,19 +11,20 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import ServoidError, ServoidWarning
+from .._errors import DataError, ServoidError, ServoidWarning
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 from ..report import Figure, Section, Table
 from ._common import keyed, parameter_table, warnings_as_notes
 from ._examples import open_loop
 from ._lti import IdentificationResult, lti_result
-from ._options import HORIZON, OUTPUT, ROLE, choice, integer, number, orders
+from ._options import HORIZON, OUTPUT, ROLE, choice, integer, number, optional, orders, text
 from ._registry import FigureWriter, Method, Option
 
 __all__ = ["METHOD", "PnlssResult"]
 
 _KEYS = {name: f"[identify] {name}" for name in
-         ("n_states", "degree", "monomials", "ridge", "linear", "max_iter", "horizon")}
+         ("n_states", "degree", "monomials", "ridge", "prune", "linear", "plan",
+          "max_iter", "horizon")}
 #: Share of the estimation record held out to choose n_states and degree from a grid.
 HOLDOUT = 0.25
 
@@ -85,6 +86,9 @@ class PnlssResult(IdentificationResult):
                   f"{np.sqrt(o['cost']):.4g} after {o['iterations']} Levenberg–Marquardt "
                   f"iterations ({o['rejected']} steps rejected, {o['diverged_steps']} of them "
                   "diverged)")]
+        if o.get("pruned"):
+            lines.append(f"  pruned at α = {o['prune']:g}: {len(o['pruned'])} of "
+                         f"{o['n_monomials']} monomials ({', '.join(o['pruned'])})")
         share = self._share()
         if share is not None:
             lines.append(f"  nonlinear terms: {100 * share:.3g} % of the output's RMS variation "
@@ -114,7 +118,7 @@ class PnlssResult(IdentificationResult):
                 f"by Levenberg–Marquardt on the simulation error with the exact Jacobian "
                 f"(sensitivity recursion); {o['iterations']} iterations, {o['rejected']} steps "
                 f"rejected ({o['diverged_steps']} because the simulation diverged); "
-                f"ridge {o['ridge']:g}. Free-run RMS on the estimation data: linear "
+                f"ridge {o['ridge']:g}{_pruned(o)}. Free-run RMS on the estimation data: linear "
                 f"{o['linear_rms']:.4g}, PNLSS {np.sqrt(o['cost']):.4g}. The covariance is "
                 "σ̂²(JᵀJ)⁺ with the similarity-transform directions left out.")
         figures = []
@@ -161,17 +165,18 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         truth: Mapping[str, float] | None) -> PnlssResult:
     """Fit a PNLSS model (choosing states and degree from a grid) and validate it."""
     estimation, validations = spec.records()
+    fitting = {**options, "_plan": _plan(spec, options)}
     states = _grid(options["n_states"])
     degrees = _grid(options["degree"])
     grid: tuple[Candidate, ...] = ()
     with keyed(_KEYS), warnings_as_notes() as notes:
         if len(states) * len(degrees) > 1:
-            grid = _search(estimation, states, degrees, options)
+            grid = _search(estimation, states, degrees, fitting)
             best = grid[0]
             n_states, degree = best.n_states, best.degree
         else:
             n_states, degree = states[0], degrees[0]
-        estimate = _fit(estimation, n_states, degree, options)
+        estimate = _fit(estimation, n_states, degree, fitting)
     model = estimate.model
     contribution: tuple[Any, ...] = ()
     first = validations[0]
@@ -201,10 +206,58 @@ def _fit(data: Experiment | ExperimentSet, n_states: int, degree: int,
          options: Mapping[str, Any]) -> Any:
     from ..nonlinear import fit_pnlss
 
-    return fit_pnlss(data, n_states, degree, monomials=options["monomials"],
-                     linear=options["linear"], ridge=options["ridge"],
-                     input=options["input"], output=options["output"],
-                     max_iter=options["max_iter"])
+    bla = options["linear"] == "bla"
+    start = _bla_start(data, n_states, options) if bla else None
+    est = fit_pnlss(data, n_states, degree, monomials=options["monomials"],
+                    linear="n4sid" if bla else options["linear"], initial=start,
+                    ridge=options["ridge"], prune=options["prune"], input=options["input"],
+                    output=options["output"], max_iter=options["max_iter"])
+    if start is not None:
+        from dataclasses import replace
+
+        est = replace(est, options={**est.options,
+                                    "linear": f"BLA, ML fit in z of {n_states} poles"})
+    return est
+
+
+def _plan(spec: ExperimentSpec, options: Mapping[str, Any]) -> Any:
+    """The multisine plan of ``linear = "bla"`` (None otherwise)."""
+    if options["linear"] != "bla":
+        return None
+    from ..signals import read_plan
+
+    given = options["plan"]
+    if given is not None:
+        path = Path(given)
+        return read_plan(path if path.is_absolute() else spec.base_dir / path)
+    beside = spec.data_path.with_name(spec.data_path.stem + ".plan.json")
+    if not beside.is_file():
+        raise DataError(f'[identify] linear = "bla" needs the multisine plan: none beside the '
+                        f"data file ({beside.name}); write the test with servoid excite "
+                        "random-multisine (it writes the plan beside the data file), name it "
+                        'with [identify] plan, or use linear = "n4sid"')
+    return read_plan(beside)
+
+
+def _bla_start(data: Experiment | ExperimentSet, n_states: int,
+               options: Mapping[str, Any]) -> Any:
+    """The best linear approximation of a multisine record, fitted in z (ML) by n_states
+    poles and zeros: the linear start, turned into state space by fit_pnlss."""
+    from ..frequency import estimate_bla, fit_ml
+
+    first = data if isinstance(data, Experiment) else data[0]
+    bla = estimate_bla(first, options["_plan"], input=options["input"],
+                       output=options["output"])
+    return fit_ml(bla, n_states, n_states, domain="z")
+
+
+def _pruned(o: Mapping[str, Any]) -> str:
+    """The pruning, for the model section's text ("" when none)."""
+    if not o.get("prune"):
+        return ""
+    gone = o.get("pruned") or []
+    return (f"; pruning at α = {o['prune']:g} removed {len(gone)} of {o['n_monomials']} "
+            f"monomials" + (f" ({', '.join(gone)})" if gone else ""))
 
 
 def _grid(value: int | Sequence[int]) -> list[int]:
@@ -293,10 +346,18 @@ METHOD = Method(
         Option("monomials", "full", choice(("full", "state", "input")),
                "monomials of states and inputs (full), of the states (state) or of the inputs "
                "(input)"),
-        Option("linear", "n4sid", choice(("n4sid", "oe")),
-               "the linear start: n4sid, or OE turned into state space"),
+        Option("linear", "n4sid", choice(("n4sid", "oe", "bla")),
+               "the linear start: n4sid, OE turned into state space, or the best linear "
+               "approximation of a multisine test (its ML fit in z; needs the plan)"),
+        Option("plan", None, optional(text()),
+               'the multisine plan file of linear = "bla" (default: <data file>.plan.json '
+               "beside it)"),
         Option("ridge", 0.0, number(nonneg=True),
                "weight α of the penalty α·N·‖(E, F)‖² on the nonlinear coefficients"),
+        Option("prune", 0.0, number(nonneg=True),
+               "significance level α of the pruning: monomials whose E column and F entry the "
+               "Wald test cannot tell from zero at α are removed and the rest refitted "
+               "(0: none)"),
         Option("max_iter", 100, integer(minimum=0, maximum=10000),
                "most Levenberg–Marquardt iterations per stage"),
         HORIZON,
