@@ -74,6 +74,7 @@ from ._nonlinear_model import NONLINEAR_PARAMETERS
 from ._onestep import DISCRETIZATIONS, fit_one_step
 from ._params import SET_B, SET_C
 from ._result import ClosedLoopResult
+from ._skew import with_skew_tolerance
 from ._structure_test import compare_structures
 from ._structures import STRUCTURES, skew_structure
 
@@ -340,6 +341,10 @@ LOOP = TableSchema("loop", (
     Option("F_tolerance", 0.0, _tolerance, "relative tolerance of F, likewise"),
     Option("gain_tolerance", 0.0, _tolerance,
            "relative tolerance of each measured channel's gain (reference and position)"),
+    Option("skew_tolerance", 0.0, _tolerance,
+           "standard deviation of the skew between the reference and position channels [s] "
+           "(e.g. 10e-6 for a multiplexed ADC): the skew is estimated and carried in the "
+           "one-step intervals (static F only)"),
 ), help="the known loop H = c·G0/(1 + F·G0)")
 
 
@@ -397,6 +402,15 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                                              options["discretization"])
         if structure_test.rejected:
             notes.append(rejection_note(structure_test, flow_law, results["one-step"]))
+    if options["[loop]"]["skew_tolerance"] > 0 and "one-step" in results:
+        with stage("estimating the channel skew beside the one-step model"):
+            skew = with_skew_tolerance(results["one-step"], estimation, loop,
+                                       options["[loop]"]["skew_tolerance"],
+                                       **_rig_options(spec, options["discretization"]))
+        results["one-step"] = skew.result
+        validations["one-step"] = _validate(skew.result, validation_data, options["horizon"],
+                                            spec)
+        notes.append(skew.note)
     if dc_gain is not None and dc_gain.tolerances.any:
         results["one-step"] = with_tolerances(results["one-step"], dc_gain)
         notes.append(f"one-step: the intervals include the loop's stated tolerances (DC gain "
