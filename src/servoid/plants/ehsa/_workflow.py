@@ -64,6 +64,7 @@ from ...workflows.kit import (
 )
 from ._api import APPROACHES, identify_closed_loop
 from ._causes import rejection_note
+from ._data_check import record_notes, saturation_note
 from ._dc_gain import Tolerances, check_dc_gain, with_tolerances
 from ._first_order import first_order_fit
 from ._flow_check import flow_law_of
@@ -384,6 +385,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                    for a, r in results.items()}
     notes += _disagreement(results)
     primary = options["approach"][-1]
+    notes += record_notes(estimation, results.get("one-step"), loop)
     flow_law = dc_gain = None
     first_order = (first_order_fit(results["one-step"], estimation) if "one-step" in results
                    else None)
@@ -395,6 +397,8 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                                 _tolerances(options["[loop]"]))
         if dc_gain.mismatch:
             notes.append(dc_gain.verdict)
+        if saturation_note(flow_law, dc_gain):
+            notes.append(saturation_note(flow_law, dc_gain))
     structure_test = None
     if options["structure_test"] and "one-step" in results:
         with stage("testing the model structure (richer models fitted beside it)"):
