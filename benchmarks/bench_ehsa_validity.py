@@ -185,6 +185,93 @@ def skew_case(skew: float, seeds: int) -> dict[str, object]:
     }
 
 
+#: (label, Merritt-rig settings) of the data-limit cases: one 2 Hz sine, a valve command clipped
+#: at ±1 rms of the reference (PRBS and a random-phase multisine), linear valve.
+DATA_CASES = (
+    ("one 2 Hz sine", {"reference": "sine", "amplitude": 0.2e-3, "flow_law": False}),
+    ("command clipped at ±1 rms, PRBS", {"amplitude": 0.2e-3, "flow_law": False, "clip": 1.0}),
+    ("command clipped at ±1 rms, multisine",
+     {"reference": "noise", "amplitude": 0.1e-3, "flow_law": False, "clip": 1.0}),
+)
+
+
+def data_case(settings: dict[str, object], seeds: int) -> dict[str, object]:
+    """The reduced fit's coverage and what the workflow's checks say on a limited record."""
+    if str(TESTS) not in sys.path:
+        sys.path.insert(0, str(TESTS))
+    from merritt_rig import Rig, record
+
+    from servoid.data import Experiment
+    from servoid.plants.ehsa import FeedbackLoop, fit_one_step
+    from servoid.plants.ehsa._data_check import record_notes, saturation_note
+    from servoid.plants.ehsa._dc_gain import check_dc_gain
+    from servoid.plants.ehsa._first_order import first_order_fit
+    from servoid.plants.ehsa._flow_check import flow_law_of
+    from servoid.validate import validate
+
+    rig = Rig(register=10, **settings)  # type: ignore[arg-type]
+    truth = rig.truth()
+    loop = FeedbackLoop(0.01, 0.01)
+    cov, limit, sat, nonlin, any_check = [], [], [], [], []
+    t0 = time.perf_counter()
+    for seed in range(seeds):
+        r, y = record(rig, 30.0, seed)
+        n = r.size // 2
+        half = Experiment.from_arrays(1e-3, r=r[:n], y=y[:n])
+        held = Experiment.from_arrays(1e-3, r=r[n:], y=y[n:])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            fit = fit_one_step(half, loop)
+            first = first_order_fit(fit, half)
+            flow, dc = flow_law_of(first), check_dc_gain(first, 1.0)
+            val = validate(fit.closed_loop.to_polynomial("oe"), fit.align(held), input="r",
+                           initial="estimate")
+        cov.append(np.abs((fit.estimate.parameters - truth) / fit.estimate.std) <= 1.96)
+        limit.append(bool(record_notes(half, fit, loop)) or bool(fit.flags))
+        sat.append(bool(saturation_note(flow, dc)))
+        nonlin.append(bool(val.nonlinearity is not None and val.nonlinearity.detected))
+        any_check.append(limit[-1] or sat[-1] or nonlin[-1] or flow.biased or dc.mismatch)
+    per_seed = (time.perf_counter() - t0) / seeds
+    cov_a = np.array(cov)
+    miss = ~cov_a.all(axis=1)
+    named = np.array(any_check)[miss]
+    return {
+        "settings": settings, "seeds": seeds,
+        "reduced_coverage": dict(zip(NAMES, cov_a.mean(axis=0).tolist(), strict=True)),
+        "misses": int(miss.sum()),
+        "misses_named": float(named.mean()) if named.size else None,
+        "misses_silent": int((~named).sum()),
+        "data_limit_noted": float(np.mean(limit)), "saturation_named": float(np.mean(sat)),
+        "nonlinearity_detected": float(np.mean(nonlin)),
+        "per_seed_ms": per_seed * 1e3,
+    }
+
+
+def oe_case(nb: int, nf: int, seeds: int) -> dict[str, object]:
+    """OE nb/nf on a 2nd-order plant (white input, 1000 samples, 30 dB): cancellation notes."""
+    from scipy import signal
+
+    from servoid.data import Experiment
+    from servoid.estimate import fit_oe
+
+    noted, suggested = [], []
+    t0 = time.perf_counter()
+    for seed in range(seeds):
+        rng = np.random.default_rng(seed)
+        u = rng.standard_normal(1000)
+        y0 = signal.lfilter([0.0, 0.1, 0.05], [1.0, -1.5, 0.7], u)
+        y = y0 + rng.standard_normal(u.size) * y0.std() * 10 ** (-30 / 20)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            est = fit_oe(Experiment.from_arrays(1.0, u=u, y=y), nb, nf, 1)
+        notes = est.options.get("cancellations", [])
+        noted.append(bool(notes))
+        suggested.append(bool(notes) and "fit nb = 2, nf = 2" in notes[0])
+    return {"nb": nb, "nf": nf, "seeds": seeds, "noted": float(np.mean(noted)),
+            "suggests_2_2": float(np.mean(suggested)),
+            "per_seed_ms": (time.perf_counter() - t0) / seeds * 1e3}
+
+
 def run(quick: bool = False) -> list[Result]:
     """Every case of the module docstring (4 seeds each under ``quick``)."""
     seeds = 4 if quick else 100
@@ -223,6 +310,12 @@ def run(quick: bool = False) -> list[Result]:
 if __name__ == "__main__":
     import json
 
+    if "--data-only" in sys.argv:
+        n = 3 if "--quick" in sys.argv else 100
+        out = [{"case": label, **data_case(settings, n)} for label, settings in DATA_CASES]
+        out += [oe_case(8, 8, n), oe_case(2, 2, n)]
+        print(json.dumps(out, indent=1))
+        raise SystemExit(0)
     if "--skew-only" in sys.argv:
         out = [skew_case(skew, 3 if "--quick" in sys.argv else 100) for skew in SKEWS]
         print(json.dumps(out, indent=1))

@@ -63,3 +63,31 @@ def test_a_saturated_command_is_named_when_flow_law_and_dc_gain_both_fire():
     assert "likely saturated" in saturation_note(fires, off)
     assert saturation_note(fires, on) == saturation_note(calm, off) == ""
     assert saturation_note(None, off) == ""
+
+
+def test_structure_auto_runs_the_nonlinear_refinement_only_on_a_verdict():
+    from servoid.plants.ehsa._data_check import nonlinear_wanted
+
+    flow = SimpleNamespace(biased=True, z=12.3)
+    quiet = SimpleNamespace(biased=False, z=0.4)
+    dc_ok = SimpleNamespace(mismatch=False)
+    linear_val = SimpleNamespace(nonlinearity=SimpleNamespace(detected=False, pvalue=0.4))
+    bent_val = SimpleNamespace(nonlinearity=SimpleNamespace(detected=True, pvalue=1e-6))
+    run, why = nonlinear_wanted(flow, dc_ok, linear_val)
+    assert run and "the flow-law check fired (z = +12.3)" in why and "refinement ran" in why
+    run, why = nonlinear_wanted(quiet, dc_ok, bent_val)
+    assert run and "higher-order correlation tests" in why
+    run, why = nonlinear_wanted(quiet, dc_ok, linear_val)
+    assert not run and "the linear model stands" in why
+
+
+def test_structure_is_an_identify_key():
+    import pytest
+
+    from servoid._errors import OptionError
+    from servoid.plants.ehsa._workflow import METHOD
+
+    option = next(o for o in METHOD.options if o.name == "structure")
+    assert option.default == "linear" and option.check("auto", "[identify]", "structure") == "auto"
+    with pytest.raises(OptionError, match="structure"):
+        option.check("nonlinear-ish", "[identify]", "structure")

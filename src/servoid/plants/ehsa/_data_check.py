@@ -34,7 +34,7 @@ from ...validate import data_limits
 from ._loop import FeedbackLoop, plant_of_theta
 from ._result import ClosedLoopResult
 
-__all__ = ["one_sine_combination", "record_notes", "saturation_note"]
+__all__ = ["nonlinear_wanted", "one_sine_combination", "record_notes", "saturation_note"]
 
 
 def record_notes(data: Any, result: ClosedLoopResult | None,
@@ -139,3 +139,45 @@ def _peak_hz(r: np.ndarray, dt: float) -> float:
     spec = np.abs(np.fft.rfft(x * np.hanning(x.size)))
     freqs = np.fft.rfftfreq(x.size, dt)
     return float(freqs[int(np.argmax(spec[1:])) + 1])
+
+
+def nonlinear_wanted(flow_law: Any, dc_gain: Any, validation: Any) -> tuple[bool, str]:
+    """Decide ``structure = "auto"``: refine with the nonlinear EHSA, or keep the linear fit.
+
+    The nonlinear refinement runs when a check says the linear model
+    misses a nonlinearity the nonlinear EHSA holds: the flow-law check
+    (the loop's gain moves with the load pressure beyond the intervals),
+    the flow-law and DC-gain checks together (a saturated command), or the
+    higher-order correlation tests of the validation.
+
+    Parameters
+    ----------
+    flow_law : FlowLawCheck or None
+        The flow-law check of the one-step fit.
+    dc_gain : DcGainCheck or None
+        Its DC-gain check.
+    validation : ValidationReport or None
+        The primary result's validation.
+
+    Returns
+    -------
+    run : bool
+        True to run the nonlinear refinement.
+    why : str
+        The note saying which model was used and why.
+    """
+    why = []
+    if flow_law is not None and flow_law.biased:
+        why.append(f"the flow-law check fired (z = {flow_law.z:+.1f})")
+    if saturation_note(flow_law, dc_gain):
+        why.append("the DC gain is off c/F (a saturated command)")
+    nonlinearity = getattr(validation, "nonlinearity", None)
+    if nonlinearity is not None and nonlinearity.detected:
+        why.append(f"the higher-order correlation tests found a nonlinearity the linear model "
+                   f"leaves (p = {nonlinearity.pvalue:.2g})")
+    if why:
+        return True, ("structure = auto: " + "; ".join(why) + ", so the nonlinear EHSA "
+                      "refinement ran; read its estimates (nonlinear refinement)")
+    return False, ("structure = auto: no check found a nonlinearity (flow law, DC gain, "
+                   "higher-order correlation tests), so the linear model stands and the "
+                   "nonlinear refinement did not run")

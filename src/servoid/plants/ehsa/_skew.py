@@ -22,9 +22,9 @@ linearised Gaussian on it gives::
 
 For t → ∞ these are the free skew fit's estimates and intervals; for
 t → 0 they approach the reduced fit's (to first order).  The models of
-the result (closed loop, plant) are the free skew fit's: the shift
-``g·τ̂`` is a fraction ``Σ[τ, τ]/(Σ[τ, τ] + t²)`` of the way back
-towards the reduced fit.  A skew estimate beyond the prior
+the result (closed loop, plant, poles) stay the reduced fit's, which the
+validation judges: the skew's Padé pole is a model of the measurement,
+not of the actuator, and would be flagged as a plant pole.  A skew estimate beyond the prior
 (``|τ̂| > 3·√(Σ[τ, τ] + t²)``) is a verdict: the channels are further
 apart than stated.
 """
@@ -60,8 +60,8 @@ class SkewAdjustment:
     Parameters
     ----------
     result : ClosedLoopResult
-        The adjusted one-step result (structure ``"reduced+skew"``; its
-        estimate holds K, ω_hp, δ_hp with the prior applied).
+        The adjusted one-step result: the reduced fit's models, its
+        estimate K, ω_hp, δ_hp from the skew fit with the prior applied.
     tolerance : float
         The stated skew tolerance t [s] (the prior's standard deviation).
     tau : float
@@ -94,7 +94,8 @@ class SkewAdjustment:
         head = (f"one-step: the intervals carry a channel skew of ±{_seconds('tau', self.tolerance)}"
                 f" ([loop] skew_tolerance): the skew is estimated beside K, ω_hp and δ_hp "
                 f"(tau_d = {_seconds('tau', self.tau)} ± {_seconds('tau', self.tau_std)} from "
-                f"the data, {_seconds('tau', self.tau_posterior)} with the tolerance)")
+                f"the data, {_seconds('tau', self.tau_posterior)} with the tolerance); the models "
+                "shown and validated are the reduced fit's")
         if not self.beyond:
             return head
         return (head + f"; the skew lies beyond the tolerance (z = {self.z:+.1f}): the position "
@@ -149,10 +150,11 @@ def with_skew_tolerance(reduced: ClosedLoopResult, data: Any, loop: FeedbackLoop
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ServoidWarning)
         wide = fit_one_step(data, loop, (*theta[:3], 0.0), structure=structure, **options)
-    return skew_prior(wide, tolerance)
+    return skew_prior(wide, tolerance, reduced)
 
 
-def skew_prior(wide: ClosedLoopResult, tolerance: float) -> SkewAdjustment:
+def skew_prior(wide: ClosedLoopResult, tolerance: float,
+               reduced: ClosedLoopResult | None = None) -> SkewAdjustment:
     """Condition a ``reduced+skew`` fit on the prior τ_d ~ N(0, tolerance²).
 
     Parameters
@@ -161,6 +163,9 @@ def skew_prior(wide: ClosedLoopResult, tolerance: float) -> SkewAdjustment:
         A one-step fit of the ``reduced+skew`` structure.
     tolerance : float
         Standard deviation of the skew the rig may have [s], > 0.
+    reduced : ClosedLoopResult, optional
+        The reduced fit whose models the result keeps (default: the skew
+        fit's own).
 
     Returns
     -------
@@ -177,7 +182,8 @@ def skew_prior(wide: ClosedLoopResult, tolerance: float) -> SkewAdjustment:
     post_cov = cov - np.outer(gain, cov[k, :])
     post_cov = 0.5 * (post_cov + post_cov.T)
     keep = [src.names.index(n) for n in wide.estimate.names]
-    est = dataclasses.replace(wide.estimate, parameters=post[keep],
+    base = wide if reduced is None else reduced
+    est = dataclasses.replace(base.estimate, parameters=post[keep],
                               covariance=post_cov[np.ix_(keep, keep)])
-    return SkewAdjustment(dataclasses.replace(wide, estimate=est), tolerance, tau,
+    return SkewAdjustment(dataclasses.replace(base, estimate=est), tolerance, tau,
                           math.sqrt(max(var, 0.0)), float(post[k]))

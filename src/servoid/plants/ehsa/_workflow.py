@@ -64,7 +64,7 @@ from ...workflows.kit import (
 )
 from ._api import APPROACHES, identify_closed_loop
 from ._causes import rejection_note
-from ._data_check import record_notes, saturation_note
+from ._data_check import nonlinear_wanted, record_notes, saturation_note
 from ._dc_gain import Tolerances, check_dc_gain, with_tolerances
 from ._first_order import first_order_fit
 from ._flow_check import flow_law_of
@@ -412,16 +412,19 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                                        options["[loop]"]["skew_tolerance"],
                                        **_rig_options(spec, options["discretization"]))
         results["one-step"] = skew.result
-        validations["one-step"] = _validate(skew.result, validation_data, options["horizon"],
-                                            spec)
         notes.append(skew.note)
     if dc_gain is not None and dc_gain.tolerances.any:
         results["one-step"] = with_tolerances(results["one-step"], dc_gain)
         notes.append(f"one-step: the intervals include the loop's stated tolerances (DC gain "
                      f"±{100 * dc_gain.tolerances.dc:.3g} %)")
     refinement = None
-    if options["refine"] is not False:
-        names = NONLINEAR_DEFAULTS if options["refine"] is True else tuple(options["refine"])
+    refine = options["refine"]
+    if options["structure"] == "auto":
+        wanted, why = nonlinear_wanted(flow_law, dc_gain, validations.get(primary))
+        notes.append(why)
+        refine = (refine or True) if wanted else False
+    if refine is not False:
+        names = NONLINEAR_DEFAULTS if refine is True else tuple(refine)
         with warnings.catch_warnings(), stage("refining with the nonlinear EHSA model"):
             warnings.simplefilter("ignore", ServoidWarning)  # its flags are in its notes
             refinement = refine_after_linear(
@@ -745,6 +748,10 @@ METHOD = Method(
         Option("refine", False, _refine,
                "nonlinear EHSA refinement after the linear fit: true (the default parameters) "
                f"or a list of names from {', '.join(NONLINEAR_PARAMETERS)}"),
+        Option("structure", "linear", choice(("linear", "auto")),
+               "linear: the linear fits (and the nonlinear refinement only when refine asks); "
+               "auto: the nonlinear EHSA refinement runs when a check finds a nonlinearity "
+               "(flow law, DC gain, higher-order tests), else the linear model stands"),
         Option("nominal", "B", choice(("B", "C")),
                "nominal parameter set for what the nonlinear refinement does not fit"),
         HORIZON,
