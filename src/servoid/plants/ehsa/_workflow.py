@@ -122,7 +122,10 @@ class ClosedLoopIdentification(Displayed):
         primary = self.results[self.primary]
         label = _LABEL[self.primary]
         covariance = primary.source.options.get("covariance")
-        checks = validation_checks(self.validation, covariance=covariance)
+        # what the record cannot fix comes before any interval (servoid.validate.data_limits)
+        checks = [Check("data", n.split(": ")[2].split(" (")[0], "caution", n)
+                  for n in self.notes if n.startswith(_LIMIT)]
+        checks += validation_checks(self.validation, covariance=covariance)
         test = self.structure_test
         if test is not None:
             p = min((t.p_value for t in test.tests), default=math.nan)
@@ -244,7 +247,9 @@ class ClosedLoopIdentification(Displayed):
         head = f"  {'param':<9} {'truth':>10}" + "".join(
             f" {_LABEL[a]:>22}" for a in approaches) + "   95 % CI (" + _LABEL[self.primary] + ")"
         lines = [(f"closed-loop identification ({', '.join(_LABEL[a] for a in approaches)}), "
-                 f"loop c = {self.loop.c:g}, F = {_f_text(self.loop)}"), head]
+                 f"loop c = {self.loop.c:g}, F = {_f_text(self.loop)}")]
+        lines += [f"  {n}" for n in self.notes if n.startswith(_LIMIT)]
+        lines.append(head)
         for row in self.table():
             truth = "—" if row["truth"] is None else f"{row['truth']:.5g}"
             cells = "".join(
@@ -267,8 +272,7 @@ class ClosedLoopIdentification(Displayed):
             lines.append(f"  nonlinear refinement: validation fit {val.fit_percent:.2f} % "
                          f"({_LABEL[self.primary]} linear {self.validation.fit_percent:.2f} %)")
             lines += [f"    {line}" for line in str(est).splitlines()[1:]]
-        for note in self.notes:
-            lines.append(f"  note: {note}")
+        lines += [f"  note: {n}" for n in self.notes if not n.startswith(_LIMIT)]
         lines += ["  " + line for line in self.verdict().lines()[:1]]
         if self.folder:
             lines.append(f"  report: {self.folder / 'report.html'}")
@@ -438,6 +442,10 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                                     flow_law=flow_law, dc_gain=dc_gain,
                                     conditions=spec_conditions(spec, estimation,
                                                                (validation_data,)))
+
+
+#: How the record's limits begin among the notes (``_data_check.record_notes``).
+_LIMIT = "data cannot fix: "
 
 
 def _disagreement(results: Mapping[str, ClosedLoopResult]) -> list[str]:
