@@ -54,6 +54,10 @@ def test_the_workflow_notes_a_sine_record_and_not_a_prbs():
         fit = fit_one_step(sine, LOOP)
     (note,) = record_notes(sine, fit, LOOP)
     assert note.startswith("data cannot fix: 'r': one sine") and "one sine at 2 Hz" in note
+    # the workflow prints these before the intervals and makes each a caution of the verdict
+    from servoid.plants.ehsa._workflow import _LIMIT
+
+    assert note.startswith(_LIMIT) and note.split(": ")[2].split(" (")[0] == "one sine"
     assert record_notes(prbs, None, LOOP) == []
 
 
