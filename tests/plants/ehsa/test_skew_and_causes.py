@@ -132,3 +132,21 @@ def test_skew_tolerance_is_a_loop_key():
     dynamic = SimpleNamespace(is_static=False)
     with pytest.raises(ModelError, match="static feedback"):
         with_skew_tolerance(None, None, dynamic, 1e-6)
+
+
+@pytest.mark.slow
+def test_skew_tolerance_study_covers_at_every_skew():
+    # the 100-seed study of benchmarks/bench_ehsa_validity.py (about 1 minute per skew)
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "benchmarks"))
+    from bench_ehsa_validity import skew_case
+
+    for skew in (0.0, 12.5e-6, 20e-6):
+        stats = skew_case(skew, 100)
+        cover = stats["tolerance_coverage"]
+        # 0.90–0.98: the band for 95 % intervals over 100 seeds (±2.2 binomial σ)
+        assert all(0.90 <= c <= 0.98 for c in cover.values()), (skew, cover)
+        assert stats["tolerance_beyond"] <= 0.02  # 3σ verdict on a skew within tolerance
+    assert stats["reduced_coverage"]["omega_hp"] < 0.5  # without it, 20 µs is missed
