@@ -266,10 +266,9 @@ def oe_case(nb: int, nf: int, seeds: int) -> dict[str, object]:
     """OE nb/nf on a 2nd-order plant (white input, 1000 samples, 30 dB): cancellation notes."""
     from scipy import signal
 
+    from servoid import ConvergenceError
     from servoid.data import Experiment
     from servoid.estimate import fit_oe
-
-    from servoid import ConvergenceError
 
     noted, suggested, failed = [], [], 0
     t0 = time.perf_counter()

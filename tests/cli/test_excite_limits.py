@@ -26,3 +26,11 @@ def test_without_plant_no_check(capsys, tmp_path):
     assert main(["excite", "prbs", "-n", "7", "--dt", "1e-3", "--out",
                  str(tmp_path / "r.csv"), "--json"]) == 0
     assert "limits" not in json.loads(capsys.readouterr().out)
+
+
+def test_random_multisine_is_checked_once(capsys, tmp_path):
+    assert main(["excite", "random-multisine", "--f-min", "1", "--f-max", "40", "--period",
+                 "1000", "--dt", "1e-3", "--amplitude", "1e-4", "--unit", "m", "--plant", "ehsa",
+                 "--set", "C", "--out", str(tmp_path / "ms.csv")]) == 0
+    out = capsys.readouterr().out
+    assert out.count("ehsa set C: within every limit") == 1 and "plan written to" in out

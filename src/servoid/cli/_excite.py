@@ -168,31 +168,7 @@ def _run_random_multisine(args: argparse.Namespace) -> tuple[dict[str, Any], str
              f"{plan.periods} measured) periods of {plan.period} samples, "
              f"{len(plan.excited)} excited and {len(plan.detection)} detection lines "
              f"{plan.resolution:.4g} Hz apart\nplan written to {plan_path}")
-    if planned is not None:
-        name, plan = planned
-        info["limits"] = {"plant": args.plant, "set": name, **plan.to_dict()}
-        where = f"{args.plant} set {name}"
-        text += "\n" + (f"{where}: {plan.note()}" if plan.note() else
-                         f"{where}: within every limit (largest amplitude "
-                         f"±{plan.largest_amplitude:.3g} {args.unit}, set by the "
-                         f"{plan.rule.binding})")
     return info, text
-
-
-def _plan(ex: Any, args: argparse.Namespace) -> tuple[str, Any] | None:
-    """The parameter set and the planned test against --plant's limits (None: no --plant)."""
-    if getattr(args, "plant", None) is None:
-        return None
-    from .._errors import OptionError
-    from ..plants import PLANTS
-
-    with_limits = sorted(name for name, p in PLANTS.items() if "limits" in p.parts)
-    plant = PLANTS.get(args.plant)
-    if plant is None or "limits" not in plant.parts:
-        raise OptionError(f"--plant {args.plant!r}: the plants with limits to check are "
-                          f"{', '.join(with_limits)}")
-    name = args.parameter_set or next(iter(plant.load("parameters")))
-    return name, plant.load("limits")(name, ex, args.unit)
 
 
 def _run_chirp(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
