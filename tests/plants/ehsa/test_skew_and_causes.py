@@ -150,3 +150,15 @@ def test_skew_tolerance_study_covers_at_every_skew():
         assert all(0.90 <= c <= 0.98 for c in cover.values()), (skew, cover)
         assert stats["tolerance_beyond"] <= 0.02  # 3σ verdict on a skew within tolerance
     assert stats["reduced_coverage"]["omega_hp"] < 0.5  # without it, 20 µs is missed
+
+
+def test_the_note_names_a_saturated_command_when_the_dc_gain_is_off_too():
+    plain = SimpleNamespace(flags=())
+    flow = SimpleNamespace(biased=True, z=7.1, pressure_ratio=0.3, gamma=0.05)
+    off = SimpleNamespace(mismatch=True)
+    note = rejection_note(_test("reduced+lag"), flow, plain, off)
+    assert "a saturated valve command" in note and "the valve's flow law" not in note
+    assert "lower the test amplitude" in note
+    # without the DC gain off, the flow law stays the cause
+    assert "the valve's flow law" in rejection_note(_test("reduced+lag"), flow, plain,
+                                                    SimpleNamespace(mismatch=False))

@@ -409,7 +409,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
             structure_test = _structure_test(spec, estimation, loop, results["one-step"],
                                              options["discretization"])
         if structure_test.rejected:
-            notes.append(rejection_note(structure_test, flow_law, results["one-step"]))
+            notes.append(rejection_note(structure_test, flow_law, results["one-step"], dc_gain))
     if options["[loop]"]["skew_tolerance"] > 0 and "one-step" in results:
         with stage("estimating the channel skew beside the one-step model"):
             skew = with_skew_tolerance(results["one-step"], estimation, loop,
