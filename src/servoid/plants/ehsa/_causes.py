@@ -13,7 +13,7 @@ cause                  evidence                                              sou
 a nonlinearity         the flow law moves the parameters beyond their        :mod:`._flow_check`
                        intervals; or the residual depends on the reference
                        and no richer linear structure explains it
-a saturated command    the flow law's signature and the DC gain off c/F     :mod:`._flow_check`,
+a saturated command    the flow law's signature and the DC gain off c/F      :mod:`._flow_check`,
                                                                              :mod:`._dc_gain`
 a delay                ``reduced+skew`` explains the data best               the structure test
 a missing dynamic      ``reduced+lag`` or ``full-order`` explains it best    the structure test
