@@ -423,10 +423,10 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                      f"±{100 * dc_gain.tolerances.dc:.3g} %)")
     refinement = None
     refine = options["refine"]
-    if options["structure"] == "auto":
+    if options["structure"] == "auto" and refine is False:  # refine = true/[...] decides alone
         wanted, why = nonlinear_wanted(flow_law, dc_gain, validations.get(primary))
         notes.append(why)
-        refine = (refine or True) if wanted else False
+        refine = wanted
     if refine is not False:
         names = NONLINEAR_DEFAULTS if refine is True else tuple(refine)
         with warnings.catch_warnings(), stage("refining with the nonlinear EHSA model"):
