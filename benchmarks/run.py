@@ -32,7 +32,7 @@ SUITES: dict[str, str] = {
     "ehsa": "bench_ehsa",
     "closedloop": "bench_closedloop",
     "closedloop-coverage": "bench_closedloop_coverage",  # 240 rig runs (~2 min; 8 under --quick)
-    "ehsa-validity": "bench_ehsa_validity",  # Merritt flow law, 4 rigs × 100 seeds (~8 min)
+    "ehsa-validity": "bench_ehsa_validity",  # Merritt rig: flow law, skew, data limits, OE (~25 min)
     "closedloop-any": "bench_closedloop_any",  # any-plant methods on 2e4 samples vs open-loop OE
     "pneumatic": "bench_pneumatic",
     "multistep": "bench_multistep",

@@ -109,6 +109,11 @@ def _common(p: argparse.ArgumentParser, json_flag: Callable[[argparse.ArgumentPa
     suffixes = " or ".join(RigFormat.named(n).suffixes[0] for n in RigFormat.writable())
     p.add_argument("--out", type=out_path, required=True, help=f"output file, {suffixes}")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    p.add_argument("--plant", default=None,
+                   help="check the test against this actuator's limits (a plant with limits, "
+                        "e.g. ehsa; the amplitude is then its command, e.g. --unit m)")
+    p.add_argument("--set", default=None, dest="parameter_set",
+                   help="the plant's parameter set for --plant (default: its first)")
     p.add_argument("--max-samples", type=int, default=200_000_000,
                    help="refuse a longer signal (default: %(default)s, 1.6 GB as float64)")
     json_flag(p)
@@ -193,6 +198,7 @@ def _check_out(args: argparse.Namespace) -> None:
 def _write(ex: Any, args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     from ..signals import crest_factor
 
+    planned = _plan(ex, args)  # a bad --plant or --set before anything is written
     with in_flags(_WORDS, _PHRASES):
         exp = ex.to_experiment(name=args.channel, role="r", unit=args.unit)
         RigFormat.of(args.out).write(exp, args.out, overwrite=args.overwrite)
@@ -217,4 +223,28 @@ def _write(ex: Any, args: argparse.Namespace) -> tuple[dict[str, Any], str]:
         f"{ex.offset:g}, crest factor {info['crest_factor']:.3g}\n"
         f"written to {args.out}"
     )
+    if planned is not None:
+        name, plan = planned
+        info["limits"] = {"plant": args.plant, "set": name, **plan.to_dict()}
+        where = f"{args.plant} set {name}"
+        text += "\n" + (f"{where}: {plan.note()}" if plan.note() else
+                         f"{where}: within every limit (largest amplitude "
+                         f"±{plan.largest_amplitude:.3g} {args.unit}, set by the "
+                         f"{plan.rule.binding})")
     return info, text
+
+
+def _plan(ex: Any, args: argparse.Namespace) -> tuple[str, Any] | None:
+    """The parameter set and the planned test against --plant's limits (None: no --plant)."""
+    if getattr(args, "plant", None) is None:
+        return None
+    from .._errors import OptionError
+    from ..plants import PLANTS
+
+    with_limits = sorted(name for name, p in PLANTS.items() if "limits" in p.parts)
+    plant = PLANTS.get(args.plant)
+    if plant is None or "limits" not in plant.parts:
+        raise OptionError(f"--plant {args.plant!r}: the plants with limits to check are "
+                          f"{', '.join(with_limits)}")
+    name = args.parameter_set or next(iter(plant.load("parameters")))
+    return name, plant.load("limits")(name, ex, args.unit)

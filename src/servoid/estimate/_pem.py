@@ -64,6 +64,7 @@ from .._warn import warn
 from ..data import Experiment, ExperimentSet
 from ..models import PolynomialModel
 from ._arx import _warn_if_unstable
+from ._cancel import cancellation_notes
 from ._covariance import COVARIANCES, Covariance, parameter_covariance, resolve
 from ._diagnostics import MAX_STARTS
 from ._estimate import Estimate
@@ -495,6 +496,9 @@ def _fit(
             ServoidWarning)
     p = orders.split(best.theta)
     _warn_if_unstable(p.a)
+    cancelled = cancellation_notes(orders, best.theta, cov, sd.inputs) if method == "oe" else []
+    for note in cancelled:
+        warn(f"the oe fit: {note}", ServoidWarning)
     same = sum(1 for c in costs if np.isfinite(c) and abs(c - best.cost) <= _SAME_MINIMUM
                * max(best.cost, floor))
 
@@ -527,6 +531,8 @@ def _fit(
         "covariance": cov_result.kind,
         "covariance_ar_order": cov_result.ar_order,
     }
+    if cancelled:
+        options["cancellations"] = cancelled
     if multistart:
         options["multistart"] = {
             "starts": multistart + 1,

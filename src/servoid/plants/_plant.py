@@ -33,11 +33,13 @@ PARTS: dict[str, str] = {
     "fleet": "write_fleet(out, **options) → a virtual fleet of units (or none)",
     "methods": "a tuple of workflow Methods: the plant's physical identification",
     "cli": "add_cli(subcommands, json_flag) → adds its `servoid bench …` commands (argparse only)",
+    "limits": "plan_test(set_name, excitation, unit) → the planned test against the actuator's "
+              "limits (.feasible, .note(), .to_dict()), for `servoid excite --plant`",
 }
 
 
 #: Parts a plant may leave out.
-_OPTIONAL = frozenset({"bench", "fleet", "cli"})
+_OPTIONAL = frozenset({"bench", "fleet", "cli", "limits"})
 
 
 @dataclass(frozen=True)

@@ -85,3 +85,80 @@ def test_the_note_names_the_cause():
     poor = rejection_note(_test("full-order"), None,
                           SimpleNamespace(flags=("the data do not determine the resonance",)))
     assert "poor excitation: the data do not determine the resonance" in poor
+
+
+def test_a_stated_skew_tolerance_carries_the_skew_in_the_intervals():
+    from servoid.plants.ehsa._skew import with_skew_tolerance
+
+    rig = Rig(amplitude=0.2e-3, register=9, flow_law=False, skew=50e-6)  # cached above
+    r, y = record(rig, 30.0, 0)
+    data = Experiment.from_arrays(1e-3, r=r[: r.size // 2], y=y[: r.size // 2])
+    truth = rig.truth()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ServoidWarning)
+        reduced = fit_one_step(data, LOOP)
+        free = fit_one_step(data, LOOP, (*reduced.estimate.parameters, 0.0), structure=SKEW)
+        loose = with_skew_tolerance(reduced, data, LOOP, 1.0)
+        stated = with_skew_tolerance(reduced, data, LOOP, 60e-6)
+        tight = with_skew_tolerance(reduced, data, LOOP, 5e-6)
+    z_reduced = (reduced.estimate.parameters - truth) / reduced.estimate.std
+    assert abs(z_reduced[1]) > 3.5  # the reduced ω_hp interval misses the truth (3.9 σ seen)
+    # a prior of 1 s is no prior: the free skew fit, to (σ_τ/1 s)² ≈ 1e-10
+    np.testing.assert_allclose(loose.result.estimate.parameters, free.estimate.parameters,
+                               rtol=1e-8)
+    np.testing.assert_allclose(loose.result.estimate.std, free.estimate.std, rtol=1e-8)
+    # 60 µs (1.2× the skew): the truth within 3 σ (this seed's free skew fit has ω_hp at
+    # −2.9 σ; the 100-seed coverage is in benchmarks/bench_ehsa_validity.py), within tolerance
+    z = (stated.result.estimate.parameters - truth) / stated.result.estimate.std
+    assert np.all(np.abs(z) < 3.0), z
+    assert not stated.beyond
+    # the reduced fit's models (the skew's Padé pole is not the actuator's), the new estimate
+    assert stated.result.closed_loop is reduced.closed_loop and stated.result.is_physical
+    assert "the intervals carry a channel skew of ±60 µs" in stated.note
+    # 5 µs stated, 50 µs found (σ ≈ 10 µs): beyond the tolerance, said so
+    assert tight.beyond and "beyond the tolerance" in tight.note
+    assert abs(tight.tau_posterior) < abs(tight.tau)  # the prior pulls towards 0
+
+
+def test_skew_tolerance_is_a_loop_key():
+    from servoid._errors import DataError
+    from servoid.plants.ehsa._skew import with_skew_tolerance
+    from servoid.plants.ehsa._workflow import LOOP as TABLE
+
+    opts = TABLE.parse({"c": 0.01, "F": 0.01, "skew_tolerance": 10e-6}, "closedloop")
+    assert opts["skew_tolerance"] == 10e-6
+    with pytest.raises(DataError, match="skew_tolerance"):
+        TABLE.parse({"c": 0.01, "F": 0.01, "skew_tolerance": -1e-6}, "closedloop")
+    dynamic = SimpleNamespace(is_static=False)
+    with pytest.raises(ModelError, match="static feedback"):
+        with_skew_tolerance(None, None, dynamic, 1e-6)
+
+
+@pytest.mark.slow
+def test_skew_tolerance_study_covers_at_every_skew():
+    # the 100-seed study of benchmarks/bench_ehsa_validity.py (about 1 minute per skew)
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "benchmarks"))
+    from bench_ehsa_validity import skew_case
+
+    for skew in (0.0, 12.5e-6, 20e-6):
+        stats = skew_case(skew, 100)
+        cover = stats["tolerance_coverage"]
+        # 0.90–0.98: the band for 95 % intervals over 100 seeds (±2.2 binomial σ)
+        assert all(0.90 <= c <= 0.98 for c in cover.values()), (skew, cover)
+        assert stats["tolerance_beyond"] <= 0.02  # 3σ verdict on a skew within tolerance
+    assert stats["reduced_coverage"]["omega_hp"] < 0.5  # without it, 20 µs is missed
+
+
+def test_the_note_names_a_saturated_command_when_the_dc_gain_is_off_too():
+    plain = SimpleNamespace(flags=())
+    flow = SimpleNamespace(biased=True, z=7.1, pressure_ratio=0.3, gamma=0.05)
+    off = SimpleNamespace(mismatch=True)
+    note = rejection_note(_test("reduced+lag"), flow, plain, off)
+    assert "a saturated valve command" in note and "the valve's flow law" not in note
+    assert "lower the test amplitude" in note
+    # without the DC gain off, the flow law stays the cause
+    assert "the valve's flow law" in rejection_note(_test("reduced+lag"), flow, plain,
+                                                    SimpleNamespace(mismatch=False))

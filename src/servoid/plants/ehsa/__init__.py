@@ -231,6 +231,7 @@ PLANT = Plant(
         "bench": f"{__name__}._bench_files:write_bench",
         "fleet": f"{__name__}._fleet:write_virtual_fleet",
         "cli": f"{__name__}._cli:add_cli",
+        "limits": f"{__name__}._limits:plan_test",
         "methods": f"{__name__}._workflow:METHODS",
     },
 )

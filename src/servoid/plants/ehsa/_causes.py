@@ -13,6 +13,8 @@ cause                  evidence                                              sou
 a nonlinearity         the flow law moves the parameters beyond their        :mod:`._flow_check`
                        intervals; or the residual depends on the reference
                        and no richer linear structure explains it
+a saturated command    the flow law's signature and the DC gain off c/F      :mod:`._flow_check`,
+                                                                             :mod:`._dc_gain`
 a delay                ``reduced+skew`` explains the data best               the structure test
 a missing dynamic      ``reduced+lag`` or ``full-order`` explains it best    the structure test
 poor excitation        the fit's flags: the resonance not resolved or not    :mod:`._onestep`
@@ -38,7 +40,8 @@ _LINEAR = {"reduced+skew": "a delay between the reference and the position chann
            "full-order": "a missing dynamic (the valve's dynamics the reduced model leaves out)"}
 
 
-def rejection_note(test: Any, flow_law: Any, result: ClosedLoopResult) -> str:
+def rejection_note(test: Any, flow_law: Any, result: ClosedLoopResult,
+                   dc_gain: Any = None) -> str:
     """Return the note for a rejected reduced model, naming the cause.
 
     Parameters
@@ -49,6 +52,9 @@ def rejection_note(test: Any, flow_law: Any, result: ClosedLoopResult) -> str:
         The flow-law check of the same fit.
     result : ClosedLoopResult
         The reduced one-step fit (its flags).
+    dc_gain : DcGainCheck, optional
+        Its DC-gain check: a mismatch beside the flow law's signature
+        points to a saturated command rather than the flow law.
 
     Returns
     -------
@@ -59,7 +65,14 @@ def rejection_note(test: Any, flow_law: Any, result: ClosedLoopResult) -> str:
     read = ""
     lr_rejects = any(t.rejected for t in test.tests)
     if flow_law is not None and flow_law.biased:
-        if flow_law.gamma > 0:
+        if flow_law.gamma > 0 and dc_gain is not None and dc_gain.mismatch:
+            causes.append(f"a nonlinearity: a saturated valve command (the loop's gain falls at "
+                          f"large commands, z = {flow_law.z:+.1f}, and its DC gain is off c/F, "
+                          "which the flow law alone does not do)")
+            read = ("no linear structure describes a saturated loop: lower the test amplitude "
+                    "(`servoid excite --plant` gives the largest feasible one) or refine with "
+                    "the nonlinear EHSA (`[identify] refine = true`)")
+        elif flow_law.gamma > 0:
             causes.append(f"a nonlinearity: the valve's flow law (z = {flow_law.z:+.1f}; the "
                           f"load pressure reaches about {100 * flow_law.pressure_ratio:.2g} % of "
                           "the supply)")

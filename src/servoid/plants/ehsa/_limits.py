@@ -41,14 +41,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._checks import as_float, as_instance
-from ..._errors import DataError
+from ..._errors import DataError, OptionError
 from ...bench import discretise, realise
 from ...models import TransferFunction
 from ...signals import AmplitudeRule, Excitation, Limit, largest_amplitude
 from ._linear import full_order_plant
 from ._params import EhsaParameters
 
-__all__ = ["PRESSURE_FRACTION", "PlannedTest", "excitation_limits", "within_limits"]
+__all__ = ["PRESSURE_FRACTION", "PlannedTest", "excitation_limits", "plan_test", "within_limits"]
 
 #: Largest load pressure a test may ask for, as a fraction of the supply (module notes).
 PRESSURE_FRACTION = 1.0 / 3.0
@@ -256,6 +256,41 @@ def within_limits(
     if plan.feasible:
         return excitation
     return excitation.with_amplitude(plan.suggested_amplitude)
+
+
+def plan_test(set_name: str, excitation: Excitation, unit: str = "m") -> PlannedTest:
+    """Check a designed command against a named parameter set's limits.
+
+    The plant's ``limits`` part, for ``servoid excite --plant ehsa``.
+
+    Parameters
+    ----------
+    set_name : str
+        A parameter set of :data:`~._params.PARAMETER_SETS` (``"B"``, ``"C"``).
+    excitation : Excitation
+        The designed position command.
+    unit : str
+        Its unit: the command must be a position in m.
+
+    Returns
+    -------
+    PlannedTest
+        As :func:`excitation_limits` gives it.
+
+    Raises
+    ------
+    OptionError
+        An unknown set, or a command not in m.
+    """
+    from ._params import PARAMETER_SETS
+
+    if set_name not in PARAMETER_SETS:
+        raise OptionError(f"--set {set_name!r}: the EHSA's parameter sets are "
+                          f"{', '.join(sorted(PARAMETER_SETS))}")
+    if unit != "m":
+        raise OptionError(f"--plant ehsa checks a position command in m, got --unit {unit!r}: "
+                          "pass --unit m and the amplitude and offset in metres")
+    return excitation_limits(PARAMETER_SETS[set_name], excitation)
 
 
 def _peaks(p: EhsaParameters, r: NDArray[np.float64], dt: float) -> dict[str, float]:

@@ -64,6 +64,7 @@ from ...workflows.kit import (
 )
 from ._api import APPROACHES, identify_closed_loop
 from ._causes import rejection_note
+from ._data_check import nonlinear_wanted, record_notes, saturation_note
 from ._dc_gain import Tolerances, check_dc_gain, with_tolerances
 from ._first_order import first_order_fit
 from ._flow_check import flow_law_of
@@ -74,6 +75,7 @@ from ._nonlinear_model import NONLINEAR_PARAMETERS
 from ._onestep import DISCRETIZATIONS, fit_one_step
 from ._params import SET_B, SET_C
 from ._result import ClosedLoopResult
+from ._skew import with_skew_tolerance
 from ._structure_test import compare_structures
 from ._structures import STRUCTURES, skew_structure
 
@@ -120,7 +122,10 @@ class ClosedLoopIdentification(Displayed):
         primary = self.results[self.primary]
         label = _LABEL[self.primary]
         covariance = primary.source.options.get("covariance")
-        checks = validation_checks(self.validation, covariance=covariance)
+        # what the record cannot fix comes before any interval (servoid.validate.data_limits)
+        checks = [Check("data", n.split(": ")[2].split(" (")[0], "caution", n)
+                  for n in self.notes if n.startswith(_LIMIT)]
+        checks += validation_checks(self.validation, covariance=covariance)
         test = self.structure_test
         if test is not None:
             p = min((t.p_value for t in test.tests), default=math.nan)
@@ -242,7 +247,9 @@ class ClosedLoopIdentification(Displayed):
         head = f"  {'param':<9} {'truth':>10}" + "".join(
             f" {_LABEL[a]:>22}" for a in approaches) + "   95 % CI (" + _LABEL[self.primary] + ")"
         lines = [(f"closed-loop identification ({', '.join(_LABEL[a] for a in approaches)}), "
-                 f"loop c = {self.loop.c:g}, F = {_f_text(self.loop)}"), head]
+                 f"loop c = {self.loop.c:g}, F = {_f_text(self.loop)}")]
+        lines += [f"  {n}" for n in self.notes if n.startswith(_LIMIT)]
+        lines.append(head)
         for row in self.table():
             truth = "—" if row["truth"] is None else f"{row['truth']:.5g}"
             cells = "".join(
@@ -265,8 +272,7 @@ class ClosedLoopIdentification(Displayed):
             lines.append(f"  nonlinear refinement: validation fit {val.fit_percent:.2f} % "
                          f"({_LABEL[self.primary]} linear {self.validation.fit_percent:.2f} %)")
             lines += [f"    {line}" for line in str(est).splitlines()[1:]]
-        for note in self.notes:
-            lines.append(f"  note: {note}")
+        lines += [f"  note: {n}" for n in self.notes if not n.startswith(_LIMIT)]
         lines += ["  " + line for line in self.verdict().lines()[:1]]
         if self.folder:
             lines.append(f"  report: {self.folder / 'report.html'}")
@@ -340,6 +346,10 @@ LOOP = TableSchema("loop", (
     Option("F_tolerance", 0.0, _tolerance, "relative tolerance of F, likewise"),
     Option("gain_tolerance", 0.0, _tolerance,
            "relative tolerance of each measured channel's gain (reference and position)"),
+    Option("skew_tolerance", 0.0, _tolerance,
+           "standard deviation of the skew between the reference and position channels [s] "
+           "(e.g. 10e-6 for a multiplexed ADC): the skew is estimated and carried in the "
+           "one-step intervals (static F only)"),
 ), help="the known loop H = c·G0/(1 + F·G0)")
 
 
@@ -379,6 +389,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                    for a, r in results.items()}
     notes += _disagreement(results)
     primary = options["approach"][-1]
+    notes += record_notes(estimation, results.get("one-step"), loop)
     flow_law = dc_gain = None
     first_order = (first_order_fit(results["one-step"], estimation) if "one-step" in results
                    else None)
@@ -390,20 +401,34 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                                 _tolerances(options["[loop]"]))
         if dc_gain.mismatch:
             notes.append(dc_gain.verdict)
+        if saturation_note(flow_law, dc_gain):
+            notes.append(saturation_note(flow_law, dc_gain))
     structure_test = None
     if options["structure_test"] and "one-step" in results:
         with stage("testing the model structure (richer models fitted beside it)"):
             structure_test = _structure_test(spec, estimation, loop, results["one-step"],
                                              options["discretization"])
         if structure_test.rejected:
-            notes.append(rejection_note(structure_test, flow_law, results["one-step"]))
+            notes.append(rejection_note(structure_test, flow_law, results["one-step"], dc_gain))
+    if options["[loop]"]["skew_tolerance"] > 0 and "one-step" in results:
+        with stage("estimating the channel skew beside the one-step model"):
+            skew = with_skew_tolerance(results["one-step"], estimation, loop,
+                                       options["[loop]"]["skew_tolerance"],
+                                       **_rig_options(spec, options["discretization"]))
+        results["one-step"] = skew.result
+        notes.append(skew.note)
     if dc_gain is not None and dc_gain.tolerances.any:
         results["one-step"] = with_tolerances(results["one-step"], dc_gain)
         notes.append(f"one-step: the intervals include the loop's stated tolerances (DC gain "
                      f"±{100 * dc_gain.tolerances.dc:.3g} %)")
     refinement = None
-    if options["refine"] is not False:
-        names = NONLINEAR_DEFAULTS if options["refine"] is True else tuple(options["refine"])
+    refine = options["refine"]
+    if options["structure"] == "auto" and refine is False:  # refine = true/[...] decides alone
+        wanted, why = nonlinear_wanted(flow_law, dc_gain, validations.get(primary))
+        notes.append(why)
+        refine = wanted
+    if refine is not False:
+        names = NONLINEAR_DEFAULTS if refine is True else tuple(refine)
         with warnings.catch_warnings(), stage("refining with the nonlinear EHSA model"):
             warnings.simplefilter("ignore", ServoidWarning)  # its flags are in its notes
             refinement = refine_after_linear(
@@ -417,6 +442,10 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                                     flow_law=flow_law, dc_gain=dc_gain,
                                     conditions=spec_conditions(spec, estimation,
                                                                (validation_data,)))
+
+
+#: How the record's limits begin among the notes (``_data_check.record_notes``).
+_LIMIT = "data cannot fix: "
 
 
 def _disagreement(results: Mapping[str, ClosedLoopResult]) -> list[str]:
@@ -727,6 +756,10 @@ METHOD = Method(
         Option("refine", False, _refine,
                "nonlinear EHSA refinement after the linear fit: true (the default parameters) "
                f"or a list of names from {', '.join(NONLINEAR_PARAMETERS)}"),
+        Option("structure", "linear", choice(("linear", "auto")),
+               "linear: the linear fits (and the nonlinear refinement only when refine asks); "
+               "auto: the nonlinear EHSA refinement runs when a check finds a nonlinearity "
+               "(flow law, DC gain, higher-order tests), else the linear model stands"),
         Option("nominal", "B", choice(("B", "C")),
                "nominal parameter set for what the nonlinear refinement does not fit"),
         HORIZON,
