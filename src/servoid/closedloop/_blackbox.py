@@ -34,6 +34,7 @@ from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Covariance, Estimate, fit_bj, fit_iv, fit_oe
 from ._channels import aic_order, check_excites, ls_fit, output_name, reference_name, single_name
+from ._linearity import interval_check, is_noise_free
 from ._stagecov import Stage1, two_stage_covariance
 
 __all__ = ["fit_cliv", "fit_two_stage"]
@@ -111,7 +112,12 @@ def fit_two_stage(
     Estimate
         Method ``"two-stage"``; parameters ``b0…, f1…`` (then ``c1…, d1…``
         for BJ); ``options`` add the stage-1 order, lags, and the share of
-        var(u) the reference explains.
+        var(u) the reference explains.  ``options["consistent"]`` is False,
+        with the reasons in ``options["broken_assumptions"]`` and a warning,
+        on an unstable plant, when the estimate and closed-loop IV disagree
+        beyond 4σ, or when the covariance changes by more than ×1.4 one σ
+        away or at the closed-loop IV estimate (too little information for
+        the intervals, :mod:`servoid.closedloop._linearity`).
 
     Raises
     ------
@@ -181,6 +187,7 @@ def fit_two_stage(
         est = fit_bj(stage2_data, nb, nc, nd, nf, nk, **pem)  # type: ignore[arg-type]
         cov, note = est.covariance, "bj (noise model); stage-1 error not counted"
     broken = []
+    also: list[tuple[str, NDArray[np.float64]]] = []
     if unstable is not None:
         broken.append(
             f"the plant is unstable (the closed-loop IV estimate has a pole at |z| = "
@@ -192,6 +199,7 @@ def fit_two_stage(
         # the same plant from CLIV, which has no stage 1: a disagreement beyond both
         # intervals is the stage-1 error showing as dynamics of its own in stage 2
         theta_iv = np.concatenate([check[1][nf:], check[1][:nf]])
+        also.append(("the closed-loop IV estimate of the same plant", theta_iv))
         var_iv = np.concatenate([np.diag(check[2])[nf:], np.diag(check[2])[:nf]])
         gap = np.abs(np.asarray(est.parameters) - theta_iv) / np.sqrt(np.diag(cov) + var_iv)
         if float(np.max(gap)) > _DISAGREE:
@@ -201,6 +209,13 @@ def fit_two_stage(
                 f"{first_stage.order}) leaves an error that stage 2 explains with dynamics "
                 "of its own; use method = \"cliv\" or the direct Box–Jenkins fit"
             )
+    if not broken and structure == "oe" and not is_noise_free([est.residuals], ys):
+        names = [f"b{j}" for j in range(nb)] + [f"f{j}" for j in range(1, nf + 1)]
+        _, verdict = interval_check(
+            np.asarray(est.parameters), cov,
+            lambda th: _stage2_covariance(first_stage, ys, th, nb, nk), names, also)
+        if verdict is not None:
+            broken.append(verdict)
     if broken:
         warn(f"the two-stage estimate is not consistent on this record: {broken[0]}",
              ServoidWarning)
@@ -222,6 +237,16 @@ def fit_two_stage(
             "broken_assumptions": broken,
         },
     )
+
+
+def _stage2_covariance(stage1: Stage1, ys: Sequence[NDArray[np.float64]],
+                       theta: NDArray[np.float64], nb: int, nk: int
+                       ) -> NDArray[np.float64] | None:
+    """The two-stage covariance at θ, or None where the OE model is unstable."""
+    f = np.concatenate([[1.0], theta[nb:]])
+    if np.max(np.abs(np.roots(f)), initial=0.0) >= 1.0:
+        return None
+    return two_stage_covariance(stage1, ys, theta[:nb], f, nk)[0]
 
 
 def _cliv_check(
