@@ -23,9 +23,10 @@ sys.path.insert(0, str(Path(__file__).parent))
 from anyloop_rigs import RIGS
 from anyloop_study import fit, study
 
-from servoid import ServoidWarning
+from servoid import IdentifiabilityError, ServoidWarning
 from servoid.closedloop import (
     feedback_test,
+    fit_cliv,
     fit_direct_bj,
     fit_two_stage,
 )
@@ -134,6 +135,15 @@ def test_slow_prbs_through_a_fast_loop_is_not_claimed(method):
     assert np.max(np.abs(z)) > 4  # it is far off (measured 14σ and 13σ)
     assert est.options["consistent"] is False
     assert "a shorter reference bit" in est.options["broken_assumptions"][0]
+
+
+def test_a_cliv_refusal_names_the_instruments_that_fail():
+    # motor loop, a 2 s PRBS bit on 6 s of data: three level changes cannot tell the output's
+    # lags apart (canonical correlation 0.049 with the lags of r)
+    rec = RIGS["motor"].closed(0, 6000, clock=2000)
+    with pytest.raises(IdentifiabilityError, match=r"The instruments that fail are those for "
+                                                   r"y\(t−1\), y\(t−2\) and y\(t−3\)"):
+        fit_cliv(rec.experiment(), 3, 3, 1)
 
 
 @pytest.mark.parametrize("rig", ["motor", "delay"])
