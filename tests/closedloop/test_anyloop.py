@@ -3,10 +3,10 @@
 The default suite runs a reduced form of the study in ``anyloop_study``:
 four seeds of 6000 samples per loop.  The study itself (100 seeds per loop)
 is ``test_anyloop_study_100_seeds``, marked slow; its counts are in
-``benchmarks/results-closedloop-any-study.json``.  The motor loop under its
-slow PRBS (50 ms bit) is left out of the slow test: there the indirect and
-two-stage estimates do not claim consistency (their covariance changes by a
-factor within one σ of the estimate, :mod:`servoid.closedloop._linearity`).
+``benchmarks/results-closedloop-any-study.json``.  It includes the motor loop
+under its slow PRBS (50 ms bit), where the indirect and two-stage estimates
+do not claim consistency: their covariance changes by more than ×1.4 within
+one σ of the estimate (:mod:`servoid.closedloop._linearity`).
 """
 
 from __future__ import annotations
@@ -125,14 +125,14 @@ def test_two_stage_says_when_its_stage_1_error_shows():
 @pytest.mark.parametrize("method", ["indirect", "two-stage"])
 def test_slow_prbs_through_a_fast_loop_is_not_claimed(method):
     # motor loop, 50 ms PRBS bit, seed 2: the fast poles (|z| = 0.53, 0.38) are barely seen;
-    # the indirect estimate lands 14σ from the truth with intervals ×10 too narrow, the
-    # two-stage one 13σ. Their covariance changes by a factor within one σ: they say so
+    # the indirect and two-stage estimates land more than 4σ from the truth. Their covariance
+    # changes by more than ×1.4 within one σ: they say so
     rec = RIGS["motor"].closed(2, 10_000)
     with pytest.warns(ServoidWarning, match=r"too little information about part of the "
                                             r"dynamics for the linearised intervals"):
         est = fit(method, rec)
     z = (est.parameters - rec.rig.theta()) / est.std
-    assert np.max(np.abs(z)) > 4  # it is far off (measured 14σ and 13σ)
+    assert np.max(np.abs(z)) > 4  # it is far off: without the check it would claim this
     assert est.options["consistent"] is False
     assert "a shorter reference bit" in est.options["broken_assumptions"][0]
 
@@ -155,10 +155,17 @@ def test_feedback_test_holds_its_level_on_open_loop_rigs(rig):
     assert np.sum(p < 0.10) <= 9, np.sort(p)[:10]
 
 
+#: the slow study's loops: the default suite's and the motor under its own slow PRBS
+SLOW_LOOPS = {**LOOPS, "motor, slow PRBS": ("motor", None)}
+#: (method, loop) pairs that claim no seed: the method says why instead
+NO_CLAIMS = {("two-stage", "unstable"), ("two-stage", "motor, slow PRBS"),
+             ("indirect", "motor, slow PRBS")}
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("loop", list(LOOPS))
+@pytest.mark.parametrize("loop", list(SLOW_LOOPS))
 def test_anyloop_study_100_seeds(loop):
-    rig, clock = LOOPS[loop]
+    rig, clock = SLOW_LOOPS[loop]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ServoidWarning)
         tallies = study(rig, range(100), 10_000, ("cliv", "bj", "indirect", "two-stage"),
@@ -166,12 +173,15 @@ def test_anyloop_study_100_seeds(loop):
     for method, tally in tallies.items():
         c = tally.counts()
         if c["claimed"] == 0:
-            assert method == "two-stage" and rig == "unstable"
+            assert (method, loop) in NO_CLAIMS, (method, c)
             continue
-        # 100 seeds: 93 % held among the seeds a method claims; 95 % intervals cover 0.90–0.98,
-        # except the indirect approach, measured at 0.898 (unstable) and 0.982 (delay): held to
-        # 0.88–0.99 until its covariance is looked at (docs/closed-loop.md)
+        # 100 seeds: 93 % held among the seeds a method claims; 95 % intervals cover 0.90–0.98
+        # where a method claims at least 20 seeds (fewer: a share too coarse to judge). The
+        # indirect approach is held to 0.88–0.99: on the delay loop the study's own noise draws
+        # spread its errors 0.71–0.84 of the exact asymptotic σ, 1.07–1.17 with other draws
+        # (anyloop_delay_seeds.py), so its coverage there is the seeds', not the covariance's
         low, high = (0.88, 0.99) if method == "indirect" else (0.90, 0.98)
         assert c["claimed_held"] >= 0.93 * c["claimed"], (method, c)
-        assert low <= c["coverage"] <= high, (method, c)
+        if c["claimed"] >= 20:
+            assert low <= c["coverage"] <= high, (method, c)
         assert c["refused"] <= 2, (method, c)  # measured: 1 of 100 (indirect, delay loop)
