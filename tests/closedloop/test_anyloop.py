@@ -55,8 +55,9 @@ def test_each_method_holds_where_it_claims_consistency(loop, method):
     elif method == "two-stage" and rig == "motor":
         assert claimed >= 1  # stage 1 leaves slow errors on 3 of 4 seeds: it says so
     elif method == "indirect" and rig == "unstable":
-        # seed 2 of these 6000-sample records: a σ changes ×1.6 one σ away, and it says so
-        assert claimed == 3
+        # seeds 0 and 2 of these 6000-sample records: a σ changes by more than ×1.4 one σ away
+        # or at the closed-loop IV estimate, and it says so (10 of 12 claimed at 10 000 samples)
+        assert claimed == 2
     else:
         assert claimed == 4
 

@@ -53,6 +53,7 @@ from .._errors import (
     ConvergenceError,
     IdentifiabilityError,
     ModelError,
+    ServoidError,
     ServoidWarning,
     check_option,
 )
@@ -142,8 +143,9 @@ def fit_indirect_tf(
         ``options["consistent"]`` is False, with the reason in
         ``options["broken_assumptions"]`` and a warning, when the refined
         estimate's covariance changes by more than ×1.4 one standard
-        deviation away (:mod:`servoid.closedloop._linearity`): the record
-        then carries too little information for its intervals.
+        deviation away or, when u is recorded, at the closed-loop IV
+        estimate of the same plant (:mod:`servoid.closedloop._linearity`):
+        the record then carries too little information for its intervals.
 
     Raises
     ------
@@ -253,7 +255,8 @@ def fit_indirect_tf(
         residuals = lambda: final
         names = [f"b{j}" for j in range(nb)] + [f"f{j}" for j in range(1, nf + 1)]
         verdict = (None if is_noise_free(errors, ys)
-                   else interval_check(theta, cov, step.covariance_or_none, names)[1])
+                   else interval_check(theta, cov, step.covariance_or_none, names,
+                                       _cliv_point(data, segments, nb, nf, nk, y_name))[1])
         if verdict is not None:
             broken.append(verdict)
             warn(f"the indirect estimate's intervals do not hold on this record: {verdict}",
@@ -367,6 +370,27 @@ def _step1(
     if not fits:
         raise errors[0]
     return fits
+
+
+def _cliv_point(
+    data: Experiment | ExperimentSet, segments: tuple[Experiment, ...], nb: int, nf: int,
+    nk: int, y_name: str,
+) -> list[tuple[str, NDArray[np.float64]]]:
+    """The closed-loop IV estimate of the same plant as (b…, f1…), when u is recorded.
+
+    It is consistent whatever the controller, so the intervals of the indirect estimate
+    claim to hold it: their covariance must not change there either.
+    """
+    if nf == 0 or len(segments[0].names_of("u")) != 1:
+        return []
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ServoidWarning)
+            iv = fit_iv(data, nf, nb, nk, instrument="r", output=y_name)
+    except (ServoidError, np.linalg.LinAlgError):
+        return []
+    p = np.asarray(iv.parameters, dtype=float)
+    return [("the closed-loop IV estimate of the same plant", np.concatenate([p[nf:], p[:nf]]))]
 
 
 class _Refinement:
