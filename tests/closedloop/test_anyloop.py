@@ -3,9 +3,10 @@
 The default suite runs a reduced form of the study in ``anyloop_study``:
 four seeds of 6000 samples per loop.  The study itself (100 seeds per loop)
 is ``test_anyloop_study_100_seeds``, marked slow; its counts are in
-``benchmarks/results-closedloop-any-study.json``.  The motor loop under its
-slow PRBS (50 ms bit) is left out of the slow test: there the indirect and
-two-stage estimates hold in only 78 % of seeds (docs/closed-loop.md).
+``benchmarks/results-closedloop-any-study.json``.  It includes the motor loop
+under its slow PRBS (50 ms bit), where the indirect and two-stage estimates
+do not claim consistency: their covariance changes by more than ×1.4 within
+one σ of the estimate (:mod:`servoid.closedloop._linearity`).
 """
 
 from __future__ import annotations
@@ -20,11 +21,12 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 
 from anyloop_rigs import RIGS
-from anyloop_study import study
+from anyloop_study import fit, study
 
-from servoid import ServoidWarning
+from servoid import IdentifiabilityError, ServoidWarning
 from servoid.closedloop import (
     feedback_test,
+    fit_cliv,
     fit_direct_bj,
     fit_two_stage,
 )
@@ -52,6 +54,10 @@ def test_each_method_holds_where_it_claims_consistency(loop, method):
         assert claimed == 0  # an unstable OE predictor: it says so instead (next test)
     elif method == "two-stage" and rig == "motor":
         assert claimed >= 1  # stage 1 leaves slow errors on 3 of 4 seeds: it says so
+    elif method == "indirect" and rig == "unstable":
+        # seeds 0 and 2 of these 6000-sample records: a σ changes by more than ×1.4 one σ away
+        # or at the closed-loop IV estimate, and it says so (10 of 12 claimed at 10 000 samples)
+        assert claimed == 2
     else:
         assert claimed == 4
 
@@ -117,6 +123,30 @@ def test_two_stage_says_when_its_stage_1_error_shows():
     assert est.options["covariance"].startswith("two-step sandwich: stage-1 FIR error counted")
 
 
+@pytest.mark.parametrize("method", ["indirect", "two-stage"])
+def test_slow_prbs_through_a_fast_loop_is_not_claimed(method):
+    # motor loop, 50 ms PRBS bit, seed 2: the fast poles (|z| = 0.53, 0.38) are barely seen;
+    # the indirect and two-stage estimates land more than 4σ from the truth. Their covariance
+    # changes by more than ×1.4 within one σ: they say so
+    rec = RIGS["motor"].closed(2, 10_000)
+    with pytest.warns(ServoidWarning, match=r"too little information about part of the "
+                                            r"dynamics for the linearised intervals"):
+        est = fit(method, rec)
+    z = (est.parameters - rec.rig.theta()) / est.std
+    assert np.max(np.abs(z)) > 4  # it is far off: without the check it would claim this
+    assert est.options["consistent"] is False
+    assert "a shorter reference bit" in est.options["broken_assumptions"][0]
+
+
+def test_a_cliv_refusal_names_the_instruments_that_fail():
+    # motor loop, a 2 s PRBS bit on 6 s of data: three level changes cannot tell the output's
+    # lags apart (canonical correlation 0.049 with the lags of r)
+    rec = RIGS["motor"].closed(0, 6000, clock=2000)
+    with pytest.raises(IdentifiabilityError, match=r"The instruments that fail are those for "
+                                                   r"y\(t−1\), y\(t−2\) and y\(t−3\)"):
+        fit_cliv(rec.experiment(), 3, 3, 1)
+
+
 @pytest.mark.parametrize("rig", ["motor", "delay"])
 def test_feedback_test_holds_its_level_on_open_loop_rigs(rig):
     p = np.array([feedback_test(RIGS[rig].open(seed, 4000).experiment()).pvalue
@@ -126,10 +156,17 @@ def test_feedback_test_holds_its_level_on_open_loop_rigs(rig):
     assert np.sum(p < 0.10) <= 9, np.sort(p)[:10]
 
 
+#: the slow study's loops: the default suite's and the motor under its own slow PRBS
+SLOW_LOOPS = {**LOOPS, "motor, slow PRBS": ("motor", None)}
+#: (method, loop) pairs that claim no seed: the method says why instead
+NO_CLAIMS = {("two-stage", "unstable"), ("two-stage", "motor, slow PRBS"),
+             ("indirect", "motor, slow PRBS")}
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("loop", list(LOOPS))
+@pytest.mark.parametrize("loop", list(SLOW_LOOPS))
 def test_anyloop_study_100_seeds(loop):
-    rig, clock = LOOPS[loop]
+    rig, clock = SLOW_LOOPS[loop]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ServoidWarning)
         tallies = study(rig, range(100), 10_000, ("cliv", "bj", "indirect", "two-stage"),
@@ -137,12 +174,15 @@ def test_anyloop_study_100_seeds(loop):
     for method, tally in tallies.items():
         c = tally.counts()
         if c["claimed"] == 0:
-            assert method == "two-stage" and rig == "unstable"
+            assert (method, loop) in NO_CLAIMS, (method, c)
             continue
-        # 100 seeds: 93 % held among the seeds a method claims; 95 % intervals cover 0.90–0.98,
-        # except the indirect approach, measured at 0.898 (unstable) and 0.982 (delay): held to
-        # 0.88–0.99 until its covariance is looked at (docs/closed-loop.md)
+        # 100 seeds: 93 % held among the seeds a method claims; 95 % intervals cover 0.90–0.98
+        # where a method claims at least 20 seeds (fewer: a share too coarse to judge). The
+        # indirect approach is held to 0.88–0.99: on the delay loop the study's own noise draws
+        # spread its errors 0.71–0.84 of the exact asymptotic σ, 1.07–1.17 with other draws
+        # (anyloop_delay_seeds.py), so its coverage there is the seeds', not the covariance's
         low, high = (0.88, 0.99) if method == "indirect" else (0.90, 0.98)
         assert c["claimed_held"] >= 0.93 * c["claimed"], (method, c)
-        assert low <= c["coverage"] <= high, (method, c)
+        if c["claimed"] >= 20:
+            assert low <= c["coverage"] <= high, (method, c)
         assert c["refused"] <= 2, (method, c)  # measured: 1 of 100 (indirect, delay loop)

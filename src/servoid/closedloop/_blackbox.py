@@ -34,6 +34,7 @@ from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Covariance, Estimate, fit_bj, fit_iv, fit_oe
 from ._channels import aic_order, check_excites, ls_fit, output_name, reference_name, single_name
+from ._linearity import interval_check, is_noise_free
 from ._stagecov import Stage1, two_stage_covariance
 
 __all__ = ["fit_cliv", "fit_two_stage"]
@@ -111,7 +112,12 @@ def fit_two_stage(
     Estimate
         Method ``"two-stage"``; parameters ``b0…, f1…`` (then ``c1…, d1…``
         for BJ); ``options`` add the stage-1 order, lags, and the share of
-        var(u) the reference explains.
+        var(u) the reference explains.  ``options["consistent"]`` is False,
+        with the reasons in ``options["broken_assumptions"]`` and a warning,
+        on an unstable plant, when the estimate and closed-loop IV disagree
+        beyond 4σ, or when the covariance changes by more than ×1.4 one σ
+        away or at the closed-loop IV estimate (too little information for
+        the intervals, :mod:`servoid.closedloop._linearity`).
 
     Raises
     ------
@@ -181,6 +187,7 @@ def fit_two_stage(
         est = fit_bj(stage2_data, nb, nc, nd, nf, nk, **pem)  # type: ignore[arg-type]
         cov, note = est.covariance, "bj (noise model); stage-1 error not counted"
     broken = []
+    also: list[tuple[str, NDArray[np.float64]]] = []
     if unstable is not None:
         broken.append(
             f"the plant is unstable (the closed-loop IV estimate has a pole at |z| = "
@@ -192,6 +199,7 @@ def fit_two_stage(
         # the same plant from CLIV, which has no stage 1: a disagreement beyond both
         # intervals is the stage-1 error showing as dynamics of its own in stage 2
         theta_iv = np.concatenate([check[1][nf:], check[1][:nf]])
+        also.append(("the closed-loop IV estimate of the same plant", theta_iv))
         var_iv = np.concatenate([np.diag(check[2])[nf:], np.diag(check[2])[:nf]])
         gap = np.abs(np.asarray(est.parameters) - theta_iv) / np.sqrt(np.diag(cov) + var_iv)
         if float(np.max(gap)) > _DISAGREE:
@@ -201,6 +209,13 @@ def fit_two_stage(
                 f"{first_stage.order}) leaves an error that stage 2 explains with dynamics "
                 "of its own; use method = \"cliv\" or the direct Box–Jenkins fit"
             )
+    if not broken and structure == "oe" and not is_noise_free([est.residuals], ys):
+        names = [f"b{j}" for j in range(nb)] + [f"f{j}" for j in range(1, nf + 1)]
+        _, verdict = interval_check(
+            np.asarray(est.parameters), cov,
+            lambda th: _stage2_covariance(first_stage, ys, th, nb, nk), names, also)
+        if verdict is not None:
+            broken.append(verdict)
     if broken:
         warn(f"the two-stage estimate is not consistent on this record: {broken[0]}",
              ServoidWarning)
@@ -222,6 +237,16 @@ def fit_two_stage(
             "broken_assumptions": broken,
         },
     )
+
+
+def _stage2_covariance(stage1: Stage1, ys: Sequence[NDArray[np.float64]],
+                       theta: NDArray[np.float64], nb: int, nk: int
+                       ) -> NDArray[np.float64] | None:
+    """The two-stage covariance at θ, or None where the OE model is unstable."""
+    f = np.concatenate([[1.0], theta[nb:]])
+    if np.max(np.abs(np.roots(f)), initial=0.0) >= 1.0:
+        return None
+    return two_stage_covariance(stage1, ys, theta[:nb], f, nk)[0]
 
 
 def _cliv_check(
@@ -290,27 +315,82 @@ def fit_cliv(
     DataError
         No reference or input channel, or too few samples.
     IdentifiabilityError
-        A constant reference or input.
+        A constant reference or input, or instruments from r that cannot
+        tell the regressors apart: the message names the regressors whose
+        instruments fail (the direction of the smallest canonical
+        correlation between the regressors and the lags of r).
     """
     segments = as_segments(data)
     r_name = reference_name(data, "closed-loop IV")
     check_excites(r_name, [np.asarray(seg[r_name]) for seg in segments], "r")
-    single_name(segments[0], "u", None, "plant input")
+    u_name = single_name(segments[0], "u", None, "plant input")
     try:
         est = fit_iv(data, na, nb, nk, instrument="r", output=output, iterations=iterations,
                      covariance=covariance)
     except IdentifiabilityError as exc:
         if "uncorrelated" not in str(exc):
             raise
+        y_name = output_name(segments[0], output)
+        weakest, corr = _weakest_regressors(segments, r_name, u_name, y_name, na, nb, nk)
         raise IdentifiabilityError(
             f"closed-loop IV failed: its instruments, the reference {r_name!r} delayed and "
             f"filtered through the model's own simulation, are nearly uncorrelated with the "
-            f"regressors (lags of u and y) for na = {na}, nb = {nb} ({exc}). The reference "
-            "moves the loop too little at the plant's own frequencies: raise the reference's "
-            "excitation (a faster PRBS clock, a larger amplitude), lower the orders, or, with "
-            "the controller known, use method = \"indirect\""
+            f"regressors (lags of u and y) for na = {na}, nb = {nb} ({exc}). The instruments "
+            f"that fail are those for {_listed(weakest)}: no filter of the reference "
+            f"moves that combination of regressors apart from the others (canonical "
+            f"correlation {corr:.2g} with the lags of {r_name!r}). The reference moves the "
+            "loop too little at the plant's own frequencies: raise the reference's excitation "
+            "(a faster PRBS clock, a larger amplitude), lower the orders, or, with the "
+            "controller known, use method = \"indirect\""
         ) from exc
     return dataclasses.replace(est, method="cliv", options={**est.options, "reference": r_name})
+
+
+def _listed(names: Sequence[str]) -> str:
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+
+
+def _weakest_regressors(
+    segments: Sequence[Experiment], r_name: str, u_name: str, y_name: str,
+    na: int, nb: int, nk: int,
+) -> tuple[list[str], float]:
+    """The regressors the reference cannot reach, and their canonical correlation with it.
+
+    The smallest canonical correlation between the ARX regressors
+    ``[y(t−1)…, u(t−nk)…]`` and the lags 0…L of r bounds what any instrument
+    built from r can do; its direction, as weights on the standardised
+    regressors, names the ones that fail.
+    """
+    lags = max(2 * (na + nb), 20)
+    first = max(na, nk + nb - 1, lags)
+    phis, zs = [], []
+    for seg in segments:
+        r, u, y = (np.asarray(seg[n], dtype=float) for n in (r_name, u_name, y_name))
+        if r.size <= first + 1:
+            continue
+        rows = np.arange(first, r.size)
+        phis.append(np.column_stack([y[rows - j] for j in range(1, na + 1)]
+                                    + [u[rows - nk - j] for j in range(nb)]))
+        zs.append(np.column_stack([r[rows - j] for j in range(lags + 1)]))
+    names = ([f"y(t−{j})" for j in range(1, na + 1)]
+             + [f"u(t−{nk + j})" if nk + j else "u(t)" for j in range(nb)])
+    if not zs:
+        return names, 0.0
+    phi = np.vstack(phis)
+    phi = phi - phi.mean(axis=0)
+    z = np.vstack(zs)
+    z = z - z.mean(axis=0)
+    scale = np.sqrt(np.sum(phi * phi, axis=0))
+    scale[scale == 0] = 1.0
+    q_phi, r_phi = np.linalg.qr(phi / scale)
+    left, sing, _ = np.linalg.svd(z, full_matrices=False)
+    q_z = left[:, sing > 1e-10 * sing[0]]
+    a, corr, _ = np.linalg.svd(q_phi.T @ q_z, full_matrices=True)
+    # the direction of the smallest canonical correlation, on the standardised regressors
+    weights = np.linalg.lstsq(r_phi, a[:, -1], rcond=None)[0]
+    weights = np.abs(weights) / max(float(np.max(np.abs(weights))), 1e-300)
+    smallest = float(corr[-1]) if corr.size == a.shape[0] else 0.0
+    return [n for n, w in zip(names, weights, strict=True) if w >= 0.3], smallest
 
 
 def _stage1(

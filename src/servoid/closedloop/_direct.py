@@ -43,6 +43,7 @@ from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate, fit_bj, fit_iv
 from ..models import PolynomialModel
 from ._channels import output_name, single_name
+from ._linearity import interval_check, is_noise_free
 
 __all__ = ["fit_direct_bj"]
 
@@ -159,10 +160,43 @@ def fit_direct_bj(
         )
         warn(f"the direct Box–Jenkins estimate may not be consistent: {broken[0]}",
              ServoidWarning)
+    if not broken:
+        criterion = _Criterion(segments, y_name, nb, nc, nd, nf, nk)
+        theta = np.asarray(est.parameters, dtype=float)
+        base = _white_covariance(criterion, theta)
+        if base is not None and not is_noise_free([criterion.errors(theta)], criterion.ys):
+            _, verdict = interval_check(theta, base,
+                                        lambda th: _white_covariance(criterion, th),
+                                        list(est.names))
+            if verdict is not None:
+                broken.append(verdict)
+                warn(f"the direct Box–Jenkins estimate's intervals do not hold on this "
+                     f"record: {verdict}", ServoidWarning)
     return dataclasses.replace(est, method="direct-bj", options={
         **est.options, "start": label, "starts": [fit[1] for fit in fits],
         "consistent": not broken, "broken_assumptions": broken,
     })
+
+
+def _white_covariance(criterion: _Criterion,
+                      theta: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """``σ̂²(JᵀJ)⁻¹`` of the stabilised criterion at θ (central differences), or None."""
+    with np.errstate(all="ignore"):
+        eps = criterion.errors(theta)
+        if not np.all(np.isfinite(eps)):
+            return None
+        cols = []
+        for j in range(theta.size):
+            h = 1e-6 * (1.0 + abs(float(theta[j])))
+            step = np.zeros(theta.size)
+            step[j] = h
+            cols.append((criterion.errors(theta + step) - criterion.errors(theta - step))
+                        / (2.0 * h))
+        jac = np.column_stack(cols)
+    if not np.all(np.isfinite(jac)):
+        return None
+    sigma2 = float(eps @ eps) / max(eps.size - theta.size, 1)
+    return sigma2 * np.linalg.pinv(jac.T @ jac)
 
 
 def _split(f: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:

@@ -53,6 +53,7 @@ from .._errors import (
     ConvergenceError,
     IdentifiabilityError,
     ModelError,
+    ServoidError,
     ServoidWarning,
     check_option,
 )
@@ -62,6 +63,7 @@ from ..estimate import Estimate, fit_arx, fit_iv, fit_oe
 from ..models import PolynomialModel, TransferFunction
 from ._channels import check_excites, output_name, reference_name
 from ._coloured import oe_gradient, sandwich
+from ._linearity import interval_check, is_noise_free
 
 __all__ = ["fit_indirect_tf"]
 
@@ -138,6 +140,12 @@ def fit_indirect_tf(
         ``transfer_function()`` is G); parameters ``b0…, f1…`` with the
         delta-method covariance; ``residuals`` are those of the closed-loop
         fit; ``options["closed_loop"]`` holds that fit.
+        ``options["consistent"]`` is False, with the reason in
+        ``options["broken_assumptions"]`` and a warning, when the refined
+        estimate's covariance changes by more than ×1.4 one standard
+        deviation away or, when u is recorded, at the closed-loop IV
+        estimate of the same plant (:mod:`servoid.closedloop._linearity`):
+        the record then carries too little information for its intervals.
 
     Raises
     ------
@@ -213,6 +221,7 @@ def fit_indirect_tf(
     status, n_samples, cov_note = cl.status, cl.n_samples, primary.note
     sigma2 = float(cl.noise_variance)
     refined: dict[str, object] = {"refined": False}
+    broken: list[str] = []
     residuals: Callable[[], NDArray[np.float64]] = lambda: cl.residuals
     if refine:
         step = _Refinement(loop_map, rs, ys)
@@ -244,6 +253,14 @@ def fit_indirect_tf(
             )
         final = np.concatenate(errors)
         residuals = lambda: final
+        names = [f"b{j}" for j in range(nb)] + [f"f{j}" for j in range(1, nf + 1)]
+        verdict = (None if is_noise_free(errors, ys)
+                   else interval_check(theta, cov, step.covariance_or_none, names,
+                                       _cliv_point(data, segments, nb, nf, nk, y_name))[1])
+        if verdict is not None:
+            broken.append(verdict)
+            warn(f"the indirect estimate's intervals do not hold on this record: {verdict}",
+                 ServoidWarning)
         refined = {"refined": True, "iterations": iterations, "converged": converged,
                    "start": start, "starts": [fit.label for fit in fits]}
 
@@ -287,6 +304,8 @@ def fit_indirect_tf(
                 "status": cl.status,
             },
             "covariance": cov_note,
+            "consistent": not broken,
+            "broken_assumptions": broken,
             **refined,
         },
         residual_function=residuals,
@@ -351,6 +370,27 @@ def _step1(
     if not fits:
         raise errors[0]
     return fits
+
+
+def _cliv_point(
+    data: Experiment | ExperimentSet, segments: tuple[Experiment, ...], nb: int, nf: int,
+    nk: int, y_name: str,
+) -> list[tuple[str, NDArray[np.float64]]]:
+    """The closed-loop IV estimate of the same plant as (b…, f1…), when u is recorded.
+
+    It is consistent whatever the controller, so the intervals of the indirect estimate
+    claim to hold it: their covariance must not change there either.
+    """
+    if nf == 0 or len(segments[0].names_of("u")) != 1:
+        return []
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ServoidWarning)
+            iv = fit_iv(data, nf, nb, nk, instrument="r", output=y_name)
+    except (ServoidError, np.linalg.LinAlgError):
+        return []
+    p = np.asarray(iv.parameters, dtype=float)
+    return [("the closed-loop IV estimate of the same plant", np.concatenate([p[nf:], p[:nf]]))]
 
 
 class _Refinement:
@@ -438,6 +478,15 @@ class _Refinement:
         assert state is not None
         errors, psis = state
         return sandwich(psis, errors)
+
+    def covariance_or_none(self, theta: NDArray[np.float64]) -> NDArray[np.float64] | None:
+        """The covariance at θ, or None where the closed loop cannot be simulated."""
+        nb_cl = self.orders[0]
+        fcl = np.concatenate([[1.0], (self.h + self.big_h @ theta)[nb_cl:]])
+        # an unstable closed loop is not one the interval can describe
+        if np.max(np.abs(np.roots(fcl)), initial=0.0) >= 1.0 or self.evaluate(theta) is None:
+            return None
+        return self.covariance(theta)[0]
 
 
 class _ClosedLoopMap:
