@@ -270,6 +270,7 @@ def identify_critical_pressure(
                               for j, c in enumerate(chambers)], newey_west_lags(y.size))
     est = dataclasses.replace(est, parameters=np.r_[b_hat, coef], covariance=cov, options={
         **est.options, "white_covariance": est.covariance.tolist(), "ls_p_krit": ls_b,
+        "ls_values": {"p_krit": ls_b},
         **iv_info,
         "covariance": ("joint Jacobian [∂r/∂b, Φ], Newey–West (coloured residuals)"
                        + (", instruments delayed ±{:g} samples".format(delay)
@@ -370,6 +371,7 @@ def identify_flow(
                                           "S3 (flow)", delay)
     p_krit_std = as_float("p_krit_std", p_krit_std, nonneg=True)
     use_iv = estimator == "iv"
+    ls_theta: dict[str, float] = {}
 
     def fit(b: float) -> list[Any]:
         out = []
@@ -377,6 +379,7 @@ def identify_flow(
             names_c = tuple(f"ad_{e}" for e in c.edges)
             phi = c.regressors(b, kappa, R)
             res = lstsq(phi, c.mdot, names_c)
+            ls_theta.update(zip(names_c, (float(v) for v in res.theta), strict=True))
             if use_iv:
                 z = c.instruments(b, kappa, R, delay)
                 theta = np.linalg.solve(z.T @ phi, z.T @ c.mdot)
@@ -386,6 +389,7 @@ def identify_flow(
         return out
 
     fits = fit(p_krit)
+    ls_values = dict(ls_theta)
     values: list[float] = []
     names: list[str] = []
     groups = []
@@ -437,6 +441,7 @@ def identify_flow(
         options={"kappa": kappa, "R": R, "p_krit": p_krit, "mdot_limit": mdot_limit,
                  "mdot_sensor_bandwidth": known.mdot_sensor_bandwidth,
                  "p_krit_std": p_krit_std, "hac_lags": lags, "estimator": estimator,
+                 "ls_values": ls_values,
                  "iv_delay_samples": delay,
                  "covariance": f"per-chamber {'IV' if use_iv else 'LS'} (Newey–West, coloured "
                                "residuals); the std of κ, R and p_krit propagated (delta "

@@ -321,6 +321,7 @@ def identify_sliding_friction(
         phi = full[rows]
         _enough(rows, "S4 (sliding friction)", f"|ẋ_k| >= ẋ_krit = {threshold:g} m/s")
         res = lstsq(phi, sig.y[rows], ("d_k", "c_k"))
+        ls_theta[:] = [float(v) for v in res.theta]
         if not use_iv:
             return res, rows, phi, None
         idx = np.flatnonzero(rows)
@@ -329,7 +330,9 @@ def identify_sliding_friction(
         rss = float(np.sum((sig.y[rows] - phi @ theta) ** 2))
         return dataclasses.replace(res, theta=theta, rss=rss), rows, phi, z
 
+    ls_theta: list[float] = []
     res, rows, phi, z = fit(v_krit)
+    ls_values = dict(zip(("d_k", "c_k"), ls_theta, strict=True))
     # residuals coloured by the anti-alias filter (and the SVF): Newey–West
     lags = max(sig.half_window, newey_west_lags(res.n_rows))
     resid = sig.y[rows] - phi @ res.theta
@@ -343,6 +346,7 @@ def identify_sliding_friction(
                     {"v_krit": v_krit, "v_krit_std": v_krit_std, "derivatives": derivatives,
                      "hac_lags": lags, "white_std": [float(v) for v in res.std],
                      "d_dv_krit": grads[0].tolist(), "estimator": estimator,
+                     "ls_values": ls_values,
                      "iv_delay_samples": delay if use_iv else 0,
                      "covariance": f"{'IV' if use_iv else 'LS'}, Newey–West; v_krit std "
                                    "propagated (delta method)"}),

@@ -96,6 +96,7 @@ def identify_valve(
     raw_names = ("2xi_v*omega_v", "omega_v^2", "k_v*omega_v^2")
     res = lstsq(phi, y, raw_names)
     method = "svf+ls"
+    ls_values = _physical(res.theta)
     if estimator == "iv":
         res = _srivc_instruments(res, phi, y, fu.derivative(0), first, record.dt)
         method = "svf+iv"
@@ -113,7 +114,8 @@ def identify_valve(
     est = physical_estimate(
         (b0 / a0, a1 / (2 * w), w), jac, raw, ("k_v", "xi_v", "omega_v"),
         ("m/V", "-", "rad/s"), method,
-        {"omega_f": omega_f, "u_hold": u_hold, "first_valid": first, "estimator": estimator},
+        {"omega_f": omega_f, "u_hold": u_hold, "first_valid": first, "estimator": estimator,
+         "ls_values": ls_values},
     )
     mask = np.zeros(record.n_samples, dtype=bool)
     mask[first:] = True
@@ -155,3 +157,12 @@ def _srivc_instruments(res: Any, phi: NDArray[np.float64], y: NDArray[np.float64
     cov = sigma2 * a_inv @ (z.T @ z) @ a_inv.T
     return dataclasses.replace(res, theta=theta, covariance=0.5 * (cov + cov.T),
                                rss=float(resid @ resid))
+
+
+def _physical(theta: NDArray[np.float64]) -> dict[str, float]:
+    """(2ξω, ω², kω²) → k_v, ξ_v, ω_v (NaN where ω² <= 0)."""
+    a1, a0, b0 = (float(v) for v in theta)
+    if a0 <= 0.0:
+        return {"k_v": math.nan, "xi_v": math.nan, "omega_v": math.nan}
+    w = math.sqrt(a0)
+    return {"k_v": b0 / a0, "xi_v": a1 / (2 * w), "omega_v": w}
