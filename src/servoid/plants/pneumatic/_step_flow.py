@@ -32,6 +32,24 @@ x_v moves fast.  With ``known.mdot_sensor_bandwidth`` given, every regressor
 passes the same lag before the LS ("filter both sides identically"); the
 two edges of a chamber then overlap for a few samples after each spool
 zero crossing and share one LS per chamber.
+
+Noisy regressors.  The regressors are built from the measured x_v, p_I,
+p_II: their noise is errors in variables, which least squares does not
+average out.  The profile over b is flat (σ(p_krit) ≈ 8 % at 30 dB), so the
+small attenuation it causes moves b far: on the virtual rig LS gives p_krit
++1.7σ at 30 dB and +3.3σ at 25 dB (ad_2, ad_3 follow it, −2 %).  Both steps
+therefore solve by instrumental variables (``estimator="iv"``, the default):
+the instrument of a row is the same regressor (for S0 the whole Jacobian
+row, ∂/∂b included) averaged over the samples ``iv_delay`` (2 ms) before and
+after it.  Their noise is that of other samples, uncorrelated with the
+row's once the delay exceeds the sensors' noise correlation (the anti-alias
+filter's impulse response, < 1 ms at 2 kHz), while the flow test's slow
+signals keep them correlated with the row's regressor.  S0 starts from the
+separable LS and solves the moment equations ``Σ z_t r_t(b, c) = 0`` by
+Gauss–Newton with the instruments held, rebuilt once at the solution; S3 is
+linear IV per chamber.  Covariances are the IV ones with Newey–West
+(``H⁻¹SH⁻ᵀ``, H = ZᵀJ).  The LS estimate is kept in
+``options["ls_values"]``: the difference is the bias the noise put in it.
 """
 
 from __future__ import annotations
