@@ -102,11 +102,13 @@ EDGES: dict[int, tuple[str, int, str]] = {
 }
 _SATURATION_MARGIN = 0.98
 _EQ_S3 = ("(3.1), (3.2) with κ, R from S2 and p_krit from S0 inserted: samples split by "
-          "sgn x_v and chamber, LS of ṁ on π|x_v|ψ(π)p_up√(2/(R T_up)) per edge (per chamber "
-          "when the regressors pass the ṁ sensor's known lag) → a_i d_i; samples with a "
-          "saturated ṁ sensor excluded")
+          "sgn x_v and chamber, IV regression of ṁ on π|x_v|ψ(π)p_up√(2/(R T_up)) per edge "
+          "(per chamber when the regressors pass the ṁ sensor's known lag; instruments: the "
+          "regressors ±2 ms away) → a_i d_i; samples with a saturated ṁ sensor excluded")
 _EQ_S0 = ("(3.1), (3.2) Type IV in b = p_krit: separable LS, outer grid over b (step 0.01) "
-          "and Brent refinement, inner LS of the four edge coefficients (Type II for fixed b)")
+          "and Brent refinement, inner LS of the four edge coefficients (Type II for fixed b); "
+          "from there instrumental variables in (b, a_i d_i), instruments the Jacobian rows "
+          "±2 ms away")
 
 
 @dataclass(frozen=True)

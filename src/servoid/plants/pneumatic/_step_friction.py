@@ -88,8 +88,8 @@ __all__ = [
 _EQ_S0 = ("friction–velocity map F_fr = F_p − m_k ẍ_k against |ẋ_k|: constant below the "
           "threshold, d + c|ẋ_k| above; exact search of the threshold over all gaps between "
           "sorted sample speeds (least residual sum)")
-_EQ_S4 = ("(4.1) m_k ẍ_k = F_p − sgn(ẋ_k)(d_k + c_k|ẋ_k|) on |ẋ_k| ≥ ẋ_krit: LS of "
-          "y = m_k ẍ_k − F_p on φ = [−sgn ẋ_k, −ẋ_k] → d_k, c_k")
+_EQ_S4 = ("(4.1) m_k ẍ_k = F_p − sgn(ẋ_k)(d_k + c_k|ẋ_k|) on |ẋ_k| ≥ ẋ_krit: IV regression "
+          "of y = m_k ẍ_k − F_p on φ = [−sgn ẋ_k, −ẋ_k] (instruments: φ ±2 ms away) → d_k, c_k")
 _EQ_S5 = ("(4.2) m_k ẍ_k = F_p − sgn(ẋ_k)·F_haft on ε < |ẋ_k| < ẋ_krit with c_k, d_k "
           "inserted: LS of y = m_k ẍ_k − F_p on φ = −sgn ẋ_k → F_haft")
 

@@ -37,8 +37,9 @@ from ._steps import StepResult, channel, check_positive, ls_estimate, physical_e
 __all__ = ["identify_valve"]
 
 _EQUATION = ("(1) ẍ_v + 2ξ_v ω_v ẋ_v + ω_v² x_v = k_v ω_v² u: u and x_v filtered by one "
-             "state-variable filter F(s) = ω_f²/(s + ω_f)², LS of s²F x_v on "
-             "(−sF x_v, −F x_v, F u) after the filter start-up, delta method to k_v, ξ_v, ω_v")
+             "state-variable filter F(s) = ω_f²/(s + ω_f)², IV regression of s²F x_v on "
+             "(−sF x_v, −F x_v, F u) after the filter start-up (instruments from the LS "
+             "model's simulated output), delta method to k_v, ξ_v, ω_v")
 
 
 def identify_valve(

@@ -250,7 +250,7 @@ class StepResult:
     mask : ndarray of bool, shape (N,)
         Samples of the record that entered the regression.
     method : str
-        Estimator used ("svf+ls", "separable_ls", "rls+ls", "ls", ...).
+        Estimator used ("svf+ls", "svf+iv", "separable_ls", "rls+ls", "ls", "iv", ...).
     notes : tuple of str
         Warnings and remarks worth a reader's attention.
     extra : mapping
