@@ -132,8 +132,9 @@ class MultistepResult:
     def table(self) -> list[dict[str, Any]]:
         """Per parameter: value, std, 95 % CI, unit, the step and the std's kind.
 
-        ``std_kind`` is "statistical" (every identified parameter: LS, with a
-        Newey–West covariance in S0 p_krit and S2–S5, plus the inserted estimates' std propagated,
+        ``std_kind`` is "statistical" (every identified parameter: LS or, in
+        S0 p_krit, S1, S3 and S4, instrumental variables, with a Newey–West
+        covariance in S0 p_krit and S2–S5, plus the inserted estimates' std propagated,
         v_krit by a block bootstrap) or "given" (std 0).
         """
         rows = []
