@@ -4,8 +4,9 @@ The regressors of S0/S3 (x_v, p_I, p_II), S4 (v_k) and S1 (the filtered
 spool position) are measured with noise.  Least squares on them is biased
 (errors in variables): on the virtual rig at 25 dB p_krit +3.3σ, ad_2 −3.5σ,
 c_k −2.5σ, and at 15 dB ξ_v −4.7σ.  The steps solve by instrumental variables
-instead; these are the reduced form of the ≥ 100-seed study
-``benchmarks/study_pneumatic_snr.py`` (slow, docs/study2-pneumatic.md).
+instead; these are the reduced form of the seed study
+``benchmarks/study_pneumatic_snr.py`` (docs/study2-pneumatic.md) and of the slow
+test at the end.
 
 Records from the bench (simulated four times finer than the sample rate,
 noise added to the analog signals before the anti-alias filter), calibrated

@@ -181,9 +181,10 @@ class MultistepResult:
         if self.refined_validation is not None:
             fits = ", ".join(f"{k} {v:.1f} %" for k, v in self.refined_validation.fit.items())
             lines.append(f"  after refinement: {fits}")
-        lines.append("  ± are 1σ statistical: LS (Newey–West in S0 p_krit, S2–S5) plus the "
-                     "propagated std of inserted estimates (delta method); v_krit by block "
-                     "bootstrap")
+        lines.append("  ± are 1σ statistical: instrumental variables in S0 p_krit, S1, S3, S4 "
+                     "(they carry the regressors' noise), LS in S2, S5 (Newey–West in S0 "
+                     "p_krit, S2–S5) plus the propagated std of inserted estimates (delta "
+                     "method); v_krit by block bootstrap")
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
 
