@@ -103,7 +103,8 @@ def test_verdict_names_wide_intervals_and_the_ls_shift(flow_25db):
     s0 = identify_critical_pressure(record, known)
 
     class _Result:  # the two things the checks read from a MultistepResult
-        steps = {"S0 p_krit": s0}
+        def __init__(self):
+            self.steps = {"S0 p_krit": s0}
 
         @staticmethod
         def table():

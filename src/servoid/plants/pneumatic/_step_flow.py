@@ -293,7 +293,7 @@ def identify_critical_pressure(
         "ls_values": {"p_krit": ls_b},
         **iv_info,
         "covariance": ("joint Jacobian [∂r/∂b, Φ], Newey–West (coloured residuals)"
-                       + (", instruments delayed ±{:g} samples".format(delay)
+                       + (f", instruments delayed ±{delay:g} samples"
                           if iv_info["estimator"] == "iv" else ""))})
     return StepResult(
         step="S0 p_krit", title="critical pressure ratio p_krit of the flow function",
