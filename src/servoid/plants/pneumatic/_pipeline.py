@@ -132,8 +132,9 @@ class MultistepResult:
     def table(self) -> list[dict[str, Any]]:
         """Per parameter: value, std, 95 % CI, unit, the step and the std's kind.
 
-        ``std_kind`` is "statistical" (every identified parameter: LS, with a
-        Newey–West covariance in S0 p_krit and S2–S5, plus the inserted estimates' std propagated,
+        ``std_kind`` is "statistical" (every identified parameter: LS or, in
+        S0 p_krit, S1, S3 and S4, instrumental variables, with a Newey–West
+        covariance in S0 p_krit and S2–S5, plus the inserted estimates' std propagated,
         v_krit by a block bootstrap) or "given" (std 0).
         """
         rows = []
@@ -180,9 +181,10 @@ class MultistepResult:
         if self.refined_validation is not None:
             fits = ", ".join(f"{k} {v:.1f} %" for k, v in self.refined_validation.fit.items())
             lines.append(f"  after refinement: {fits}")
-        lines.append("  ± are 1σ statistical: LS (Newey–West in S0 p_krit, S2–S5) plus the "
-                     "propagated std of inserted estimates (delta method); v_krit by block "
-                     "bootstrap")
+        lines.append("  ± are 1σ statistical: instrumental variables in S0 p_krit, S1, S3, S4 "
+                     "(they carry the regressors' noise), LS in S2, S5 (Newey–West in S0 "
+                     "p_krit, S2–S5) plus the propagated std of inserted estimates (delta "
+                     "method); v_krit by block bootstrap")
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
 

@@ -32,6 +32,24 @@ x_v moves fast.  With ``known.mdot_sensor_bandwidth`` given, every regressor
 passes the same lag before the LS ("filter both sides identically"); the
 two edges of a chamber then overlap for a few samples after each spool
 zero crossing and share one LS per chamber.
+
+Noisy regressors.  The regressors are built from the measured x_v, p_I,
+p_II: their noise is errors in variables, which least squares does not
+average out.  The profile over b is flat (σ(p_krit) ≈ 8 % at 30 dB), so the
+small attenuation it causes moves b far: on the virtual rig LS gives p_krit
++1.7σ at 30 dB and +3.3σ at 25 dB (ad_2, ad_3 follow it, −2 %).  Both steps
+therefore solve by instrumental variables (``estimator="iv"``, the default):
+the instrument of a row is the same regressor (for S0 the whole Jacobian
+row, ∂/∂b included) averaged over the samples ``iv_delay`` (2 ms) before and
+after it.  Their noise is that of other samples, uncorrelated with the
+row's once the delay exceeds the sensors' noise correlation (the anti-alias
+filter's impulse response, < 1 ms at 2 kHz), while the flow test's slow
+signals keep them correlated with the row's regressor.  S0 starts from the
+separable LS and solves the moment equations ``Σ z_t r_t(b, c) = 0`` by
+Gauss–Newton with the instruments held, rebuilt once at the solution; S3 is
+linear IV per chamber.  Covariances are the IV ones with Newey–West
+(``H⁻¹SH⁻ᵀ``, H = ZᵀJ).  The LS estimate is kept in
+``options["ls_values"]``: the difference is the bias the noise put in it.
 """
 
 from __future__ import annotations
@@ -47,7 +65,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._checks import as_float, as_float_list, as_int
-from ..._errors import DataError, IdentifiabilityError, ServoidWarning
+from ..._errors import DataError, IdentifiabilityError, ServoidWarning, check_option
 from ..._warn import warn
 from ...data import Experiment
 from ...estimate import Estimate, fit_separable, lstsq
@@ -67,7 +85,13 @@ from ._steps import (
     temperature,
 )
 
-__all__ = ["EDGES", "identify_critical_pressure", "identify_flow"]
+__all__ = ["EDGES", "IV_DELAY", "identify_critical_pressure", "identify_flow"]
+
+#: Default delay of the flow steps' instruments [s]: beyond the rig's noise correlation
+#: (a 2 kHz 4th-order anti-alias filter: its impulse response is below 1 % after ~1 ms),
+#: well inside the flow test's signal correlation (a 1 Hz closed-loop sine).
+IV_DELAY = 2e-3
+_ESTIMATORS = ("iv", "ls")
 
 #: Edge number → (chamber, spool sign, description).
 EDGES: dict[int, tuple[str, int, str]] = {
@@ -78,11 +102,13 @@ EDGES: dict[int, tuple[str, int, str]] = {
 }
 _SATURATION_MARGIN = 0.98
 _EQ_S3 = ("(3.1), (3.2) with κ, R from S2 and p_krit from S0 inserted: samples split by "
-          "sgn x_v and chamber, LS of ṁ on π|x_v|ψ(π)p_up√(2/(R T_up)) per edge (per chamber "
-          "when the regressors pass the ṁ sensor's known lag) → a_i d_i; samples with a "
-          "saturated ṁ sensor excluded")
+          "sgn x_v and chamber, IV regression of ṁ on π|x_v|ψ(π)p_up√(2/(R T_up)) per edge "
+          "(per chamber when the regressors pass the ṁ sensor's known lag; instruments: the "
+          "regressors ±2 ms away) → a_i d_i; samples with a saturated ṁ sensor excluded")
 _EQ_S0 = ("(3.1), (3.2) Type IV in b = p_krit: separable LS, outer grid over b (step 0.01) "
-          "and Brent refinement, inner LS of the four edge coefficients (Type II for fixed b)")
+          "and Brent refinement, inner LS of the four edge coefficients (Type II for fixed b); "
+          "from there instrumental variables in (b, a_i d_i), instruments the Jacobian rows "
+          "±2 ms away")
 
 
 @dataclass(frozen=True)
@@ -112,6 +138,21 @@ class _ChamberData:
 
     def regressors(self, b: float, kappa: float, R: float) -> NDArray[np.float64]:
         """Columns ṁ/(a_i d_i) of the chamber's edges at the rows."""
+        return self.columns(b, kappa, R)[self.rows]
+
+    def instruments(self, b: float, kappa: float, R: float, delay: int) -> NDArray[np.float64]:
+        """The columns ``delay`` samples before and after each row, averaged.
+
+        Built from the same measured signals, but their noise is that of
+        other samples: with `delay` beyond the noise's correlation length
+        they are uncorrelated with the regressors' noise at the row while
+        the slow signal keeps them correlated with its value there.
+        """
+        cols = self.columns(b, kappa, R)
+        return 0.5 * (cols[self.rows - delay] + cols[self.rows + delay])
+
+    def columns(self, b: float, kappa: float, R: float) -> NDArray[np.float64]:
+        """Columns ṁ/(a_i d_i) of the chamber's edges on the whole record."""
         cols = []
         for edge in self.edges:
             supply = edge in (2, 3)
@@ -130,7 +171,7 @@ class _ChamberData:
             psi = psi_ellipse(lo / hi, b, kappa)
             mag = self.area[edge] * psi * hi * c_flow / math.sqrt(R)
             col = np.where(forward, mag, -mag) * (1.0 if supply else -1.0)
-            cols.append(self.lag(col)[self.rows])
+            cols.append(self.lag(col))
         return np.column_stack(cols)
 
 
@@ -144,6 +185,8 @@ def identify_critical_pressure(
     x_v_min: float = 0.0,
     min_samples: int = 50,
     name: str = "flow",
+    estimator: str = "iv",
+    iv_delay: float = IV_DELAY,
 ) -> StepResult:
     """Find p_krit by separable LS on the flow equations (step S0).
 
@@ -168,6 +211,15 @@ def identify_critical_pressure(
         Fewest samples an edge needs to take part.
     name : str
         Record name for the result.
+    estimator : {"iv", "ls"}
+        "iv" (default): the separable LS is the start of an
+        instrumental-variable solution of the same equations (module
+        notes, "Noisy regressors"), which removes the errors-in-variables
+        bias of the measured x_v, p_I, p_II; "ls": the LS estimate.
+    iv_delay : float
+        Delay of the instruments [s], longer than the correlation time of
+        the sensors' noise (the anti-alias filter's impulse response);
+        default 2 ms.
 
     Returns
     -------
@@ -188,8 +240,10 @@ def identify_critical_pressure(
         raise DataError(f"bounds must be (low, high) with 0 <= low < high <= 1 (p_krit is a "
                         f"pressure ratio), got ({lo:g}, {hi:g})")
     step = check_positive("step", step, "")
+    check_option("estimator", estimator, _ESTIMATORS)
+    delay = _delay_samples(iv_delay, record.dt)
     chambers, notes, mask = _chamber_data(record, known, mdot_limit, x_v_min, min_samples,
-                                          "S0 (p_krit)")
+                                          "S0 (p_krit)", delay)
     grid = np.arange(lo, hi + 0.5 * step, step)
     grid = grid[grid <= hi + 1e-12]
     kappa, R = 1.4, 287.0  # placeholders: the profile over b does not depend on them
@@ -216,14 +270,31 @@ def identify_critical_pressure(
     # anti-alias filter: Newey–West on the same Jacobian J = [∂r/∂b, Φ(b)]
     b_hat, coef = float(est["p_krit"]), np.asarray(est.parameters[1:], dtype=float)
     h = float(est.options["difference_step"])
-    phi, y = build(b_hat)
-    jac = np.column_stack([(build(b_hat + h)[0] - build(b_hat - h)[0]) @ coef / (2.0 * h), phi])
-    resid = y - phi @ coef
-    cov = hac_covariance([(jac[row0[j]:row0[j + 1]], resid[row0[j]:row0[j + 1]], c.rows)
-                          for j, c in enumerate(chambers)], newey_west_lags(y.size))
-    est = dataclasses.replace(est, covariance=cov, options={
-        **est.options, "white_covariance": est.covariance.tolist(),
-        "covariance": "joint Jacobian [∂r/∂b, Φ], Newey–West (coloured residuals)"})
+    ls_b = b_hat
+    iv_info: dict[str, Any] = {"estimator": "ls"}
+    if estimator == "iv":
+        iv = _separable_iv(chambers, b_hat, coef, (lo, hi), h, delay, kappa, R)
+        if iv is None:
+            msg = ("S0 (p_krit): the instrumental-variable solution did not converge; p_krit "
+                   "is the LS estimate, which noisy x_v, p_I, p_II bias upward below ~40 dB")
+            warn(msg, ServoidWarning)
+            notes.append(msg)
+        else:
+            b_hat, coef, cov, iv_info = iv
+    if iv_info["estimator"] == "ls":
+        phi, y = build(b_hat)
+        jac = np.column_stack([(build(b_hat + h)[0] - build(b_hat - h)[0]) @ coef / (2.0 * h),
+                               phi])
+        resid = y - phi @ coef
+        cov = hac_covariance([(jac[row0[j]:row0[j + 1]], resid[row0[j]:row0[j + 1]], c.rows)
+                              for j, c in enumerate(chambers)], newey_west_lags(y.size))
+    est = dataclasses.replace(est, parameters=np.r_[b_hat, coef], covariance=cov, options={
+        **est.options, "white_covariance": est.covariance.tolist(), "ls_p_krit": ls_b,
+        "ls_values": {"p_krit": ls_b},
+        **iv_info,
+        "covariance": ("joint Jacobian [∂r/∂b, Φ], Newey–West (coloured residuals)"
+                       + (f", instruments delayed ±{delay:g} samples"
+                          if iv_info["estimator"] == "iv" else ""))})
     return StepResult(
         step="S0 p_krit", title="critical pressure ratio p_krit of the flow function",
         equation=_EQ_S0, record=name, estimate=est, mask=mask, method="separable_ls",
@@ -248,6 +319,8 @@ def identify_flow(
     x_v_min: float = 0.0,
     min_samples: int = 50,
     name: str = "flow",
+    estimator: str = "iv",
+    iv_delay: float = IV_DELAY,
 ) -> StepResult:
     """Identify the edge coefficients a_i d_i (step S3).
 
@@ -280,6 +353,11 @@ def identify_flow(
         Fewest unsaturated samples an edge needs.
     name : str
         Record name for the result.
+    estimator : {"iv", "ls"}
+        "iv" (default): instrumental variables, the regressors ±`iv_delay`
+        away as instruments (module notes); "ls": least squares.
+    iv_delay : float
+        Delay of the instruments [s]; default 2 ms.
 
     Returns
     -------
@@ -307,15 +385,31 @@ def identify_flow(
     R_std = as_float("R_std", R_std, nonneg=True, unit="J/(kg·K)")
     if not 0.0 <= p_krit < 1.0:
         raise DataError(f"p_krit must lie in [0, 1), got {p_krit:g}")
+    check_option("estimator", estimator, _ESTIMATORS)
+    delay = _delay_samples(iv_delay, record.dt)
     chambers, notes, mask = _chamber_data(record, known, mdot_limit, x_v_min, min_samples,
-                                          "S3 (flow)")
+                                          "S3 (flow)", delay)
     p_krit_std = as_float("p_krit_std", p_krit_std, nonneg=True)
+    use_iv = estimator == "iv"
+    ls_theta: dict[str, float] = {}
 
     def fit(b: float) -> list[Any]:
-        return [lstsq(c.regressors(b, kappa, R), c.mdot, tuple(f"ad_{e}" for e in c.edges))
-                for c in chambers]
+        out = []
+        for c in chambers:
+            names_c = tuple(f"ad_{e}" for e in c.edges)
+            phi = c.regressors(b, kappa, R)
+            res = lstsq(phi, c.mdot, names_c)
+            ls_theta.update(zip(names_c, (float(v) for v in res.theta), strict=True))
+            if use_iv:
+                z = c.instruments(b, kappa, R, delay)
+                theta = np.linalg.solve(z.T @ phi, z.T @ c.mdot)
+                rss_iv = float(np.sum((c.mdot - phi @ theta) ** 2))
+                res = dataclasses.replace(res, theta=theta, rss=rss_iv)
+            out.append(res)
+        return out
 
     fits = fit(p_krit)
+    ls_values = dict(ls_theta)
     values: list[float] = []
     names: list[str] = []
     groups = []
@@ -325,7 +419,8 @@ def identify_flow(
         ad = np.asarray(res.theta, dtype=float)
         phi = c.regressors(p_krit, kappa, R)
         resid = c.mdot - phi @ ad
-        groups.append([(phi, resid, c.rows)])
+        groups.append([(phi, resid, c.rows, c.instruments(p_krit, kappa, R, delay))
+                       if use_iv else (phi, resid, c.rows)])
         values += ad.tolist()
         names += [f"ad_{e}" for e in c.edges]
         rss += res.rss
@@ -365,14 +460,17 @@ def identify_flow(
         n_samples=rows, method="ls", units=("m",) * len(values),
         options={"kappa": kappa, "R": R, "p_krit": p_krit, "mdot_limit": mdot_limit,
                  "mdot_sensor_bandwidth": known.mdot_sensor_bandwidth,
-                 "p_krit_std": p_krit_std, "hac_lags": lags,
-                 "covariance": "per-chamber LS (Newey–West, coloured residuals); the std of "
-                               "κ, R and p_krit propagated (delta method)"},
+                 "p_krit_std": p_krit_std, "hac_lags": lags, "estimator": estimator,
+                 "ls_values": ls_values,
+                 "iv_delay_samples": delay,
+                 "covariance": f"per-chamber {'IV' if use_iv else 'LS'} (Newey–West, coloured "
+                               "residuals); the std of κ, R and p_krit propagated (delta "
+                               "method)"},
     )
     return StepResult(
         step="S3", title="flow coefficients a_i d_i of the valve edges", equation=_EQ_S3,
-        record=name, estimate=est, mask=mask, method="ls", notes=tuple(notes),
-        extra={"edges": per_edge},
+        record=name, estimate=est, mask=mask, method="iv" if use_iv else "ls",
+        notes=tuple(notes), extra={"edges": per_edge},
     )
 
 
@@ -381,7 +479,7 @@ def identify_flow(
 
 def _chamber_data(
     record: Experiment, known: KnownConstants, mdot_limit: float, x_v_min: float,
-    min_samples: int, step: str,
+    min_samples: int, step: str, delay: int = 0,
 ) -> tuple[list[_ChamberData], list[str], NDArray[np.bool_]]:
     x_v_min = as_float("x_v_min", x_v_min, nonneg=True)
     min_samples = as_int("min_samples", min_samples, minimum=1)
@@ -408,7 +506,9 @@ def _chamber_data(
     missing: dict[int, str] = {}
     mask = np.zeros(record.n_samples, dtype=bool)
     big = np.abs(x_v) > x_v_min
-    big[:start] = False  # the sensor-lag filter's start-up
+    big[:max(start, delay)] = False  # the sensor-lag filter's start-up; the instruments
+    if delay:
+        big[-delay:] = False
     chambers: list[_ChamberData] = []
     for chamber in ("I", "II"):
         # a saturated reading is clipped after the sensor's lag: every other sample is a
@@ -458,3 +558,66 @@ def _chamber_data(
         warn(msg, ServoidWarning)
         notes.append(msg)
     return chambers, notes, mask
+
+
+def _delay_samples(iv_delay: float, dt: float) -> int:
+    delay = check_positive("iv_delay", iv_delay, "s")
+    return max(1, round(delay / dt))
+
+
+def _separable_iv(
+    chambers: list[_ChamberData], b: float, coef: NDArray[np.float64],
+    bounds: tuple[float, float], h: float, delay: int, kappa: float, R: float,
+) -> tuple[float, NDArray[np.float64], NDArray[np.float64], dict[str, Any]] | None:
+    """Instrumental-variable solution of the flow equations in θ = (b, c).
+
+    Gauss–Newton on the moment equations ``Σ z_t r_t(θ) = 0`` from the
+    separable LS estimate, with z_t the model's Jacobian row averaged over
+    the samples ``delay`` before and after t.  Returns None when it does
+    not converge or leaves `bounds`.
+    """
+    ncol = sum(len(c.edges) for c in chambers)
+    col0 = np.cumsum([0] + [len(c.edges) for c in chambers])
+
+    def system(b: float, coef: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+        jac, inst, resid, index = [], [], [], []
+        for j, c in enumerate(chambers):
+            cols = c.columns(b, kappa, R)
+            cj = coef[col0[j]:col0[j + 1]]
+            dcol = (c.columns(b + h, kappa, R) - c.columns(b - h, kappa, R)) @ cj / (2.0 * h)
+            full = np.zeros((cols.shape[0], 1 + ncol))
+            full[:, 0] = dcol
+            full[:, 1 + col0[j]:1 + col0[j + 1]] = cols
+            jac.append(full[c.rows])
+            inst.append(0.5 * (full[c.rows - delay] + full[c.rows + delay]))
+            resid.append(c.mdot - cols[c.rows] @ cj)
+            index.append(c.rows)
+        return tuple(jac), tuple(inst), tuple(resid), tuple(index)
+
+    theta = np.r_[b, coef]
+    iterations = 0
+    # the instruments are held for a pass (Gauss–Newton is then exact for the moment
+    # equations) and rebuilt at the pass's solution for the next
+    for _pass in range(2):
+        inst = system(float(theta[0]), theta[1:])[1]
+        for _ in range(30):
+            iterations += 1
+            jac, _, resid, _ = system(float(theta[0]), theta[1:])
+            a = sum(z.T @ j for z, j in zip(inst, jac, strict=True))
+            g = sum(z.T @ r for z, r in zip(inst, resid, strict=True))
+            try:
+                delta = np.linalg.solve(a, g)
+            except np.linalg.LinAlgError:
+                return None
+            theta = theta + delta
+            if not bounds[0] <= theta[0] <= bounds[1] or not np.all(np.isfinite(theta)):
+                return None
+            if abs(delta[0]) < 1e-6 and np.all(np.abs(delta[1:]) <= 1e-7 * np.abs(theta[1:])):
+                break
+        else:
+            return None
+    jac, _, resid, index = system(float(theta[0]), theta[1:])
+    n = sum(r.size for r in resid)
+    cov = hac_covariance(list(zip(jac, resid, index, inst, strict=True)), newey_west_lags(n))
+    return float(theta[0]), theta[1:], cov, {"estimator": "iv", "iv_iterations": iterations,
+                                               "iv_delay_samples": delay}

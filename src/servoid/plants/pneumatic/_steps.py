@@ -250,7 +250,7 @@ class StepResult:
     mask : ndarray of bool, shape (N,)
         Samples of the record that entered the regression.
     method : str
-        Estimator used ("svf+ls", "separable_ls", "rls+ls", "ls", ...).
+        Estimator used ("svf+ls", "svf+iv", "separable_ls", "rls+ls", "ls", "iv", ...).
     notes : tuple of str
         Warnings and remarks worth a reader's attention.
     extra : mapping
@@ -523,7 +523,7 @@ def newey_west_lags(n: int) -> int:
 
 
 def hac_covariance(
-    groups: Sequence[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.intp]]],
+    groups: Sequence[tuple[NDArray[np.float64], ...]],
     lags: int,
 ) -> NDArray[np.float64]:
     """LS covariance robust to coloured residuals (Newey–West, Bartlett kernel).
@@ -536,10 +536,12 @@ def hac_covariance(
 
     Parameters
     ----------
-    groups : sequence of (phi, resid, index)
+    groups : sequence of (phi, resid, index) or (phi, resid, index, z)
         Regression rows of one record each (e.g. a chamber), with the
         sample index of each row: lags are taken in time, so rows across a
-        gap in the mask are not paired.
+        gap in the mask are not paired.  With instruments ``z`` (same shape
+        as ``phi``) the covariance is that of the IV estimate
+        ``(ZᵀΦ)⁻¹ZᵀY``: ``H = ΣZᵀΦ``, ``g_t = z_t e_t``, ``H⁻¹ S H⁻ᵀ``.
     lags : int
         Bandwidth L [samples].
 
@@ -552,19 +554,20 @@ def hac_covariance(
     h = np.zeros((p, p))
     s = np.zeros((p, p))
     n = 0
-    for phi, resid, index in groups:
-        h += phi.T @ phi
+    for phi, resid, index, *inst in groups:
+        z = inst[0] if inst else phi
+        h += z.T @ phi
         n += resid.size
         if index.size == 0:
             continue
         g = np.zeros((int(index[-1]) - int(index[0]) + 1, p))
-        g[index - index[0]] = phi * resid[:, None]
+        g[index - index[0]] = z * resid[:, None]
         s += g.T @ g
         for lag in range(1, min(lags, g.shape[0] - 1) + 1):
             gam = g[lag:].T @ g[:-lag]
             s += (1.0 - lag / (lags + 1.0)) * (gam + gam.T)
     h_inv = np.linalg.inv(h)
-    cov = h_inv @ s @ h_inv * (n / max(n - p, 1))
+    cov = h_inv @ s @ h_inv.T * (n / max(n - p, 1))
     return np.asarray(0.5 * (cov + cov.T))
 
 
