@@ -67,6 +67,13 @@ from ._steps import (
 
 __all__ = ["RECORDS", "MultistepResult", "identify_multistep"]
 
+#: Where every ± comes from, as the console and the report say it.
+STD_SOURCES = ("1σ statistical: instrumental variables in S0 p_krit, S1, S3, S4 (they carry the "
+               "regressors' noise), least squares in S2, S5 (Newey–West covariance in S0 p_krit "
+               "and S2–S5, where the rig's coloured noise matters), plus the propagated std of "
+               "inserted estimates (delta method); v_krit by a moving-block bootstrap of its "
+               "threshold search")
+
 #: Records the pipeline needs, by test name.
 RECORDS: tuple[str, ...] = ("valve", "thermo", "flow", "friction", "validation")
 
@@ -181,10 +188,7 @@ class MultistepResult:
         if self.refined_validation is not None:
             fits = ", ".join(f"{k} {v:.1f} %" for k, v in self.refined_validation.fit.items())
             lines.append(f"  after refinement: {fits}")
-        lines.append("  ± are 1σ statistical: instrumental variables in S0 p_krit, S1, S3, S4 "
-                     "(they carry the regressors' noise), LS in S2, S5 (Newey–West in S0 "
-                     "p_krit, S2–S5) plus the propagated std of inserted estimates (delta "
-                     "method); v_krit by block bootstrap")
+        lines.append(f"  ± are {STD_SOURCES}")
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
 

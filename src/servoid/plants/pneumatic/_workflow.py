@@ -71,7 +71,7 @@ from ...workflows.kit import (
     summary_of,
     text,
 )
-from ._pipeline import MultistepResult, identify_multistep
+from ._pipeline import STD_SOURCES, MultistepResult, identify_multistep
 from ._refine import REFINABLE, RecordComparison
 from ._sim import PositionController
 from ._steps import KnownConstants
@@ -413,10 +413,7 @@ def _page(ident: PneumaticIdentification, files: Mapping[str, Path]) -> Page:
             ("Multi-step scheme of Hahn & Piepenbrink (IFAC SYSID 1994, Fig. 17): each equation "
             "group is identified from the test that excites it, earlier estimates inserted into "
             f"later equations. Derivatives of the piston motion: {res.derivatives!r}."),
-            ("Every std is statistical (1σ): least squares (Newey–West covariance in S0 p_krit "
-             "and S2–S5, where the rig's coloured noise matters), plus the uncertainty of earlier estimates inserted into "
-             "a step (delta method); ẋ_krit's by a moving-block bootstrap of its threshold "
-             "search. A value given in the campaign file has none."),
+            f"Every std is {STD_SOURCES}. A value given in the campaign file has none.",
         ),
         tables=(Table(cols, tuple(rows), "Assembled parameter set (known constants in the "
                       "results.json)"),),
