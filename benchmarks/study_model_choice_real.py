@@ -81,8 +81,9 @@ def records(wh: str | None, wh_n: int) -> dict[str, tuple[Experiment, Experiment
     return out
 
 
-def run_one(folder: Path, name: str, est: Experiment, val: Experiment) -> dict[str, Any]:
-    """``auto`` on one record: the chosen candidate, the best by validation, every row."""
+def identify_record(folder: Path, name: str, est: Experiment, val: Experiment,
+                    table: dict[str, Any]) -> tuple[Any, float]:
+    """``identify`` with the ``[identify]`` `table` on one record: (result, seconds)."""
     write_csv(est, folder / f"{name}-est.csv", overwrite=True)
     write_csv(val, folder / f"{name}-val.csv", overwrite=True)
     path = folder / f"{name}.toml"
@@ -90,13 +91,31 @@ def run_one(folder: Path, name: str, est: Experiment, val: Experiment) -> dict[s
                            "channels": {"u": {"source": "u", "role": "u"},
                                         "y": {"source": "y", "role": "y"}},
                            "validation": {"file": f"{name}-val.csv"},
-                           "identify": {"method": "auto", "workers": 2}}, path,
-                          overwrite=True)
+                           "identify": table}, path, overwrite=True)
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = identify(path, write=False)
-    seconds = time.perf_counter() - start
+    return result, time.perf_counter() - start
+
+
+def run_records(found: dict[str, tuple[Experiment, Experiment]], only: str | None,
+                run_one: Any, table: Any) -> list[dict[str, Any]]:
+    """`run_one` on each record (or those named in `only`), printing each row as it ends."""
+    results = []
+    with TemporaryDirectory() as tmp:
+        for name, (est, val) in found.items():
+            if only and name not in only.split(","):
+                continue
+            results.append(run_one(Path(tmp), name, est, val))
+            print(table(results[-1:]).splitlines()[-1], flush=True)
+    print(table(results))
+    return results
+
+
+def run_one(folder: Path, name: str, est: Experiment, val: Experiment) -> dict[str, Any]:
+    """``auto`` on one record: the chosen candidate, the best by validation, every row."""
+    result, seconds = identify_record(folder, name, est, val, {"method": "auto", "workers": 2})
     rows = []
     for e in result.entries:
         v = e.validation
@@ -138,14 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--wh-n", type=int, default=10_000, help="WH estimation samples")
     parser.add_argument("--only", default=None, help="comma-separated record names")
     args = parser.parse_args(argv)
-    results = []
-    with TemporaryDirectory() as tmp:
-        for name, (est, val) in records(args.wh, args.wh_n).items():
-            if args.only and name not in args.only.split(","):
-                continue
-            results.append(run_one(Path(tmp), name, est, val))
-            print(table(results[-1:]).splitlines()[-1], flush=True)
-    print(table(results))
+    results = run_records(records(args.wh, args.wh_n), args.only, run_one, table)
     if args.write:
         RECORDED.write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "results": results},
                                        indent=1) + "\n")

@@ -26,18 +26,15 @@ import json
 import os
 import sys
 import time
-import warnings
 from pathlib import Path
-from tempfile import TemporaryDirectory
 from typing import Any
 
 if __name__ == "__main__":  # before numpy is imported
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from study_model_choice_real import records
+from study_model_choice_real import identify_record, records, run_records
 
-from servoid.data import Experiment, write_csv, write_experiment_spec
-from servoid.workflows import identify
+from servoid.data import Experiment
 
 HERE = Path(__file__).resolve().parent
 LINEAR = HERE / "results-model-choice-real.json"
@@ -56,21 +53,8 @@ def best_linear(name: str) -> tuple[str, float]:
 
 def run_one(folder: Path, name: str, est: Experiment, val: Experiment) -> dict[str, Any]:
     """PNLSS on one record, with the grid's choice and the validation fit."""
-    write_csv(est, folder / f"{name}-est.csv", overwrite=True)
-    write_csv(val, folder / f"{name}-val.csv", overwrite=True)
-    path = folder / f"{name}.toml"
-    write_experiment_spec({"data": {"file": f"{name}-est.csv"},
-                           "channels": {"u": {"source": "u", "role": "u"},
-                                        "y": {"source": "y", "role": "y"}},
-                           "validation": {"file": f"{name}-val.csv"},
-                           "identify": {"method": "pnlss", "n_states": [1, 2, 3, 4],
-                                        "degree": [2, 3], "monomials": "state"}}, path,
-                          overwrite=True)
-    start = time.perf_counter()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = identify(path, write=False)
-    seconds = time.perf_counter() - start
+    result, seconds = identify_record(folder, name, est, val, {
+        "method": "pnlss", "n_states": [1, 2, 3, 4], "degree": [2, 3], "monomials": "state"})
     o = result.estimate.options
     label, linear = best_linear(name)
     v = result.validation
@@ -97,14 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--write", action="store_true", help=f"record in {RECORDED.name}")
     parser.add_argument("--only", default=None, help="comma-separated record names")
     args = parser.parse_args(argv)
-    results = []
-    with TemporaryDirectory() as tmp:
-        for name, (est, val) in records(None, 0).items():
-            if args.only and name not in args.only.split(","):
-                continue
-            results.append(run_one(Path(tmp), name, est, val))
-            print(table(results[-1:]).splitlines()[-1], flush=True)
-    print(table(results))
+    results = run_records(records(None, 0), args.only, run_one, table)
     if args.write:
         RECORDED.write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "results": results},
                                        indent=1) + "\n")
