@@ -568,6 +568,14 @@ def _q_polynomials(
                 f"digital loop: discretise it at the data dt = {dt} s with c2d({name}, {dt}, "
                 "method) using the method it was implemented with (zoh or tustin)"
             )
+        if value.dt < dt * (1 - 1e-9):
+            raise ModelError(
+                f"the {name} ran every {value.dt:g} s, faster than the record's {dt:g} s: the "
+                "loop acted between the recorded samples, so no loop at the record's rate holds "
+                "the data and the indirect approach cannot be consistent on them. Record at the "
+                f"{name}'s rate, or identify without the {name}: method = \"cliv\" or "
+                "\"two-stage\" need only the reference (\"closedloop-auto\" picks)"
+            )
         if not math.isclose(value.dt, dt, rel_tol=1e-9):
             raise ModelError(
                 f"the {name} is discrete with dt = {value.dt} s but the data have dt = {dt} s; "
