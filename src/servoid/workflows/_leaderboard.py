@@ -210,12 +210,16 @@ class ChoiceResult(Displayed):
         return dict(self.chosen.models())
 
     def verdict(self) -> Verdict:
-        """The chosen candidate's verdict, with the choice and the leaderboard."""
+        """The chosen candidate's verdict, with the choice as a check.
+
+        The leaderboard itself is the page's "Model choice" section, not a
+        second copy in the verdict box.
+        """
         v = self.chosen.verdict()
         check = Check("model choice", self.label, "info",
                       f"chosen among {len(self.entries)} candidates on held-out data: "
                       f"{self.reason}")
-        return Verdict(v.tested, (*v.checks, check), v.conditions, (*v.tables, self.table()))
+        return Verdict(v.tested, (*v.checks, check), v.conditions, v.tables)
 
     def inputs(self) -> tuple[Path, ...]:
         """Every file the run read."""
@@ -244,7 +248,8 @@ class ChoiceResult(Displayed):
             figures.append(Figure.from_file(files["candidates-bode.png"],
                                             "Bode diagrams of the linear candidates (±2σ)"))
         section = Section("Model choice", paragraphs=tuple(p for p in (
-            f"{len(self.entries)} candidates {self.scheme.text}.", self.gate,
+            f"{len(self.entries)} candidates {self.scheme.text}.",
+            self.gate and f"{self.gate[0].upper()}{self.gate[1:]}.",
             f"Chosen: {self.label} — {self.reason}.") if p),
             tables=(self.table(),), figures=tuple(figures))
         return dataclasses.replace(page, sections=(section, *page.sections),
