@@ -164,7 +164,7 @@ _SHARED = {
     "parse_ref": "_ode_user",
     "Hold": "_svf",
     "check_not_constant": "_channels",
-    "frf_channel": "_frf:_channel", "check_varies": "_frf:_check_varies",
+    "frf_channels": "_frf:_io_channels",
     "output_name": "_channels",
 }
 

@@ -171,15 +171,8 @@ def estimate_frf(
     if not isinstance(data, Experiment):
         raise OptionTypeError(f"data must be an Experiment, got {type(data).__name__}")
     check_option("method", method, _METHODS)
-    u_ch = _channel(data, input, "input", "input")
-    y_ch = _channel(data, "y" if output is None else output, "output", "output")
-    r_ch = None if reference is None else _channel(data, reference, "reference", "reference")
-    if u_ch.name == y_ch.name:
-        raise DataError(f"input and output are the same channel {u_ch.name!r}")
-    _check_varies(u_ch, "input")
+    u_ch, y_ch, r_ch = _io_channels(data, input, output, reference)
     check_magnitude(f"output channel {y_ch.name!r}", [y_ch.values])
-    if r_ch is not None:
-        _check_varies(r_ch, "reference")
     dt = data.dt
     nyquist = 0.5 / dt
     f_hi = nyquist if f_max is None else as_float("f_max", f_max, positive=True, unit="Hz")
@@ -568,6 +561,24 @@ def _level_db(power: NDArray[np.float64], noise: NDArray[np.float64]) -> float |
 
 
 # -- checks --------------------------------------------------------------------------------------
+def _io_channels(data: Experiment, input: object, output: object, reference: object
+                 ) -> tuple[Channel, Channel, Channel | None]:
+    """The input, output and (optional) reference channels of a frequency response, checked.
+
+    Each is a channel name or a role naming one channel; the output defaults to
+    role "y". The input and output must differ, and the input and reference vary.
+    """
+    u_ch = _channel(data, input, "input", "input")
+    y_ch = _channel(data, "y" if output is None else output, "output", "output")
+    r_ch = None if reference is None else _channel(data, reference, "reference", "reference")
+    if u_ch.name == y_ch.name:
+        raise DataError(f"input and output are the same channel {u_ch.name!r}")
+    _check_varies(u_ch, "input")
+    if r_ch is not None:
+        _check_varies(r_ch, "reference")
+    return u_ch, y_ch, r_ch
+
+
 def _channel(exp: Experiment, key: object, what: str, param: str) -> Channel:
     if not isinstance(key, str):
         raise OptionTypeError(f"{param} must be a channel name or role, got {key!r}")

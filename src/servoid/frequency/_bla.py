@@ -52,8 +52,7 @@ from .._errors import DataError, OptionTypeError, ServoidWarning
 from .._lazy import stats
 from .._warn import warn
 from ..data import Experiment
-from ..estimate import check_varies as _check_varies
-from ..estimate import frf_channel as _channel
+from ..estimate import frf_channels as _io_channels
 from ..signals import MultisinePlan
 from ._measured import DistortionLevels, FrfMeasurement
 
@@ -137,14 +136,7 @@ def estimate_bla(
     if not isinstance(plan, MultisinePlan):
         raise OptionTypeError(f"plan must be a MultisinePlan, got {type(plan).__name__}")
     first = as_int("start", start, minimum=0)
-    u_ch = _channel(data, input, "input", "input")
-    y_ch = _channel(data, "y" if output is None else output, "output", "output")
-    r_ch = None if reference is None else _channel(data, reference, "reference", "reference")
-    if u_ch.name == y_ch.name:
-        raise DataError(f"input and output are the same channel {u_ch.name!r}")
-    _check_varies(u_ch, "input")
-    if r_ch is not None:
-        _check_varies(r_ch, "reference")
+    u_ch, y_ch, r_ch = _io_channels(data, input, output, reference)
     period = _record_period(plan, data.dt)
     p, p_tr = plan.periods, plan.transient_periods
     span = (p_tr + p) * period

@@ -60,8 +60,7 @@ from numpy.typing import NDArray
 from .._checks import as_float, as_int
 from .._errors import DataError, OptionTypeError
 from ..data import Experiment
-from ..estimate import check_varies as _check_varies
-from ..estimate import frf_channel as _channel
+from ..estimate import frf_channels as _io_channels
 from ._measured import FrfMeasurement
 
 __all__ = ["estimate_lpm", "estimate_lrm"]
@@ -176,14 +175,7 @@ def _estimate(data: Experiment, input: str, output: str | None, reference: str |
     if not isinstance(data, Experiment):
         raise OptionTypeError(f"data must be an Experiment, got {type(data).__name__}")
     r_deg = as_int("degree", degree, minimum=0, maximum=10)
-    u_ch = _channel(data, input, "input", "input")
-    y_ch = _channel(data, "y" if output is None else output, "output", "output")
-    r_ch = None if reference is None else _channel(data, reference, "reference", "reference")
-    if u_ch.name == y_ch.name:
-        raise DataError(f"input and output are the same channel {u_ch.name!r}")
-    _check_varies(u_ch, "input")
-    if r_ch is not None:
-        _check_varies(r_ch, "reference")
+    u_ch, y_ch, r_ch = _io_channels(data, input, output, reference)
     n_poly = r_deg + 1
     n_coef = n_poly + den
     q_default = 2 * n_poly + 1
