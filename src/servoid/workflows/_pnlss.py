@@ -126,7 +126,8 @@ class PnlssResult(IdentificationResult):
             figures.append(Figure.from_file(files["linear_bode.png"],
                                             "The PNLSS model's linear part (E = F = 0) against "
                                             "the linear model it started from"))
-        return Section("Model", paragraphs=(text, str(est.model)),
+        # one paragraph per line of the model's equations (a paragraph joins lines)
+        return Section("Model", paragraphs=(text, *str(est.model).splitlines()),
                        tables=(parameter_table(est, "A … F on the normalised signals; std from "
                                                     "σ̂²(JᵀJ)⁺"),),
                        figures=tuple(figures))
