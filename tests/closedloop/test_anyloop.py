@@ -30,7 +30,7 @@ from servoid.closedloop import (
     fit_direct_bj,
     fit_two_stage,
 )
-from servoid.estimate import fit_bj
+from servoid.estimate import fit_bj, fit_iv
 
 #: loop label → (rig, PRBS clock or None for the rig's own)
 LOOPS = {"motor, fast PRBS": ("motor", 2), "unstable": ("unstable", None),
@@ -139,12 +139,36 @@ def test_slow_prbs_through_a_fast_loop_is_not_claimed(method):
 
 
 def test_a_cliv_refusal_names_the_instruments_that_fail():
-    # motor loop, a 2 s PRBS bit on 6 s of data: three level changes cannot tell the output's
-    # lags apart (canonical correlation 0.049 with the lags of r)
-    rec = RIGS["motor"].closed(0, 6000, clock=2000)
-    with pytest.raises(IdentifiabilityError, match=r"The instruments that fail are those for "
-                                                   r"y\(t−1\), y\(t−2\) and y\(t−3\)"):
+    # motor loop, a 1 s PRBS bit on 6 s of data: a few level changes cannot tell the output's
+    # lags apart with any of the five filters of r (canonical correlation 0.052 with its lags)
+    rec = RIGS["motor"].closed(0, 6000, clock=1000)
+    with pytest.raises(IdentifiabilityError, match=r"with each of the 5 filters of the reference "
+                                                   r"it tries .*The instruments that fail are "
+                                                   r"those for y\(t−1\), y\(t−2\) and y\(t−3\)"):
         fit_cliv(rec.experiment(), 3, 3, 1)
+
+
+def test_cliv_chooses_a_filter_of_r_where_the_default_instruments_fail():
+    # motor loop under a 0.5 s PRBS bit: the default auxiliary ARX(12, 13) model r → u (and the
+    # plain lags of r) make instruments nearly collinear (condition number 1.1e10), so fit_iv
+    # refuses; an ARX(4, 5) filter of the same reference carries the plant
+    rig = RIGS["motor"]
+    exp = rig.closed(5, 10_000, clock=500).experiment()
+    with pytest.raises(IdentifiabilityError, match="uncorrelated"):
+        fit_iv(exp, 3, 3, 1, instrument="r", iterations=1)
+    est = fit_cliv(exp, 3, 3, 1)
+    assert est.options["instruments"] == "r through an ARX(4, 5) model of r → u"
+    assert "the default auxiliary ARX model r → u: refused" in est.options["instrument_choice"]
+    assert est.options["consistent"] is True
+    z = (est.parameters - rig.theta_arx()) / est.std
+    assert np.all(np.abs(z) < 4.0), z  # 4σ: consistent, and its covariance is the IV's own
+
+
+def test_cliv_says_which_instruments_it_chose_on_a_good_record():
+    est = fit_cliv(RIGS["delay"].closed(0, 6000).experiment(), 2, 2, 4)
+    assert est.options["instrument_choice"].startswith(
+        f"instruments: {est.options['instruments']}, chosen as the strongest of the 5 filters")
+    assert est.options["consistent"] is True
 
 
 @pytest.mark.parametrize("rig", ["motor", "delay"])

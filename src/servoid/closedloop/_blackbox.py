@@ -34,6 +34,7 @@ from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Covariance, Estimate, fit_bj, fit_iv, fit_oe
 from ._channels import aic_order, check_excites, ls_fit, output_name, reference_name, single_name
+from ._instruments import AUXILIARY, choose_instruments, describe
 from ._linearity import interval_check, is_noise_free
 from ._stagecov import Stage1, two_stage_covariance
 
@@ -284,6 +285,14 @@ def fit_cliv(
     the estimate is consistent with an unknown controller and any noise
     colour.  The model is the plant; it carries no noise model.
 
+    The filter of r behind the instruments is chosen on the data: the
+    default auxiliary ARX model r → u, the plain lags of r and auxiliary
+    models of orders 2, 4 and 30 are tried, and the strongest instruments
+    (largest smallest canonical correlation with the regressors) are kept
+    (:mod:`servoid.closedloop._instruments`).  When two of them give
+    estimates more than 4σ apart the record does not carry the parameters
+    and the estimate does not claim consistency.
+
     Parameters
     ----------
     data : Experiment or ExperimentSet
@@ -308,7 +317,11 @@ def fit_cliv(
     Estimate
         Method ``"cliv"``; parameters ``a1…, b0…`` as in
         :func:`~servoid.estimate.fit_arx`; ``options["covariance"]`` says
-        which covariance was used.
+        which covariance was used, ``options["instruments"]`` which filter
+        of r made the instruments and ``options["instrument_choice"]`` why;
+        ``options["consistent"]`` is False, with the reason in
+        ``options["broken_assumptions"]`` and a warning, when the
+        instrument sets disagree.
 
     Raises
     ------
@@ -316,7 +329,7 @@ def fit_cliv(
         No reference or input channel, or too few samples.
     IdentifiabilityError
         A constant reference or input, or instruments from r that cannot
-        tell the regressors apart: the message names the regressors whose
+        tell the regressors apart with any of the filters tried: the message names the regressors whose
         instruments fail (the direction of the smallest canonical
         correlation between the regressors and the lags of r).
     """
@@ -324,18 +337,20 @@ def fit_cliv(
     r_name = reference_name(data, "closed-loop IV")
     check_excites(r_name, [np.asarray(seg[r_name]) for seg in segments], "r")
     u_name = single_name(segments[0], "u", None, "plant input")
+    y_name = output_name(segments[0], output)
     try:
-        est = fit_iv(data, na, nb, nk, instrument="r", output=output, iterations=iterations,
-                     covariance=covariance)
+        chosen, candidates, disagreement = choose_instruments(
+            data, na, nb, nk, r_name=r_name, u_name=u_name, y_name=y_name, output=output,
+            iterations=iterations, covariance=covariance)
     except IdentifiabilityError as exc:
         if "uncorrelated" not in str(exc):
             raise
-        y_name = output_name(segments[0], output)
         weakest, corr = _weakest_regressors(segments, r_name, u_name, y_name, na, nb, nk)
         raise IdentifiabilityError(
             f"closed-loop IV failed: its instruments, the reference {r_name!r} delayed and "
             f"filtered through the model's own simulation, are nearly uncorrelated with the "
-            f"regressors (lags of u and y) for na = {na}, nb = {nb} ({exc}). The instruments "
+            f"regressors (lags of u and y) for na = {na}, nb = {nb} with each of the "
+            f"{len(AUXILIARY)} filters of the reference it tries ({exc}). The instruments "
             f"that fail are those for {_listed(weakest)}: no filter of the reference "
             f"moves that combination of regressors apart from the others (canonical "
             f"correlation {corr:.2g} with the lags of {r_name!r}). The reference moves the "
@@ -343,7 +358,20 @@ def fit_cliv(
             "(a faster PRBS clock, a larger amplitude), lower the orders, or, with the "
             "controller known, use method = \"indirect\""
         ) from exc
-    return dataclasses.replace(est, method="cliv", options={**est.options, "reference": r_name})
+    est = chosen.estimate
+    assert est is not None
+    broken = [] if disagreement is None else [disagreement]
+    if broken:
+        warn(f"the closed-loop IV estimate is not consistent on this record: {broken[0]}",
+             ServoidWarning)
+    return dataclasses.replace(est, method="cliv", options={
+        **est.options,
+        "reference": r_name,
+        "instruments": chosen.label,
+        "instrument_choice": describe(chosen, candidates),
+        "consistent": not broken,
+        "broken_assumptions": broken,
+    })
 
 
 def _listed(names: Sequence[str]) -> str:

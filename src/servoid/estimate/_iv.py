@@ -108,6 +108,7 @@ def fit_iv(
     iterations: int = 2,
     start: int | None = None,
     covariance: Covariance = "auto",
+    auxiliary_order: int | None = None,
 ) -> Estimate:
     """Fit an ARX-structure model by instrumental variables.
 
@@ -147,6 +148,11 @@ def fit_iv(
         ``"white"`` trusts the prefilter to whiten the equation error;
         ``"robust"`` (and ``"auto"``) is the sandwich with the residual's
         own autocovariance (module notes).
+    auxiliary_order : int, optional
+        With ``instrument="r"``: the order n of the auxiliary ARX(n, n + 1)
+        model r → u whose simulation from r replaces the input in the
+        instruments; 0 uses the reference itself (its plain lags).  Default
+        ``min(max(2(na + max nb), 6), 30)``.
 
     Returns
     -------
@@ -184,7 +190,10 @@ def fit_iv(
     n_noise = noise_order(orders.na, sum(orders.nb), n_rows) if iterations else 0
     check_record(repr(orders) + f" with its order-{n_noise} noise prefilter", n_par + n_noise,
                  sd, first + n_noise, orders.max_lag + n_noise)
-    ubar, aux = (aux_inputs(sd, first, orders) if instrument == "r" else (sd.u, 0))
+    if auxiliary_order is not None:
+        auxiliary_order = as_int("auxiliary_order", auxiliary_order, minimum=0, maximum=30)
+    ubar, aux = (aux_inputs(sd, first, orders, auxiliary_order) if instrument == "r"
+                 else (sd.u, 0))
     fit = iv_core(sd.y, sd.u, ubar, orders.na, orders.nb, orders.nk, first, iterations,
                   resolve(covariance, noise_model=False))
     names = _parameter_names(orders, sd.inputs)
@@ -373,14 +382,16 @@ def ar_fit(signals: Sequence[NDArray[np.float64]], order: int, start: int) -> ND
     return np.concatenate([[1.0], -coef])
 
 
-def aux_inputs(sd: SignalData, start: int, orders: ArxOrders) -> tuple[tuple[Arrays, ...], int]:
+def aux_inputs(sd: SignalData, start: int, orders: ArxOrders,
+               order: int | None = None) -> tuple[tuple[Arrays, ...], int]:
     """The parts of the inputs driven by the reference, and the auxiliary order.
 
     Each input is fitted by an ARX model from all reference channels (orders
     n, n + 1, delay 0 — a controller may pass r through directly) and
-    simulated from r alone.
+    simulated from r alone; ``order`` sets n (default from the model's orders).
     """
-    n_aux = int(min(max(2 * (orders.na + max(orders.nb)), 6), 30))
+    n_aux = (int(min(max(2 * (orders.na + max(orders.nb)), 6), 30)) if order is None
+             else order)
     n_r = len(sd.references)
     first = max(start, n_aux)
     ubars = [[] for _ in sd.y]  # type: list[list[NDArray[np.float64]]]

@@ -59,7 +59,8 @@ def _run_cliv(spec: ExperimentSpec, options: Mapping[str, Any],
     loop = in_loop(est, estimation, options["[loop]"])
     est = _mark(est, loop)
     return lti_result(spec, "cliv", est, title, validations, options, truth=truth,
-                      notes=loop[1], closed_loop=True, records=estimation,
+                      notes=[est.options["instrument_choice"], *broken(est), *loop[1]],
+                      closed_loop=True, records=estimation,
                       how="closed-loop instrumental variables (the reference as instrument)",
                       loop_model=loop[0])
 
