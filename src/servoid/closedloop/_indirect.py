@@ -60,14 +60,16 @@ from .._errors import (
 from .._warn import warn
 from ..data import Experiment, ExperimentSet, as_segments
 from ..estimate import Estimate, fit_arx, fit_iv, fit_oe
-from ..models import PolynomialModel, TransferFunction
+from ..models import PolynomialModel, TransferFunction, c2d
 from ._channels import check_excites, output_name, reference_name
 from ._coloured import oe_gradient, sandwich
+from ._discretisation import DISCRETISATIONS, discretisation_check
 from ._linearity import interval_check, is_noise_free
 
 __all__ = ["fit_indirect_tf"]
 
 Structure = Literal["oe", "arx"]
+Discretisation = Literal["tustin", "zoh", "foh"]
 
 #: Damping increases (×10 each) tried before the refinement stops.
 _MAX_DAMPING = 15
@@ -89,6 +91,7 @@ def fit_indirect_tf(
     rng: np.random.Generator | int | None = None,
     max_iter: int = 100,
     tol: float = 1e-9,
+    discretisation: Discretisation = "tustin",
 ) -> Estimate:
     """Fit the plant in a known loop by the indirect approach.
 
@@ -104,7 +107,13 @@ def fit_indirect_tf(
     data : Experiment or ExperimentSet
         Record(s) with the reference r and the output y (u is not needed).
     controller : TransferFunction or float
-        The controller C, discrete at the data dt (as it ran), or a gain.
+        The controller C, discrete at the data dt (as it ran), or a gain;
+        or continuous (``dt=None``), when only the design is known: it is
+        then discretised at the data dt by `discretisation`, and the
+        estimate claims consistency only where the other discretisations
+        of the design differ from it by less than the plant's own relative
+        standard deviation at every frequency
+        (:mod:`servoid.closedloop._discretisation`).
     nb : int
         Number of B coefficients of the plant ``G = q^(−nk)·B/F``.
     nf : int
@@ -131,6 +140,8 @@ def fit_indirect_tf(
     multistart, rng, max_iter, tol
         Passed to :func:`~servoid.estimate.fit_oe` (``"oe"`` only);
         `max_iter` and `tol` also bound the refinement.
+    discretisation : {"tustin", "zoh", "foh"}
+        How a continuous controller is discretised at the data dt.
 
     Returns
     -------
@@ -145,12 +156,16 @@ def fit_indirect_tf(
         estimate's covariance changes by more than ×1.4 one standard
         deviation away or, when u is recorded, at the closed-loop IV
         estimate of the same plant (:mod:`servoid.closedloop._linearity`):
-        the record then carries too little information for its intervals.
+        the record then carries too little information for its intervals;
+        or when a continuous controller's discretisations differ by more
+        than the plant's relative standard deviation (the controller is
+        too fast for the sampling to pin it down).
 
     Raises
     ------
     ModelError
-        A continuous controller, one at another dt, or an algebraic loop.
+        A controller at another dt, a continuous feedback, or an
+        algebraic loop.
     DataError
         No reference channel, or too few samples.
     IdentifiabilityError
@@ -173,8 +188,13 @@ def fit_indirect_tf(
     nb = as_int("nb", nb, minimum=1)
     nf = as_int("nf", nf, minimum=0)
     nk = as_int("nk", nk, minimum=0)
+    check_option("discretisation", discretisation, DISCRETISATIONS)
     segments = as_segments(data)
     dt = segments[0].dt
+    design = None
+    if isinstance(controller, TransferFunction) and controller.dt is None:
+        design = controller
+        controller = c2d(controller, dt, discretisation)
     cn, cd = _q_polynomials("controller", controller, dt)
     fn, fd = _q_polynomials("feedback", feedback, dt)
     if not np.any(cn):
@@ -264,6 +284,20 @@ def fit_indirect_tf(
         refined = {"refined": True, "iterations": iterations, "converged": converged,
                    "start": start, "starts": [fit.label for fit in fits]}
 
+    if design is not None:
+        alternatives = _other_discretisations(
+            data, design, discretisation, nb, nf, nk,
+            {"feedback": feedback, "structure": structure, "closed_loop": closed_loop,
+             "refine": refine, "output": output, "multistart": multistart, "rng": rng,
+             "max_iter": max_iter, "tol": tol})
+        verdict = discretisation_check(
+            design, discretisation, dt, theta, cov, nb, alternatives,
+            [f"b{j}" for j in range(nb)] + [f"f{j}" for j in range(1, nf + 1)])[1]
+        if verdict is not None:
+            broken.append(verdict)
+            warn(f"the indirect estimate is not consistent on this record: {verdict}",
+                 ServoidWarning)
+
     def model_at(p: NDArray[np.float64]) -> PolynomialModel:
         p = np.asarray(p, dtype=float)
         return PolynomialModel(
@@ -289,6 +323,7 @@ def fit_indirect_tf(
             "nk": nk,
             "loop": "u = C·(r − F·y)",
             "controller": {"num": [float(x) for x in cn], "den": [float(x) for x in cd]},
+            "discretisation": None if design is None else discretisation,
             "feedback": {"num": [float(x) for x in fn], "den": [float(x) for x in fd]},
             "reference": r_name,
             "output": y_name,
@@ -554,6 +589,26 @@ def _add(p: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.float64]:
     out = np.zeros(max(p.size, q.size))
     out[: p.size] += p
     out[: q.size] += q
+    return out
+
+
+def _other_discretisations(
+    data: Experiment | ExperimentSet, design: TransferFunction, used: str, nb: int, nf: int,
+    nk: int, options: dict[str, Any],
+) -> dict[str, NDArray[np.float64]]:
+    """The plant fitted with each other discretisation of a continuous controller."""
+    dt = as_segments(data)[0].dt
+    out = {}
+    for method in DISCRETISATIONS:
+        if method == used:
+            continue
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ServoidWarning)
+                alt = fit_indirect_tf(data, c2d(design, dt, method), nb, nf, nk, **options)
+        except ServoidError:
+            continue
+        out[method] = np.asarray(alt.parameters, dtype=float)
     return out
 
 

@@ -9,12 +9,12 @@ from typing import Any
 
 import numpy as np
 
-from .._checks import as_float, as_float_list
+from .._checks import as_bool, as_float, as_float_list
 from .._errors import DataError, ServoidError
 from ..closedloop import fit_cliv, fit_indirect_tf, fit_two_stage
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 from ..estimate import Estimate, fit_arx
-from ..models import PolynomialModel, TransferFunction
+from ..models import PolynomialModel, TransferFunction, c2d
 from ._examples import closed_loop
 from ._lti import IdentificationResult, lti_result
 from ._options import HORIZON, boolean, choice, integer, optional, text
@@ -123,6 +123,8 @@ def in_loop(est: Estimate, data: Experiment | ExperimentSet, loop: Mapping[str, 
                       "(role 'r') to validate it in its loop"]
     if loop.get("controller") is not None:
         c, f = known_loop(loop, first.dt)
+        if isinstance(c, TransferFunction) and c.dt is None:
+            c = c2d(c, first.dt, "tustin")
         cn, cd = _q(c)
         fn, fd = _q(f)
         how = "the known controller of [loop]"
@@ -229,21 +231,28 @@ def known_loop(loop: Mapping[str, Any], dt: float
 def _transfer(value: Any, where: str, key: str) -> float | dict[str, Any]:
     """A gain, or ``{num, den[, dt]}`` of a discrete transfer function, checked."""
     if isinstance(value, Mapping):
-        extra = sorted(set(value) - {"num", "den", "dt"})
+        extra = sorted(set(value) - {"num", "den", "dt", "continuous"})
         if extra or "num" not in value or "den" not in value:
             raise DataError(f"{where} {key} must be a gain or {{num = [...], den = [...]}} "
-                            f"(descending powers of z, at the data's dt); got keys "
-                            f"{sorted(value)}")
+                            f"(descending powers of z, at the data's dt; or of s with "
+                            f"continuous = true); got keys {sorted(value)}")
         num = as_float_list(f"{key}.num", value["num"], min_length=1, where=where)
         den = as_float_list(f"{key}.den", value["den"], min_length=1, where=where)
+        continuous = as_bool(f"{key}.continuous", value.get("continuous", False))
+        if continuous and "dt" in value:
+            raise DataError(f"{where} {key} has both dt and continuous = true: a continuous "
+                            "transfer function has no dt; drop one of them")
         at = None if "dt" not in value else as_float(f"{key}.dt", value["dt"], positive=True,
                                                      unit="s", where=where)
-        return {"num": num, "den": den, "dt": at}
+        return {"num": num, "den": den, "dt": at, "continuous": continuous}
     return as_float(key, value, where=where)
 
 
 def _discrete(value: float | Mapping[str, Any], dt: float) -> TransferFunction | float:
+    """The transfer function of ``[loop]``: discrete at dt, or continuous when it says so."""
     if isinstance(value, Mapping):
+        if value.get("continuous"):
+            return TransferFunction(value["num"], value["den"])
         return TransferFunction(value["num"], value["den"],
                                 dt=dt if value["dt"] is None else value["dt"])
     return value
@@ -253,8 +262,11 @@ def _discrete(value: float | Mapping[str, Any], dt: float) -> TransferFunction |
 LOOP = TableSchema("loop", (
     Option("controller", None, optional(_transfer),
            "the controller C(q) from r − F·y to u: a gain or {num = [...], den = [...]} in "
-           "descending powers of z, at the data's dt (or dt = …); required by the indirect "
-           "approach, and the loop an unstable identified plant is validated in"),
+           "descending powers of z, at the data's dt (or dt = …), or in powers of s with "
+           "continuous = true when only the continuous design is known (discretised by "
+           "Tustin; the indirect approach then checks that the guess does not move the "
+           "plant); required by the indirect approach, and the loop an unstable identified "
+           "plant is validated in"),
     Option("feedback", 1.0, _transfer, "the feedback F(q) from y: a gain or {num, den}"),
 ), help="the known loop")
 
