@@ -122,7 +122,10 @@ def test_result_carries_the_plant_and_its_uncertainty():
         # a controller that ran between the recorded samples: no loop at the record's rate
         (TransferFunction([1.2, -1.0], [1.0, -0.5], 0.01), {}, ModelError,
          r"ran every 0.01 s, faster than the record's 0.05 s.*method = \"cliv\""),
-        (TransferFunction([1.0, 2.0], [1.0, 8.0]), {}, ModelError, r"c2d\(controller, 0.05"),
+        # a continuous controller is discretised (test_controller_discretisation.py); a
+        # continuous feedback path is not
+        (LEAD, {"feedback": TransferFunction([1.0], [0.01, 1.0])}, ModelError,
+         r"c2d\(feedback, 0.05"),
         ("PI", {}, OptionTypeError, "controller must be a discrete TransferFunction"),
         (0.0, {}, ModelError, "controller is zero"),
         (LEAD, {"feedback": 0.0}, ModelError, "the loop is open"),
