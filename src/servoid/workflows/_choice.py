@@ -54,12 +54,18 @@ from ._methods import get_method
 from ._options import choice, integer, number, optional
 from ._registry import Method, Option
 
-__all__ = ["AUTO_CLOSED_LOOP", "AUTO_LINEAR", "AUTO_NONLINEAR", "BLOCKS", "Candidate", "Score", "auto_candidates",
-           "choice_method", "declares_loop", "is_choice", "listed_methods", "method_for",
-           "score_candidates", "score_name"]
+__all__ = ["AUTO_CLOSED_LOOP", "AUTO_LINEAR", "AUTO_NONLINEAR", "BLOCKS", "REFIT_TOLERANCE",
+           "Candidate", "Score", "auto_candidates", "choice_method", "declares_loop", "fit_on",
+           "is_choice", "listed_methods", "method_for", "refit_gap", "score_candidates",
+           "score_name"]
 
 #: Blocks each held part is scored on (mean and standard error of their fits).
 BLOCKS = 4
+#: Largest |refit gap| [fit points] of a reproducible fit (:func:`refit_gap`): the
+#: gaps of the chosen candidates on the dryer, flexible-arm, EMPS and WH records lie
+#: within ±2 points, and ±10 leaves room for a search that ends elsewhere on a
+#: larger record without calling it irreproducible.
+REFIT_TOLERANCE = 10.0
 #: The linear families of ``method = "auto"``: (method, options) over order grids.
 AUTO_LINEAR: tuple[tuple[str, dict[str, Any]], ...] = (
     *(("arx", {"na": n, "nb": n, "nk": 1}) for n in (1, 2, 3, 4)),
@@ -111,6 +117,10 @@ class Score:
         ``"ok"``, ``"unstable"``, ``"diverged"`` or ``"failed: …"``.
     nonlinearity : bool or None
         Whether the higher-order tests found a nonlinearity left in its held residuals.
+    fold_fits : tuple of float
+        For each fold, the free-run fit [%] of the model fitted on it to the very
+        samples it was fitted on (NaN: not simulated); the whole-data fit is
+        compared with these (:func:`refit_gap`).
     """
 
     candidate: Candidate
@@ -120,6 +130,7 @@ class Score:
     seconds: float
     status: str = "ok"
     nonlinearity: bool | None = None
+    fold_fits: tuple[float, ...] = ()
 
     @property
     def admissible(self) -> bool:
@@ -337,6 +348,7 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
     start = time.perf_counter()
     prediction = options["purpose"] == "prediction"
     blocks: list[float] = []
+    own: list[float] = []
     n_par = 0
     nonlinear: bool | None = None
     try:
@@ -347,6 +359,7 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
                 warnings.simplefilter("ignore")
                 result = method.run(_HeldSpec(spec, fold), parsed, None)  # type: ignore[arg-type]
             estimate = getattr(result, "estimate", None)
+            own.append(fit_on(estimate, fold.fit, parsed.get("input", "u")))
             n_par = int(np.size(estimate.parameters)) if estimate is not None else n_par
             status = _status(result)
             if status != "ok":
@@ -367,7 +380,49 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
                      "failed: no held block could be scored")
     se = float(values.std(ddof=1) / math.sqrt(values.size)) if values.size > 1 else math.nan
     return Score(candidate, float(values.mean()), se, n_par, time.perf_counter() - start,
-                 "ok", nonlinear)
+                 "ok", nonlinear, tuple(own))
+
+
+def fit_on(estimate: Any, data: Experiment | ExperimentSet, input_role: str = "u") -> float:
+    """Free-run fit [%] of an estimate's model on records, averaged over their segments.
+
+    NaN when there is no estimate or no segment could be simulated (a model
+    that diverges there, a segment too short for it).
+    """
+    from ..validate import validate
+
+    if estimate is None or getattr(estimate, "model", None) is None:
+        return math.nan
+    fits = []
+    for seg in as_segments(data):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                fits.append(float(validate(estimate, seg, input=input_role).fit_percent))
+        except (ServoidError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+            continue
+    fits = [f for f in fits if math.isfinite(f)]
+    return float(np.mean(fits)) if fits else math.nan
+
+
+def refit_gap(score: Score, whole_fits: Sequence[float]) -> float:
+    """Mean gap [fit points] between the whole-data model and the fold models.
+
+    Each fold's fitting samples are simulated by the model fitted on them
+    (``score.fold_fits``) and by the model fitted on all the estimation
+    data (`whole_fits`, fold by fold); the result is the mean of whole −
+    fold.  Near 0 when the fit is reproducible: the model a fold returns
+    is the model the whole data return, so its held-out score judges the
+    returned model.  Far from 0 (beyond :data:`REFIT_TOLERANCE`) the
+    candidate's fit depends on which samples it is given — a short record,
+    a search that stops at other optima — and its held-out score judges
+    another model than the one returned.  NaN: not comparable.
+    """
+    pairs = [(w, f) for w, f in zip(whole_fits, score.fold_fits, strict=False)
+             if math.isfinite(w) and math.isfinite(f)]
+    if not pairs:
+        return math.nan
+    return float(np.mean([w - f for w, f in pairs]))
 
 
 def _status(result: Any) -> str:

@@ -30,12 +30,15 @@ from ..data import ExperimentSpec
 from ..report import Check, Figure, Page, Section, Table, Verdict, new_figure, save_figure
 from ..validate import ValidationReport
 from ._choice import (
+    REFIT_TOLERANCE,
     Scheme,
     Score,
     candidates_of,
+    fit_on,
     folds_of,
     parsed_options,
     pick,
+    refit_gap,
     scheme_of,
     score_candidates,
     score_name,
@@ -59,6 +62,7 @@ class Entry:
     result: Any = None
     error: str = ""
     seconds: float = math.nan
+    refit_gap: float = math.nan
 
     @property
     def label(self) -> str:
@@ -87,6 +91,7 @@ class Entry:
                 "held_out_se": _finite(s.se), "n_parameters": s.n_parameters,
                 "fit_seconds": _finite(s.seconds), "full_fit_seconds": _finite(self.seconds),
                 "held_out_nonlinearity": s.nonlinearity,
+                "refit_gap_points": _finite(self.refit_gap),
                 "validation_fit_percent": None if v is None else _finite(v.fit_percent),
                 "validation_independence_pvalue": None if v is None else
                 _finite(v.residuals.independence_pvalue),
@@ -109,6 +114,12 @@ class ChoiceResult(Displayed):
         The chosen candidate's name.
     reason : str
         Why it was chosen, in words.
+    rankable : bool
+        False when the chosen candidate's fit is not reproducible (its
+        model fitted on the folds differs from the one fitted on all the
+        estimation data by more than ``REFIT_TOLERANCE`` fit points on the
+        folds' own samples): the held-out scores then judge other models
+        than the ones returned, and the reason says so.
     scheme : Scheme
         How the candidates were scored.
     gate : str
@@ -122,6 +133,7 @@ class ChoiceResult(Displayed):
     reason: str
     scheme: Scheme
     gate: str = ""
+    rankable: bool = True
     folder: Path | None = None
     files: tuple[Path, ...] = field(default=())
     digests: dict[str, str] = field(default_factory=dict, repr=False)
@@ -216,7 +228,7 @@ class ChoiceResult(Displayed):
         second copy in the verdict box.
         """
         v = self.chosen.verdict()
-        check = Check("model choice", self.label, "info",
+        check = Check("model choice", self.label, "info" if self.rankable else "caution",
                       f"chosen among {len(self.entries)} candidates on held-out data: "
                       f"{self.reason}")
         return Verdict(v.tested, (*v.checks, check), v.conditions, v.tables)
@@ -317,9 +329,37 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
             except ServoidError as exc:
                 fitted[id(s)] = (None, str(exc), math.nan)
         model, error, seconds = fitted[id(s)]
-        entries.append(Entry(s, model, error=error, seconds=seconds))
-    return ChoiceResult(spec, result, tuple(entries), chosen.candidate.label, reason,
-                        scheme_of(options), gate, digests=getattr(result, "digests", {}))
+        gap = math.nan if model is None else refit_gap(s, [
+            fit_on(getattr(model, "estimate", None), f.fit, _input_of(s, options, spec))
+            for f in folds])
+        entries.append(Entry(s, model, error=error, seconds=seconds, refit_gap=gap))
+    caveat = _reproducibility(entries, chosen)
+    return ChoiceResult(spec, result, tuple(entries), chosen.candidate.label,
+                        reason + caveat, scheme_of(options), gate, rankable=not caveat,
+                        digests=getattr(result, "digests", {}))
+
+
+def _input_of(score: Score, options: Mapping[str, Any], spec: ExperimentSpec) -> str:
+    return str(parsed_options(score.candidate, options, spec).get("input", "u"))
+
+
+def _reproducibility(entries: Sequence[Entry], chosen: Score) -> str:
+    """The reason's caveat when the chosen candidate's fit is not reproducible ('' if it is)."""
+    mine = next(e for e in entries if e.score is chosen)
+    if not abs(mine.refit_gap) > REFIT_TOLERANCE:
+        return ""
+    fold = float(np.nanmean(chosen.fold_fits))
+    others = [e for e in entries if e is not mine and abs(e.refit_gap) > REFIT_TOLERANCE]
+    listed = "; ".join(f"{e.label} {e.refit_gap:+.1f}" for e in others[:4])
+    return (f"; but the held-out data cannot rank these candidates here: the chosen candidate's "
+            f"fit changes with the samples it is given (on the samples its held-out model was "
+            f"fitted to, that model fits {fold:.1f} % and the model fitted to all the estimation "
+            f"data {fold + mine.refit_gap:.1f} %), so its held-out score judges another model "
+            f"than the one returned" +
+            (f" ({len(others)} other candidate{'s' if len(others) > 1 else ''} too; whole-data "
+             f"model minus fold model, in fit points: {listed})" if others else "") +
+            "; a longer estimation record makes the fits reproducible; until then judge the "
+            "candidates on the [validation] records")
 
 
 def _ranked(entries: Sequence[Entry]) -> list[Entry]:
