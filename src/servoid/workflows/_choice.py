@@ -31,7 +31,9 @@ candidate is then fitted on the whole estimation data and validated on the
 leaderboard (their validation fits are shown, never used to choose).
 
 ``workers = N`` scores the candidates in N local processes (forked, so the
-records are read once); the default 1 scores them one after the other.
+records are read once); the default 1 scores them one after the other.  A
+fleet run on a Dask cluster scores each record's candidates as tasks of
+that cluster instead (:func:`candidates_on`; ``workers`` is then unused).
 """
 
 from __future__ import annotations
@@ -40,8 +42,11 @@ import math
 import os
 import time
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -55,8 +60,9 @@ from ._options import choice, integer, number, optional
 from ._registry import Method, Option
 
 __all__ = ["AUTO_CLOSED_LOOP", "AUTO_LINEAR", "AUTO_NONLINEAR", "BLOCKS", "REFIT_TOLERANCE",
-           "Candidate", "Score", "auto_candidates", "choice_method", "declares_loop", "fit_on",
-           "is_choice", "listed_methods", "method_for", "refit_gap", "score_candidates",
+           "Candidate", "Score", "auto_candidates", "candidates_on", "choice_method",
+           "declares_loop", "fit_on",
+           "is_choice", "listed_methods", "map_candidates", "method_for", "refit_gap", "score_candidates",
            "score_name"]
 
 #: Blocks each held part is scored on (mean and standard error of their fits).
@@ -455,6 +461,29 @@ def _block_fits(report: Any, prediction: bool) -> list[float]:
 
 
 _JOB: dict[str, Any] = {}
+#: Where the candidates are scored when a front end says so (a fleet's Dask cluster).
+_MAPPER: ContextVar[Callable[[Callable[[Any], Any], Sequence[Any]], list[Any]] | None] = \
+    ContextVar("servoid_candidates_on", default=None)
+
+
+@contextmanager
+def candidates_on(mapper: Callable[[Callable[[Any], Any], Sequence[Any]], list[Any]]
+                  ) -> Iterator[None]:
+    """Score the candidates of every choice run inside on `mapper`.
+
+    Parameters
+    ----------
+    mapper : callable
+        ``mapper(function, items)`` returns ``[function(item) for item in
+        items]``, computed where it likes (the fleet: one Dask task per
+        item, on the cluster the fleet runs on).  `function` and the items
+        pickle with cloudpickle.
+    """
+    token = _MAPPER.set(mapper)
+    try:
+        yield
+    finally:
+        _MAPPER.reset(token)
 
 
 def _score_job(index: int) -> Score:
@@ -464,7 +493,13 @@ def _score_job(index: int) -> Score:
 
 def score_candidates(spec: ExperimentSpec, candidates: Sequence[Candidate],
                      options: Mapping[str, Any], folds: Sequence[Fold]) -> list[Score]:
-    """Score every candidate, in ``options["workers"]`` local processes."""
+    """Score every candidate, in ``options["workers"]`` local processes (or on the mapper).
+
+    Under :func:`candidates_on` each candidate is one call of the mapper's
+    function; ``workers`` is then unused.
+    """
+    if _MAPPER.get() is not None:
+        return map_candidates(partial(_score_on, spec, options, tuple(folds)), candidates)
     workers = min(int(options["workers"]), len(candidates), os.cpu_count() or 1)
     if workers <= 1:
         return [score_one(spec, c, options, folds) for c in candidates]
@@ -484,6 +519,19 @@ def score_candidates(spec: ExperimentSpec, candidates: Sequence[Candidate],
         return [score_one(spec, c, options, folds) for c in candidates]
     finally:
         _JOB.clear()
+
+
+def map_candidates(function: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
+    """``[function(x) for x in items]``, on the mapper of :func:`candidates_on` when one is set."""
+    mapper = _MAPPER.get()
+    if mapper is None or len(items) < 2:
+        return [function(x) for x in items]
+    return list(mapper(function, list(items)))
+
+
+def _score_on(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Fold],
+              candidate: Candidate) -> Score:
+    return score_one(spec, candidate, options, folds)
 
 
 def pick(scores: Sequence[Score], rule: str,

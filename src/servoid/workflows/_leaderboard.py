@@ -31,11 +31,13 @@ from ..report import Check, Figure, Page, Section, Table, Verdict, new_figure, s
 from ..validate import ValidationReport
 from ._choice import (
     REFIT_TOLERANCE,
+    Candidate,
     Scheme,
     Score,
     candidates_of,
     fit_on,
     folds_of,
+    map_candidates,
     parsed_options,
     pick,
     refit_gap,
@@ -313,21 +315,16 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
     if passed:
         reason += (f" ({', '.join(passed)} scored better but failed on the whole estimation "
                    "data: passed over)")
+    # the others for the leaderboard (on the fleet's cluster when it runs there)
+    rest = [s for s in scores if s.admissible and id(s) not in fitted]
+    for s, outcome in zip(rest, map_candidates(partial(_whole_fit, spec, options),
+                                               [s.candidate for s in rest]), strict=True):
+        fitted[id(s)] = outcome
     entries = []
     for s in scores:
         if not s.admissible:
             entries.append(Entry(s))
             continue
-        if id(s) not in fitted:
-            start = time.perf_counter()
-            try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")  # only the chosen model's notes are warned
-                    other = get_method(s.candidate.method).run(
-                        spec, parsed_options(s.candidate, options, spec), None)
-                fitted[id(s)] = (other, "", time.perf_counter() - start)
-            except ServoidError as exc:
-                fitted[id(s)] = (None, str(exc), math.nan)
         model, error, seconds = fitted[id(s)]
         gap = math.nan if model is None else refit_gap(s, [
             fit_on(getattr(model, "estimate", None), f.fit, _input_of(s, options, spec))
@@ -337,6 +334,20 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
     return ChoiceResult(spec, result, tuple(entries), chosen.candidate.label,
                         reason + caveat, scheme_of(options), gate, rankable=not caveat,
                         digests=getattr(result, "digests", {}))
+
+
+def _whole_fit(spec: ExperimentSpec, options: Mapping[str, Any],
+               candidate: Candidate) -> tuple[Any, str, float]:
+    """A candidate fitted on the whole estimation data: (result or None, error, seconds)."""
+    start = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # only the chosen model's notes are warned
+            result = get_method(candidate.method).run(
+                spec, parsed_options(candidate, options, spec), None)
+    except ServoidError as exc:
+        return None, str(exc), math.nan
+    return result, "", time.perf_counter() - start
 
 
 def _input_of(score: Score, options: Mapping[str, Any], spec: ExperimentSpec) -> str:
