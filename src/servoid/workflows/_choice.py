@@ -29,6 +29,11 @@ Learning*, §7.10); ``rule = "best"`` takes the best mean.  The chosen
 candidate is then fitted on the whole estimation data and validated on the
 ``[validation]`` records like a single-method run; the others too, for the
 leaderboard (their validation fits are shown, never used to choose).
+Each candidate's whole-data model and its fold models then simulate the
+folds' own fitting samples (:func:`refit_gap`): when the chosen one's fit
+changes with the samples it is given, the held-out scores judged other
+models than those returned, and the reason says the held-out data cannot
+rank the candidates.
 
 ``workers = N`` scores the candidates in N local processes (forked, so the
 records are read once); the default 1 scores them one after the other.  A
@@ -127,6 +132,9 @@ class Score:
         For each fold, the free-run fit [%] of the model fitted on it to the very
         samples it was fitted on (NaN: not simulated); the whole-data fit is
         compared with these (:func:`refit_gap`).
+    blocks : tuple of float
+        The fit [%] of each held block, in fold and block order (``mean`` and
+        ``se`` summarise them).
     """
 
     candidate: Candidate
@@ -137,6 +145,7 @@ class Score:
     status: str = "ok"
     nonlinearity: bool | None = None
     fold_fits: tuple[float, ...] = ()
+    blocks: tuple[float, ...] = ()
 
     @property
     def admissible(self) -> bool:
@@ -386,7 +395,7 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
                      "failed: no held block could be scored")
     se = float(values.std(ddof=1) / math.sqrt(values.size)) if values.size > 1 else math.nan
     return Score(candidate, float(values.mean()), se, n_par, time.perf_counter() - start,
-                 "ok", nonlinear, tuple(own))
+                 "ok", nonlinear, tuple(own), tuple(float(v) for v in values))
 
 
 def fit_on(estimate: Any, data: Experiment | ExperimentSet, input_role: str = "u") -> float:

@@ -93,6 +93,7 @@ class Entry:
                 "held_out_se": _finite(s.se), "n_parameters": s.n_parameters,
                 "fit_seconds": _finite(s.seconds), "full_fit_seconds": _finite(self.seconds),
                 "held_out_nonlinearity": s.nonlinearity,
+                "held_out_blocks": [_finite(b) for b in s.blocks],
                 "refit_gap_points": _finite(self.refit_gap),
                 "validation_fit_percent": None if v is None else _finite(v.fit_percent),
                 "validation_independence_pvalue": None if v is None else
