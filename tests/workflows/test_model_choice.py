@@ -78,6 +78,7 @@ def test_a_list_of_methods_gives_one_leaderboard(wiener_rig, tmp_path):
     # 3000 samples of an open-loop plant: the fold fits are the whole-data fits (±2 points)
     assert abs(rows["wiener (polynomial)"]["refit_gap_points"]) < 2.0 and result.rankable
     assert len(rows["oe (nb=2, nf=2)"]["held_out_blocks"]) == 4  # one hold-out, four blocks
+    assert data["choice"]["rankable"] is True
     assert rows["oe (nb=2, nf=2)"]["model"]["type"] == "polynomial"  # exportable
     # the validation record was not used to choose: the held-out scores are not its fits
     assert rows["oe (nb=2, nf=2)"]["held_out_fit_percent"] != \

@@ -414,8 +414,8 @@ def fit_on(estimate: Any, data: Experiment | ExperimentSet, input_role: str = "u
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 fits.append(float(validate(estimate, seg, input=input_role).fit_percent))
-        except (ServoidError, ValueError, ArithmeticError, np.linalg.LinAlgError):
-            continue
+        except (ServoidError, ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError):
+            continue  # a diagnostic only: a model that cannot be simulated here has no gap
     fits = [f for f in fits if math.isfinite(f)]
     return float(np.mean(fits)) if fits else math.nan
 

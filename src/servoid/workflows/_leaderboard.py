@@ -211,7 +211,7 @@ class ChoiceResult(Displayed):
         out["choice"] = {"chosen": self.label, "reason": self.reason, "scheme": self.scheme.text,
                          "folds": self.scheme.folds, "holdout": self.scheme.holdout,
                          "purpose": self.scheme.purpose, "rule": self.scheme.rule,
-                         "gate": self.gate or None,
+                         "gate": self.gate or None, "rankable": self.rankable,
                          "candidates": [e.row(self.label) for e in self.entries]}
         out["verdict"] = self.verdict().to_dict()
         return out
