@@ -30,6 +30,7 @@ Usage, from the repository root::
     PYTHONPATH=src python benchmarks/study_model_choice_real.py            # print the table
     PYTHONPATH=src python benchmarks/study_model_choice_real.py --write    # ... and record it
     PYTHONPATH=src python benchmarks/study_model_choice_real.py --wh /path/WienerHammerBenchmark.csv
+    PYTHONPATH=src python benchmarks/study_model_choice_real.py --only ballbeam --folds 5
 
 ``--write`` replaces ``benchmarks/results-model-choice-real.json``.
 """
@@ -113,15 +114,21 @@ def run_records(found: dict[str, tuple[Experiment, Experiment]], only: str | Non
     return results
 
 
-def run_one(folder: Path, name: str, est: Experiment, val: Experiment) -> dict[str, Any]:
+def run_one(folder: Path, name: str, est: Experiment, val: Experiment,
+            folds: int = 0) -> dict[str, Any]:
     """``auto`` on one record: the chosen candidate, the best by validation, every row."""
-    result, seconds = identify_record(folder, name, est, val, {"method": "auto", "workers": 2})
+    result, seconds = identify_record(folder, name, est, val,
+                                      {"method": "auto", "workers": 2, "folds": folds})
     rows = []
     for e in result.entries:
         v = e.validation
         rows.append({"label": e.label, "status": e.score.status,
                      "n_parameters": e.score.n_parameters,
                      "held_out": None if not np.isfinite(e.score.mean) else round(e.score.mean, 2),
+                     "held_out_blocks": [round(b, 2) for b in e.score.blocks],
+                     "fold_fits": [None if not np.isfinite(f) else round(f, 2)
+                                   for f in e.score.fold_fits],
+                     "refit_gap": None if not np.isfinite(e.refit_gap) else round(e.refit_gap, 2),
                      "validation": None if v is None or not np.isfinite(v.fit_percent) else
                      round(float(v.fit_percent), 2)})
     fits = [r["validation"] for r in rows if r["validation"] is not None]
@@ -132,6 +139,7 @@ def run_one(folder: Path, name: str, est: Experiment, val: Experiment) -> dict[s
             "best": next(r["label"] for r in rows if r["validation"] == best),
             "best_validation": best,
             "within_2": chosen["validation"] is not None and chosen["validation"] > best - 2.0,
+            "rankable": result.rankable, "chosen_refit_gap": chosen["refit_gap"],
             "gate": result.gate, "reason": result.reason, "seconds": round(seconds, 1),
             "candidates": rows}
 
@@ -139,13 +147,15 @@ def run_one(folder: Path, name: str, est: Experiment, val: Experiment) -> dict[s
 def table(results: list[dict[str, Any]]) -> str:
     """The Markdown table of the results."""
     lines = [("| record | samples (est./val.) | chosen | its validation fit % | best candidate "
-              "| best fit % | within 2 points | nonlinear families | time s |"),
-             "|---|---|---|---|---|---|---|---|---|"]
+              "| best fit % | within 2 points | chosen fit reproducible (refit gap) | nonlinear families "
+              "| time s |"),
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         gate = "added" if "were added" in r["gate"] else "not added"
         lines.append(f"| {r['record']} | {r['n_estimation']}/{r['n_validation']} | "
                      f"{r['chosen']} | {r['chosen_validation']} | {r['best']} | "
-                     f"{r['best_validation']} | {'yes' if r['within_2'] else 'no'} | {gate} | "
+                     f"{r['best_validation']} | {'yes' if r['within_2'] else 'no'} | "
+                     f"{'yes' if r['rankable'] else 'no'} ({r['chosen_refit_gap']}) | {gate} | "
                      f"{r['seconds']} |")
     return "\n".join(lines)
 
@@ -156,8 +166,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--wh", default=None, help="path of WienerHammerBenchmark.csv")
     parser.add_argument("--wh-n", type=int, default=10_000, help="WH estimation samples")
     parser.add_argument("--only", default=None, help="comma-separated record names")
+    parser.add_argument("--folds", type=int, default=0,
+                        help="[identify] folds (0: the hold-out; the recorded run)")
     args = parser.parse_args(argv)
-    results = run_records(records(args.wh, args.wh_n), args.only, run_one, table)
+    if args.write and args.folds:
+        parser.error("--write records the default scheme: leave out --folds")
+    results = run_records(records(args.wh, args.wh_n), args.only,
+                          lambda *a: run_one(*a, folds=args.folds), table)
     if args.write:
         RECORDED.write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "results": results},
                                        indent=1) + "\n")

@@ -6,6 +6,7 @@ import csv
 import warnings
 
 import numpy as np
+import pytest
 from scipy.signal import lfilter
 
 from servoid.data import Experiment, write_csv, write_experiment_spec
@@ -42,3 +43,47 @@ def test_a_fleet_with_a_method_list_shows_the_chosen_candidate_per_unit(tmp_path
     with open(result.folder / "fleet.csv", encoding="utf-8") as fh:
         header = next(csv.reader(fh))
     assert header[header.index("method") + 1] == "candidate"
+
+
+def test_a_fleet_on_dask_scores_each_units_candidates_as_cluster_tasks(tmp_path):
+    pytest.importorskip("distributed")
+    pytest.importorskip("cryptography")
+    import servoid.fleet._run as fleet_run
+    from servoid.fleet import tls_security
+
+    [_unit(tmp_path, k) for k in range(2)]
+    (tmp_path / "fleet.toml").write_text(
+        '[records]\nglob = "unit*.toml"\n\n[identify]\nmethod = ["arx", "oe", "tf"]\n\n'
+        "[identify.arx]\nna = 1\nnb = 1\n\n[identify.oe]\nnb = 2\nnf = 2\n", encoding="utf-8")
+    pool = fleet_run._Pool(None, 2, 2)  # the fleet's own private cluster, two workers
+    client = pool.client(2)
+    try:
+        pem = {}
+        for name, text in (("ca", client.security.tls_ca_file),
+                           ("cert", client.security.tls_client_cert),
+                           ("key", client.security.tls_client_key)):
+            pem[name] = tmp_path / f"{name}.pem"
+            pem[name].write_text(text, encoding="utf-8")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            served = run_fleet(tmp_path / "fleet.toml", tmp_path / "dask",
+                               scheduler=pool._cluster.scheduler_address, progress=False,
+                               security=tls_security(pem["ca"], pem["cert"], pem["key"]))
+
+        def done(dask_scheduler):  # candidate tasks that finished, by their key's prefix
+            return {name: 0 if p is None else p.state_counts["memory"] for name, p in (
+                (n, dask_scheduler.task_prefixes.get(n)) for n in ("score_on", "whole_fit"))}
+
+        tasks = client.run_on_scheduler(done)
+    finally:
+        pool.close()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        serial = run_fleet(tmp_path / "fleet.toml", tmp_path / "serial", workers=1,
+                           progress=False)
+    assert served.count("ok") == 2, [r["error"] for r in served.rows]
+    # 2 units × 3 candidates scored, each its own task on the cluster; then the 2 candidates
+    # not chosen of each unit fitted on the whole record for its leaderboard, as tasks too
+    assert tasks == {"score_on": 6, "whole_fit": 4}
+    # the same choice as the serial run: where a candidate is scored does not change its score
+    assert [r["candidate"] for r in served.rows] == [r["candidate"] for r in serial.rows]

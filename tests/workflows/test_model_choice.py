@@ -75,6 +75,10 @@ def test_a_list_of_methods_gives_one_leaderboard(wiener_rig, tmp_path):
     assert set(rows) == {"arx", "oe (nb=2, nf=2)", "wiener (polynomial)"}
     assert rows["wiener (polynomial)"]["chosen"] and data["method"] == "wiener"
     assert all(r["fit_seconds"] > 0 and r["n_parameters"] > 0 for r in rows.values())
+    # 3000 samples of an open-loop plant: the fold fits are the whole-data fits (±2 points)
+    assert abs(rows["wiener (polynomial)"]["refit_gap_points"]) < 2.0 and result.rankable
+    assert len(rows["oe (nb=2, nf=2)"]["held_out_blocks"]) == 4  # one hold-out, four blocks
+    assert data["choice"]["rankable"] is True
     assert rows["oe (nb=2, nf=2)"]["model"]["type"] == "polynomial"  # exportable
     # the validation record was not used to choose: the held-out scores are not its fits
     assert rows["oe (nb=2, nf=2)"]["held_out_fit_percent"] != \
@@ -280,3 +284,25 @@ def test_auto_scores_the_closed_loop_candidates_like_the_others(tmp_path):
     assert all(math.isfinite(e.score.mean) and e.validation is not None for e in loop)
     rows = result.to_dict()["choice"]["candidates"]
     assert sum(r["method"] == "closedloop-auto" for r in rows) == 3
+
+
+def test_a_fit_that_changes_with_its_samples_is_said_to_leave_the_choice_unranked():
+    # the ball-and-beam pattern (benchmarks/results-model-choice-real.json): the chosen model
+    # fitted on the fold simulates those samples at 89 %, the one fitted on all the data at 0.3 %
+    from servoid.workflows._choice import REFIT_TOLERANCE, refit_gap
+    from servoid.workflows._leaderboard import Entry, _reproducibility
+
+    shaky = Score(Candidate("tf2", "tf", {}), 42.0, 28.0, 4, 0.1, fold_fits=(89.2,))
+    other = Score(Candidate("tf3", "tf", {}), -91.0, 70.0, 6, 0.1, fold_fits=(-10.0,))
+    steady = Score(Candidate("oe2", "oe", {}), 30.0, 5.0, 4, 0.1, fold_fits=(30.0, 32.0))
+    assert refit_gap(shaky, [0.3]) == pytest.approx(-88.9)  # exact arithmetic: 0.3 − 89.2
+    assert refit_gap(steady, [29.0, math.nan]) == pytest.approx(-1.0)  # the NaN fold left out
+    assert math.isnan(refit_gap(Score(Candidate("x", "oe", {}), 1.0, 1.0, 2, 0.1), [5.0]))
+    entries = [Entry(shaky, refit_gap=refit_gap(shaky, [0.3])),
+               Entry(other, refit_gap=refit_gap(other, [27.2])),
+               Entry(steady, refit_gap=refit_gap(steady, [29.0, 31.0]))]
+    caveat = _reproducibility(entries, shaky)
+    assert "cannot rank these candidates" in caveat and "89.2 %" in caveat and "0.3 %" in caveat
+    assert "1 other candidate too" in caveat and "tf3 +37.2" in caveat
+    assert _reproducibility(entries, steady) == ""  # a reproducible choice keeps its reason
+    assert abs(entries[2].refit_gap) < REFIT_TOLERANCE

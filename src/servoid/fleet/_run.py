@@ -35,7 +35,8 @@ from ..workflows import listed_methods
 from ._cluster import check_scheduler, connect, dashboard_link, quiet_dask, start_local
 from ._result import FleetResult, assemble
 from ._spec import FleetRecord, FleetSpec, load_fleet_spec
-from ._task import identify_record, identify_records, record_hashes, record_inputs
+from ._task import (identify_record, identify_records_on_cluster, record_hashes,
+                    record_inputs)
 
 __all__ = ["run_fleet"]
 
@@ -404,7 +405,7 @@ def _dask(client: Any, spec: FleetSpec, todo: Sequence[int],
 
     size = _batch_size(len(todo), _n_workers(client))
     batches = [list(todo[k:k + size]) for k in range(0, len(todo), size)]
-    futures = {client.submit(identify_records, [str(spec.records[i].path) for i in batch],
+    futures = {client.submit(identify_records_on_cluster, [str(spec.records[i].path) for i in batch],
                              spec.identify, allow_code, pure=False): batch
                for batch in batches}
     try:

@@ -22,7 +22,8 @@ from .._errors import DataError, ServoidError
 from .._version import __version__
 from ._files import REGULAR_ONLY, file_problem
 
-__all__ = ["identify_record", "identify_records", "record_hashes", "record_inputs", "record_key"]
+__all__ = ["identify_record", "identify_records", "identify_records_on_cluster", "record_hashes",
+           "record_inputs", "record_key"]
 
 
 def record_key(path: Path, identify: Mapping[str, Any] | None) -> str:
@@ -79,6 +80,29 @@ def identify_records(paths: Sequence[str], identify: Mapping[str, Any] | None,
                      allow_code: bool = False) -> list[dict[str, Any]]:
     """Identify several records in turn (one Dask task); see :func:`identify_record`."""
     return [identify_record(path, identify, allow_code=allow_code) for path in paths]
+
+
+def identify_records_on_cluster(paths: Sequence[str], identify: Mapping[str, Any] | None,
+                                allow_code: bool = False) -> list[dict[str, Any]]:
+    """:func:`identify_records` as a Dask task, each record's candidates tasks of its cluster.
+
+    A record whose ``[identify]`` lists several methods (or ``"auto"``)
+    scores each candidate as a task of the cluster this task runs on (the
+    connection this worker already has; no other), while this task waits
+    outside the worker's slots.  A record of one method runs here as before.
+    """
+    from ..workflows import candidates_on
+
+    with candidates_on(_on_cluster):
+        return identify_records(paths, identify, allow_code)
+
+
+def _on_cluster(function: Any, items: Sequence[Any]) -> list[Any]:
+    """``[function(x) for x in items]`` as tasks of the cluster this task runs on."""
+    from distributed import worker_client
+
+    with worker_client() as client:  # secedes: the candidates may run on this worker too
+        return list(client.gather(client.map(function, list(items), pure=False)))
 
 
 def identify_record(path: str, identify: Mapping[str, Any] | None, *,

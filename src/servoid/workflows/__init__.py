@@ -60,6 +60,7 @@ _HOME.update({
     "METHODS": "_methods", "method_of": "_methods", "set_command": "_provenance",
     "greybox_record": "_results", "summarise": "_summary", "toml_value": "_registry",
     "candidate_models": "_leaderboard", "method_for": "_choice", "listed_methods": "_choice",
+    "candidates_on": "_choice",
 })
 
 

@@ -29,9 +29,16 @@ Learning*, §7.10); ``rule = "best"`` takes the best mean.  The chosen
 candidate is then fitted on the whole estimation data and validated on the
 ``[validation]`` records like a single-method run; the others too, for the
 leaderboard (their validation fits are shown, never used to choose).
+Each candidate's whole-data model and its fold models then simulate the
+folds' own fitting samples (:func:`refit_gap`): when the chosen one's fit
+changes with the samples it is given, the held-out scores judged other
+models than those returned, and the reason says the held-out data cannot
+rank the candidates.
 
 ``workers = N`` scores the candidates in N local processes (forked, so the
-records are read once); the default 1 scores them one after the other.
+records are read once); the default 1 scores them one after the other.  A
+fleet run on a Dask cluster scores each record's candidates as tasks of
+that cluster instead (:func:`candidates_on`; ``workers`` is then unused).
 """
 
 from __future__ import annotations
@@ -40,8 +47,11 @@ import math
 import os
 import time
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -54,12 +64,19 @@ from ._methods import get_method
 from ._options import choice, integer, number, optional
 from ._registry import Method, Option
 
-__all__ = ["AUTO_CLOSED_LOOP", "AUTO_LINEAR", "AUTO_NONLINEAR", "BLOCKS", "Candidate", "Score", "auto_candidates",
-           "choice_method", "declares_loop", "is_choice", "listed_methods", "method_for",
-           "score_candidates", "score_name"]
+__all__ = ["AUTO_CLOSED_LOOP", "AUTO_LINEAR", "AUTO_NONLINEAR", "BLOCKS", "REFIT_TOLERANCE",
+           "Candidate", "Score", "auto_candidates", "candidates_on", "choice_method",
+           "declares_loop", "fit_on",
+           "is_choice", "listed_methods", "map_candidates", "method_for", "refit_gap", "score_candidates",
+           "score_name"]
 
 #: Blocks each held part is scored on (mean and standard error of their fits).
 BLOCKS = 4
+#: Largest |refit gap| [fit points] of a reproducible fit (:func:`refit_gap`): the
+#: gaps of the chosen candidates on the dryer, flexible-arm, EMPS and WH records lie
+#: within ±2 points, and ±10 leaves room for a search that ends elsewhere on a
+#: larger record without calling it irreproducible.
+REFIT_TOLERANCE = 10.0
 #: The linear families of ``method = "auto"``: (method, options) over order grids.
 AUTO_LINEAR: tuple[tuple[str, dict[str, Any]], ...] = (
     *(("arx", {"na": n, "nb": n, "nk": 1}) for n in (1, 2, 3, 4)),
@@ -111,6 +128,13 @@ class Score:
         ``"ok"``, ``"unstable"``, ``"diverged"`` or ``"failed: …"``.
     nonlinearity : bool or None
         Whether the higher-order tests found a nonlinearity left in its held residuals.
+    fold_fits : tuple of float
+        For each fold, the free-run fit [%] of the model fitted on it to the very
+        samples it was fitted on (NaN: not simulated); the whole-data fit is
+        compared with these (:func:`refit_gap`).
+    blocks : tuple of float
+        The fit [%] of each held block, in fold and block order (``mean`` and
+        ``se`` summarise them).
     """
 
     candidate: Candidate
@@ -120,6 +144,8 @@ class Score:
     seconds: float
     status: str = "ok"
     nonlinearity: bool | None = None
+    fold_fits: tuple[float, ...] = ()
+    blocks: tuple[float, ...] = ()
 
     @property
     def admissible(self) -> bool:
@@ -337,6 +363,7 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
     start = time.perf_counter()
     prediction = options["purpose"] == "prediction"
     blocks: list[float] = []
+    own: list[float] = []
     n_par = 0
     nonlinear: bool | None = None
     try:
@@ -347,6 +374,7 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
                 warnings.simplefilter("ignore")
                 result = method.run(_HeldSpec(spec, fold), parsed, None)  # type: ignore[arg-type]
             estimate = getattr(result, "estimate", None)
+            own.append(fit_on(estimate, fold.fit, parsed.get("input", "u")))
             n_par = int(np.size(estimate.parameters)) if estimate is not None else n_par
             status = _status(result)
             if status != "ok":
@@ -367,7 +395,49 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
                      "failed: no held block could be scored")
     se = float(values.std(ddof=1) / math.sqrt(values.size)) if values.size > 1 else math.nan
     return Score(candidate, float(values.mean()), se, n_par, time.perf_counter() - start,
-                 "ok", nonlinear)
+                 "ok", nonlinear, tuple(own), tuple(float(v) for v in values))
+
+
+def fit_on(estimate: Any, data: Experiment | ExperimentSet, input_role: str = "u") -> float:
+    """Free-run fit [%] of an estimate's model on records, averaged over their segments.
+
+    NaN when there is no estimate or no segment could be simulated (a model
+    that diverges there, a segment too short for it).
+    """
+    from ..validate import validate
+
+    if estimate is None or getattr(estimate, "model", None) is None:
+        return math.nan
+    fits = []
+    for seg in as_segments(data):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                fits.append(float(validate(estimate, seg, input=input_role).fit_percent))
+        except (ServoidError, ValueError, TypeError, ArithmeticError, np.linalg.LinAlgError):
+            continue  # a diagnostic only: a model that cannot be simulated here has no gap
+    fits = [f for f in fits if math.isfinite(f)]
+    return float(np.mean(fits)) if fits else math.nan
+
+
+def refit_gap(score: Score, whole_fits: Sequence[float]) -> float:
+    """Mean gap [fit points] between the whole-data model and the fold models.
+
+    Each fold's fitting samples are simulated by the model fitted on them
+    (``score.fold_fits``) and by the model fitted on all the estimation
+    data (`whole_fits`, fold by fold); the result is the mean of whole −
+    fold.  Near 0 when the fit is reproducible: the model a fold returns
+    is the model the whole data return, so its held-out score judges the
+    returned model.  Far from 0 (beyond :data:`REFIT_TOLERANCE`) the
+    candidate's fit depends on which samples it is given — a short record,
+    a search that stops at other optima — and its held-out score judges
+    another model than the one returned.  NaN: not comparable.
+    """
+    pairs = [(w, f) for w, f in zip(whole_fits, score.fold_fits, strict=False)
+             if math.isfinite(w) and math.isfinite(f)]
+    if not pairs:
+        return math.nan
+    return float(np.mean([w - f for w, f in pairs]))
 
 
 def _status(result: Any) -> str:
@@ -400,6 +470,29 @@ def _block_fits(report: Any, prediction: bool) -> list[float]:
 
 
 _JOB: dict[str, Any] = {}
+#: Where the candidates are scored when a front end says so (a fleet's Dask cluster).
+_MAPPER: ContextVar[Callable[[Callable[[Any], Any], Sequence[Any]], list[Any]] | None] = \
+    ContextVar("servoid_candidates_on", default=None)
+
+
+@contextmanager
+def candidates_on(mapper: Callable[[Callable[[Any], Any], Sequence[Any]], list[Any]]
+                  ) -> Iterator[None]:
+    """Score the candidates of every choice run inside on `mapper`.
+
+    Parameters
+    ----------
+    mapper : callable
+        ``mapper(function, items)`` returns ``[function(item) for item in
+        items]``, computed where it likes (the fleet: one Dask task per
+        item, on the cluster the fleet runs on).  `function` and the items
+        pickle with cloudpickle.
+    """
+    token = _MAPPER.set(mapper)
+    try:
+        yield
+    finally:
+        _MAPPER.reset(token)
 
 
 def _score_job(index: int) -> Score:
@@ -409,7 +502,13 @@ def _score_job(index: int) -> Score:
 
 def score_candidates(spec: ExperimentSpec, candidates: Sequence[Candidate],
                      options: Mapping[str, Any], folds: Sequence[Fold]) -> list[Score]:
-    """Score every candidate, in ``options["workers"]`` local processes."""
+    """Score every candidate, in ``options["workers"]`` local processes (or on the mapper).
+
+    Under :func:`candidates_on` each candidate is one call of the mapper's
+    function; ``workers`` is then unused.
+    """
+    if _MAPPER.get() is not None:
+        return map_candidates(partial(_score_on, spec, options, tuple(folds)), candidates)
     workers = min(int(options["workers"]), len(candidates), os.cpu_count() or 1)
     if workers <= 1:
         return [score_one(spec, c, options, folds) for c in candidates]
@@ -429,6 +528,19 @@ def score_candidates(spec: ExperimentSpec, candidates: Sequence[Candidate],
         return [score_one(spec, c, options, folds) for c in candidates]
     finally:
         _JOB.clear()
+
+
+def map_candidates(function: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
+    """``[function(x) for x in items]``, on the mapper of :func:`candidates_on` when one is set."""
+    mapper = _MAPPER.get()
+    if mapper is None or len(items) < 2:
+        return [function(x) for x in items]
+    return list(mapper(function, list(items)))
+
+
+def _score_on(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Fold],
+              candidate: Candidate) -> Score:
+    return score_one(spec, candidate, options, folds)
 
 
 def pick(scores: Sequence[Score], rule: str,

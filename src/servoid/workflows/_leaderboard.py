@@ -30,12 +30,17 @@ from ..data import ExperimentSpec
 from ..report import Check, Figure, Page, Section, Table, Verdict, new_figure, save_figure
 from ..validate import ValidationReport
 from ._choice import (
+    REFIT_TOLERANCE,
+    Candidate,
     Scheme,
     Score,
     candidates_of,
+    fit_on,
     folds_of,
+    map_candidates,
     parsed_options,
     pick,
+    refit_gap,
     scheme_of,
     score_candidates,
     score_name,
@@ -59,6 +64,7 @@ class Entry:
     result: Any = None
     error: str = ""
     seconds: float = math.nan
+    refit_gap: float = math.nan
 
     @property
     def label(self) -> str:
@@ -87,6 +93,8 @@ class Entry:
                 "held_out_se": _finite(s.se), "n_parameters": s.n_parameters,
                 "fit_seconds": _finite(s.seconds), "full_fit_seconds": _finite(self.seconds),
                 "held_out_nonlinearity": s.nonlinearity,
+                "held_out_blocks": [_finite(b) for b in s.blocks],
+                "refit_gap_points": _finite(self.refit_gap),
                 "validation_fit_percent": None if v is None else _finite(v.fit_percent),
                 "validation_independence_pvalue": None if v is None else
                 _finite(v.residuals.independence_pvalue),
@@ -109,6 +117,12 @@ class ChoiceResult(Displayed):
         The chosen candidate's name.
     reason : str
         Why it was chosen, in words.
+    rankable : bool
+        False when the chosen candidate's fit is not reproducible (its
+        model fitted on the folds differs from the one fitted on all the
+        estimation data by more than ``REFIT_TOLERANCE`` fit points on the
+        folds' own samples): the held-out scores then judge other models
+        than the ones returned, and the reason says so.
     scheme : Scheme
         How the candidates were scored.
     gate : str
@@ -122,6 +136,7 @@ class ChoiceResult(Displayed):
     reason: str
     scheme: Scheme
     gate: str = ""
+    rankable: bool = True
     folder: Path | None = None
     files: tuple[Path, ...] = field(default=())
     digests: dict[str, str] = field(default_factory=dict, repr=False)
@@ -196,7 +211,7 @@ class ChoiceResult(Displayed):
         out["choice"] = {"chosen": self.label, "reason": self.reason, "scheme": self.scheme.text,
                          "folds": self.scheme.folds, "holdout": self.scheme.holdout,
                          "purpose": self.scheme.purpose, "rule": self.scheme.rule,
-                         "gate": self.gate or None,
+                         "gate": self.gate or None, "rankable": self.rankable,
                          "candidates": [e.row(self.label) for e in self.entries]}
         out["verdict"] = self.verdict().to_dict()
         return out
@@ -216,7 +231,7 @@ class ChoiceResult(Displayed):
         second copy in the verdict box.
         """
         v = self.chosen.verdict()
-        check = Check("model choice", self.label, "info",
+        check = Check("model choice", self.label, "info" if self.rankable else "caution",
                       f"chosen among {len(self.entries)} candidates on held-out data: "
                       f"{self.reason}")
         return Verdict(v.tested, (*v.checks, check), v.conditions, v.tables)
@@ -301,25 +316,62 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
     if passed:
         reason += (f" ({', '.join(passed)} scored better but failed on the whole estimation "
                    "data: passed over)")
+    # the others for the leaderboard (on the fleet's cluster when it runs there)
+    rest = [s for s in scores if s.admissible and id(s) not in fitted]
+    for s, outcome in zip(rest, map_candidates(partial(_whole_fit, spec, options),
+                                               [s.candidate for s in rest]), strict=True):
+        fitted[id(s)] = outcome
     entries = []
     for s in scores:
         if not s.admissible:
             entries.append(Entry(s))
             continue
-        if id(s) not in fitted:
-            start = time.perf_counter()
-            try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")  # only the chosen model's notes are warned
-                    other = get_method(s.candidate.method).run(
-                        spec, parsed_options(s.candidate, options, spec), None)
-                fitted[id(s)] = (other, "", time.perf_counter() - start)
-            except ServoidError as exc:
-                fitted[id(s)] = (None, str(exc), math.nan)
         model, error, seconds = fitted[id(s)]
-        entries.append(Entry(s, model, error=error, seconds=seconds))
-    return ChoiceResult(spec, result, tuple(entries), chosen.candidate.label, reason,
-                        scheme_of(options), gate, digests=getattr(result, "digests", {}))
+        gap = math.nan if model is None else refit_gap(s, [
+            fit_on(getattr(model, "estimate", None), f.fit, _input_of(s, options, spec))
+            for f in folds])
+        entries.append(Entry(s, model, error=error, seconds=seconds, refit_gap=gap))
+    caveat = _reproducibility(entries, chosen)
+    return ChoiceResult(spec, result, tuple(entries), chosen.candidate.label,
+                        reason + caveat, scheme_of(options), gate, rankable=not caveat,
+                        digests=getattr(result, "digests", {}))
+
+
+def _whole_fit(spec: ExperimentSpec, options: Mapping[str, Any],
+               candidate: Candidate) -> tuple[Any, str, float]:
+    """A candidate fitted on the whole estimation data: (result or None, error, seconds)."""
+    start = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # only the chosen model's notes are warned
+            result = get_method(candidate.method).run(
+                spec, parsed_options(candidate, options, spec), None)
+    except ServoidError as exc:
+        return None, str(exc), math.nan
+    return result, "", time.perf_counter() - start
+
+
+def _input_of(score: Score, options: Mapping[str, Any], spec: ExperimentSpec) -> str:
+    return str(parsed_options(score.candidate, options, spec).get("input", "u"))
+
+
+def _reproducibility(entries: Sequence[Entry], chosen: Score) -> str:
+    """The reason's caveat when the chosen candidate's fit is not reproducible ('' if it is)."""
+    mine = next(e for e in entries if e.score is chosen)
+    if not abs(mine.refit_gap) > REFIT_TOLERANCE:
+        return ""
+    fold = float(np.nanmean(chosen.fold_fits))
+    others = [e for e in entries if e is not mine and abs(e.refit_gap) > REFIT_TOLERANCE]
+    listed = "; ".join(f"{e.label} {e.refit_gap:+.1f}" for e in others[:4])
+    return (f"; but the held-out data cannot rank these candidates here: the chosen candidate's "
+            f"fit changes with the samples it is given (on the samples its held-out model was "
+            f"fitted to, that model fits {fold:.1f} % and the model fitted to all the estimation "
+            f"data {fold + mine.refit_gap:.1f} %), so its held-out score judges another model "
+            f"than the one returned" +
+            (f" ({len(others)} other candidate{'s' if len(others) > 1 else ''} too; whole-data "
+             f"model minus fold model, in fit points: {listed})" if others else "") +
+            "; a longer estimation record makes the fits reproducible; until then judge the "
+            "candidates on the [validation] records")
 
 
 def _ranked(entries: Sequence[Entry]) -> list[Entry]:
