@@ -571,6 +571,60 @@ def hac_covariance(
     return np.asarray(0.5 * (cov + cov.T))
 
 
+def spectral_covariance(
+    phi: NDArray[np.float64],
+    resid: NDArray[np.float64],
+    z: NDArray[np.float64] | None = None,
+    half_width: int = 8,
+) -> NDArray[np.float64]:
+    """LS/IV covariance with the residual's spectrum at the regressors' frequencies.
+
+    An SVF regression's residual is the sensor noise through the equation's
+    filter (in S1 ``F(s)·A(s)``, s² at mid frequencies): nearly all its
+    power lies far above the band the instruments occupy, where its
+    density is orders of magnitude lower.  σ̂²(ZᵀZ) weighs the instruments
+    with the residual's total power and a short-lag Newey–West estimate
+    leaks the high band into the low one (the valve's σ came out 2.3× and
+    1.8× its seed-to-seed spread).  Here ``S = (1/N) Σ_j Re(Z_j^* Z_jᵀ)
+    Φ̂_e(ω_j)`` over the DFT bins, with Φ̂_e the residual's periodogram
+    smoothed over ``2·half_width + 1`` bins (Daniell), and the covariance
+    ``A⁻¹ S A⁻ᵀ · n/(n − p)`` with ``A = ZᵀΦ``.  White residuals give
+    back σ̂² A⁻¹ZᵀZA⁻ᵀ.
+
+    Parameters
+    ----------
+    phi : ndarray, shape (n, p)
+        Regressors of consecutive samples.
+    resid : ndarray, shape (n,)
+        Residuals of the estimate.
+    z : ndarray, shape (n, p), optional
+        Instruments (default: the regressors, i.e. LS).
+    half_width : int
+        Half-width of the periodogram smoothing [bins of 1/(n·dt)].
+
+    Returns
+    -------
+    ndarray, shape (p, p)
+        The covariance of the estimate.
+    """
+    z = phi if z is None else z
+    n, p = phi.shape
+    zf = np.fft.rfft(z, axis=0)
+    per = np.abs(np.fft.rfft(resid)) ** 2 / n
+    m = max(int(half_width), 0)
+    # mirror at 0 and Nyquist so the end bins are smoothed over as many bins
+    ext = np.concatenate([per[m:0:-1], per, per[-2:-m - 2:-1]]) if m else per
+    dens = np.convolve(ext, np.full(2 * m + 1, 1.0 / (2 * m + 1)), mode="valid")
+    weight = np.full(per.size, 2.0)  # rfft: interior bins stand for ±ω
+    weight[0] = 1.0
+    if n % 2 == 0:
+        weight[-1] = 1.0
+    s = ((zf.conj().T * (weight * dens)) @ zf).real / n
+    a_inv = np.linalg.inv(z.T @ phi)
+    cov = a_inv @ s @ a_inv.T * (n / max(n - p, 1))
+    return np.asarray(0.5 * (cov + cov.T))
+
+
 def propagate(
     cov: NDArray[np.float64],
     solve: Any,
