@@ -117,7 +117,8 @@ def identify_valve(
         res = _srivc_instruments(res, phi, y, fu.derivative(0), first, record.dt)
         method = "svf+iv"
     else:
-        res = dataclasses.replace(res, covariance=spectral_covariance(phi, y - phi @ res.theta))
+        res = dataclasses.replace(res, covariance=spectral_covariance(
+            [(phi, y - phi @ res.theta, np.arange(y.size))]))
     raw = ls_estimate(res, raw_names, ("1/s", "1/s²", "m/(V·s²)"), method)
     a1, a0, b0 = (float(v) for v in res.theta)
     if a0 <= 0.0:
@@ -173,7 +174,8 @@ def _srivc_instruments(res: Any, phi: NDArray[np.float64], y: NDArray[np.float64
         a = z.T @ phi
         theta = np.linalg.solve(a, z.T @ y)
     resid = y - phi @ theta
-    return dataclasses.replace(res, theta=theta, covariance=spectral_covariance(phi, resid, z),
+    return dataclasses.replace(res, theta=theta, covariance=spectral_covariance(
+        [(phi, resid, np.arange(y.size), z)]),
                                rss=float(resid @ resid))
 
 
