@@ -162,6 +162,15 @@ def test_the_structure_test_runs_in_the_workflow(tmp_path, fidelity, rejected):
     assert ident.to_dict()["structure_test"]["rejected"] is rejected
     assert ("structure test" in " ".join(ident.notes)) is rejected
     assert ("!structure test" in str(ident)) is rejected
+    if not rejected:
+        # without [loop] skew_tolerance: this record fixes the channel skew to σ_τ ≈ 11 µs, and
+        # 1.96 σ_τ moves ω_hp by 2.4 reduced σ (seen): a caution with the numbers and the fix
+        skew = ident.skew
+        assert skew is not None and skew.fires and skew.worst == "omega_hp"
+        (check,) = [c for c in ident.verdict().checks if c.name == "channel skew"]
+        assert check.outcome == "caution" and check.value.endswith("σ")
+        assert "state [loop] skew_tolerance" in check.meaning and "with the skew free" in check.meaning
+        assert ident.to_dict()["channel_skew"]["fires"] is True
 
 
 def test_refine_true_adds_the_nonlinear_refinement(tmp_path):

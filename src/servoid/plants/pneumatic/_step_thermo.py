@@ -47,8 +47,8 @@ from ._steps import (
     ls_estimate,
     mdot_sensor_lag,
     physical_estimate,
-    spectral_covariance,
     pressures,
+    spectral_covariance,
     temperature,
     window_all,
 )
