@@ -28,7 +28,8 @@ writes only the valve and thermo records, runs those two steps with the
 campaign's options, and prints per parameter the seed-to-seed spread of the
 estimates against the mean σ the step reports (about 1 s a seed)::
 
-    nice -n 10 .venv/bin/python benchmarks/study_pneumatic_snr.py --steps --seeds 100 --snr 30
+    nice -n 10 .venv/bin/python benchmarks/study_pneumatic_snr.py --steps --seeds 100 \\
+        --snr 30 --out benchmarks/results-pneumatic-steps.json
 """
 
 from __future__ import annotations
@@ -156,12 +157,16 @@ def main(argv: list[str] | None = None) -> int:
                     help="S1 and S2 alone: spread of the estimates against their σ")
     args = ap.parse_args(argv)
     if args.steps:
+        saved: dict[str, object] = {"command": " ".join(sys.argv), "steps": {}}
         for snr in args.snr:
             rows = step_spread(range(args.first, args.first + args.seeds), snr)
+            saved["steps"][f"{snr:g}"] = rows  # type: ignore[index]
             print(f"{snr:g} dB, {args.seeds} seeds: parameter | spread / mean σ | RMS z | "
                   "coverage")
             for n, row in rows.items():
                 print(f"  {n} | {row['ratio']:.2f} | {row['z_rms']:.2f} | {row['coverage']:.2f}")
+        if args.out:
+            args.out.write_text(json.dumps(saved, indent=1), encoding="utf-8")
         return 0
     if args.table:
         saved = json.loads(args.table.read_text(encoding="utf-8"))
