@@ -34,7 +34,11 @@ false-alarm rate, level 1 %) and where the DC gain mismatches.
     the skew fit conditioned on τ_d ~ N(0, (20 µs)²)): the coverage, the
     interval width against the reduced one and the share flagged beyond
     the tolerance.  At 0 µs ``skew_found`` is the structure test's false
-    alarm rate.
+    alarm rate.  Without a tolerance: ``caution_fires``, the share of records
+    where the workflow's unresolved-skew caution fires (a skew of 1.96 σ_τ
+    moves a parameter by > 1 reduced σ, :func:`servoid.plants.ehsa._skew.
+    unresolved_skew`; at 0 µs the rate on true-structure data), the misses
+    named by the structure test or the caution, and the mean move of ω_hp.
 
 One 2 Hz sine; a valve command clipped at ±1 rms under a PRBS and a multisine (linear valve), 100 seeds each (``--quick``: 3)
     Each seed fits the reduced model and runs what the workflow runs on
@@ -146,7 +150,7 @@ def skew_case(skew: float, seeds: int) -> dict[str, object]:
 
     from servoid.data import Experiment
     from servoid.plants.ehsa import FeedbackLoop, compare_structures, fit_one_step
-    from servoid.plants.ehsa._skew import skew_prior
+    from servoid.plants.ehsa._skew import skew_prior, unresolved_skew
     from servoid.plants.ehsa._structures import skew_structure
 
     rig = Rig(register=10, amplitude=0.2e-3, flow_law=False, skew=skew)
@@ -155,6 +159,7 @@ def skew_case(skew: float, seeds: int) -> dict[str, object]:
     structure = skew_structure(0.01)
     cov_red, cov_skew, named, tau_z = [], [], [], []
     cov_tol, width_tol, beyond = [], [], []
+    caution, shift_w = [], []
     t0 = time.perf_counter()
     for seed in range(seeds):
         r, y = record(rig, 30.0, seed)
@@ -175,11 +180,17 @@ def skew_case(skew: float, seeds: int) -> dict[str, object]:
                               / adj.result.estimate.std) <= 1.96)
         width_tol.append(adj.result.estimate.std / fit.estimate.std)
         beyond.append(adj.beyond)
+        unresolved = unresolved_skew(wide, fit)
+        # the workflow's caution: an unresolved skew moves a parameter by > 1σ, unless the
+        # structure test already names the skew
+        caution.append(unresolved.fires and not named[-1])
+        shift_w.append(abs(unresolved.shifts["omega_hp"]))
         tau_z.append((wide.source["tau_d"] + skew) / wide.source.std[3])
     per_seed = (time.perf_counter() - t0) / seeds
     cov_red_a = np.array(cov_red)
     miss = ~cov_red_a.all(axis=1)
     named_a = np.array(named)
+    either = named_a | np.array(caution)
     return {
         "skew_us": skew * 1e6, "seeds": seeds,
         "reduced_coverage": dict(zip(NAMES, cov_red_a.mean(axis=0).tolist(), strict=True)),
@@ -189,6 +200,10 @@ def skew_case(skew: float, seeds: int) -> dict[str, object]:
         "misses_named": float(named_a[miss].mean()) if miss.any() else None,
         "misses_silent": int((~named_a[miss]).sum()),
         "skew_found": float(named_a.mean()),
+        "caution_fires": float(np.mean(caution)),
+        "misses_named_or_caution": float(either[miss].mean()) if miss.any() else None,
+        "misses_silent_with_caution": int((~either[miss]).sum()),
+        "omega_hp_shift_sigma_mean": float(np.mean(shift_w)),
         "tolerance_us": TOLERANCE * 1e6,
         "tolerance_coverage": dict(zip(NAMES, np.mean(cov_tol, axis=0).tolist(), strict=True)),
         "tolerance_width_ratio": dict(zip(NAMES, np.mean(width_tol, axis=0).tolist(),
@@ -316,7 +331,8 @@ def run(quick: bool = False) -> list[Result]:
         note = (f"reduced coverage K {cov['K']:.2f} ω {cov['omega_hp']:.2f} δ "
                 f"{cov['delta_hp']:.2f}; misses {stats['misses']}, named "
                 f"{stats['misses_named']}, silent {stats['misses_silent']}; skew found "
-                f"{stats['skew_found']:.2f}; reduced+skew coverage "
+                f"{stats['skew_found']:.2f}; caution {stats['caution_fires']:.2f}, misses named "
+                f"with it {stats['misses_named_or_caution']}; reduced+skew coverage "
                 f"{stats['skew_structure_coverage']}; skew_tolerance 20 µs: coverage "
                 f"{stats['tolerance_coverage']}, interval width × "
                 f"{stats['tolerance_width_ratio']}")

@@ -22,6 +22,14 @@ Run from the repository root (a seed takes ~10 s; run niced)::
 
 ``--out`` is rewritten after every seed, so an interrupted run keeps what it
 has.  ``--table`` prints the coverage table of a saved run.
+
+``--steps`` is the component check behind the σ of S1 and S2: per seed it
+writes only the valve and thermo records, runs those two steps with the
+campaign's options, and prints per parameter the seed-to-seed spread of the
+estimates against the mean σ the step reports (about 1 s a seed)::
+
+    nice -n 10 .venv/bin/python benchmarks/study_pneumatic_snr.py --steps --seeds 100 \\
+        --snr 30 --out benchmarks/results-pneumatic-steps.json
 """
 
 from __future__ import annotations
@@ -57,6 +65,43 @@ def run_seed(seed: int, snr: float) -> dict[str, object]:
     return {"seed": seed, "snr_db": snr, "z": z, "rel": rel,
             "warnings": sorted({str(w.message)[:160] for w in caught
                                 if "SNR" in str(w.message) or "noise" in str(w.message)})}
+
+
+def step_spread(seeds: range, snr: float) -> dict[str, dict[str, float]]:
+    """S1 and S2 alone: spread of the estimates against their reported σ."""
+    import statistics
+
+    from servoid.plants.pneumatic import KnownConstants, identify_thermodynamics, identify_valve
+
+    values: dict[str, list[float]] = {}
+    stds: dict[str, list[float]] = {}
+    truth: dict[str, float] = {}
+    for seed in seeds:
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = Path(tmp)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                write_pneumatic_campaign(folder, tests=["valve", "thermo"], seed=seed,
+                                         snr_db=snr)
+                truth = json.loads((folder / "truth.json").read_text(encoding="utf-8"))
+                known = KnownConstants(**truth["known"], mdot_sensor_bandwidth=1000.0)
+                # the campaign's options (pneumatic.toml): cubic u, measured velocity
+                s1 = identify_valve(load_experiment_spec(folder / "valve.toml").load(),
+                                    u_hold="cubic")
+                s2 = identify_thermodynamics(load_experiment_spec(folder / "thermo.toml").load(),
+                                             known, derivatives="measured")
+        for step, names in ((s1, ("k_v", "xi_v", "omega_v")), (s2, ("kappa", "R"))):
+            for n in names:
+                values.setdefault(n, []).append(step[n])
+                stds.setdefault(n, []).append(step.std(n))
+    out = {}
+    for n, v in values.items():
+        z = [(x - truth[n]) / s for x, s in zip(v, stds[n], strict=True)]
+        out[n] = {"spread": statistics.stdev(v), "mean_std": statistics.fmean(stds[n]),
+                  "ratio": statistics.stdev(v) / statistics.fmean(stds[n]),
+                  "z_rms": math.sqrt(statistics.fmean([x * x for x in z])),
+                  "coverage": sum(abs(x) <= Z95 for x in z) / len(z)}
+    return out
 
 
 def summarise(runs: list[dict[str, object]]) -> dict[str, dict[str, float]]:
@@ -108,7 +153,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--snr", type=float, nargs="+", default=[25.0, 30.0, 40.0])
     ap.add_argument("--out", type=Path, help="JSON file, rewritten after every seed")
     ap.add_argument("--table", type=Path, help="print the table of a saved run and stop")
+    ap.add_argument("--steps", action="store_true",
+                    help="S1 and S2 alone: spread of the estimates against their σ")
     args = ap.parse_args(argv)
+    if args.steps:
+        saved: dict[str, object] = {"command": " ".join(sys.argv), "steps": {}}
+        for snr in args.snr:
+            rows = step_spread(range(args.first, args.first + args.seeds), snr)
+            saved["steps"][f"{snr:g}"] = rows  # type: ignore[index]
+            print(f"{snr:g} dB, {args.seeds} seeds: parameter | spread / mean σ | RMS z | "
+                  "coverage")
+            for n, row in rows.items():
+                print(f"  {n} | {row['ratio']:.2f} | {row['z_rms']:.2f} | {row['coverage']:.2f}")
+        if args.out:
+            args.out.write_text(json.dumps(saved, indent=1), encoding="utf-8")
+        return 0
     if args.table:
         saved = json.loads(args.table.read_text(encoding="utf-8"))
         print(table(summarise(saved["runs"])))

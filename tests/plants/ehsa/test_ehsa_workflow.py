@@ -162,6 +162,15 @@ def test_the_structure_test_runs_in_the_workflow(tmp_path, fidelity, rejected):
     assert ident.to_dict()["structure_test"]["rejected"] is rejected
     assert ("structure test" in " ".join(ident.notes)) is rejected
     assert ("!structure test" in str(ident)) is rejected
+    if not rejected:
+        # without [loop] skew_tolerance: this record fixes the channel skew to σ_τ ≈ 11 µs, and
+        # 1.96 σ_τ moves ω_hp by 2.4 reduced σ (seen): a caution with the numbers and the fix
+        skew = ident.skew
+        assert skew is not None and skew.fires and skew.worst == "omega_hp"
+        (check,) = [c for c in ident.verdict().checks if c.name == "channel skew"]
+        assert check.outcome == "caution" and check.value.endswith("σ")
+        assert "state [loop] skew_tolerance" in check.meaning and "with the skew free" in check.meaning
+        assert ident.to_dict()["channel_skew"]["fires"] is True
 
 
 def test_refine_true_adds_the_nonlinear_refinement(tmp_path):
@@ -179,3 +188,66 @@ def test_refine_true_adds_the_nonlinear_refinement(tmp_path):
 def test_refine_names_are_checked(tmp_path):
     with pytest.raises(OptionError, match="refine must be one of"):
         identify(_bench_toml(tmp_path, "reduced", refine='["viscosity"]'), write=False)
+
+
+def _auto_toml(tmp_path, fidelity):
+    """The bench record with ``structure = "auto"``, one-step only, no structure test."""
+    toml = _bench_toml(tmp_path, fidelity, structure='"auto"', structure_test="false")
+    toml.write_text(toml.read_text().replace('approach = ["indirect", "one-step"]',
+                                             'approach = "one-step"'))
+    return toml
+
+
+def test_structure_auto_reports_the_refinement_it_decided_on(tmp_path, monkeypatch):
+    """The decision (flow law and DC gain fire on the nonlinear bench) reaches the report.
+
+    The refinement itself is replaced by a stand-in (the real one is the slow test below).
+    """
+    from types import SimpleNamespace
+
+    import servoid.plants.ehsa._workflow as wf
+
+    calls = []
+    stand_in = SimpleNamespace(
+        estimate=SimpleNamespace(names=("F_c",), parameters=np.array([1.0]),
+                                 std=np.array([0.1])),
+        validation=SimpleNamespace(fit_percent=97.5), notes=lambda: ("stand-in note",),
+        to_dict=lambda: {"stand_in": True})
+
+    def refine(*args, **kwargs):
+        calls.append(kwargs)
+        return stand_in
+
+    monkeypatch.setattr(wf, "refine_after_linear", refine)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ServoidWarning)
+        ident = identify(_auto_toml(tmp_path, "nonlinear"), write=False)
+    assert len(calls) == 1 and ident.refinement is stand_in
+    (why,) = [n for n in ident.notes if n.startswith("structure = auto: ")]
+    assert "the flow-law check fired" in why and "refinement ran" in why
+    assert "nonlinear refinement: stand-in note" in ident.notes
+    (check,) = [c for c in ident.verdict().checks if c.name == "nonlinear refinement"]
+    assert check.value == "97.5 %"
+    assert ident.to_dict()["nonlinear_refinement"] == {"stand_in": True}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fidelity", ["nonlinear", "reduced"])
+def test_structure_auto_end_to_end(tmp_path, fidelity):
+    # ~15 s for the nonlinear record (the refinement runs), ~5 s for the reduced one
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ServoidWarning)
+        ident = identify(_auto_toml(tmp_path, fidelity), tmp_path / "out")
+    (why,) = [n for n in ident.notes if n.startswith("structure = auto: ")]
+    if fidelity == "reduced":  # linear data: no check fires, no refinement
+        assert ident.refinement is None and "the linear model stands" in why
+        return
+    ref = ident.refinement
+    assert ref is not None and "refinement ran" in why and "F_c" in ref.estimate.names
+    # the refined model validates better than the linear one on the held-back half (96.5 % vs
+    # 86.3 % seen)
+    assert ref.validation.fit_percent > ident.validation.fit_percent + 5.0
+    html = (tmp_path / "out" / "report.html").read_text()
+    assert "Nonlinear refinement" in html
+    data = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert data["nonlinear_refinement"] is not None

@@ -27,6 +27,15 @@ validation judges: the skew's Padé pole is a model of the measurement,
 not of the actuator, and would be flagged as a plant pole.  A skew estimate beyond the prior
 (``|τ̂| > 3·√(Σ[τ, τ] + t²)``) is a verdict: the channels are further
 apart than stated.
+
+Without a stated tolerance the reduced intervals assume no skew.  When the
+record resolves the skew only coarsely, :func:`unresolved_skew` says so
+from the ``reduced+skew`` fit the structure test makes anyway: a skew of
+1.96 σ_τ — one the record cannot tell from none at 95 % — moves each
+reduced parameter by ``g_i·1.96 σ_τ`` with ``g = Σ[:, τ]/Σ[τ, τ]`` (the
+joint fit's regression of θ on τ_d), and where that exceeds the reduced
+σ_i (:data:`SKEW_SHIFT`) the verdict carries a caution with the numbers
+and the skew fit's own interval (which covers a skew of either size).
 """
 
 from __future__ import annotations
@@ -47,10 +56,16 @@ from ._result import ClosedLoopResult
 from ._structure_test import _seconds
 from ._structures import skew_structure
 
-__all__ = ["SkewAdjustment", "skew_prior", "with_skew_tolerance"]
+__all__ = ["SkewAdjustment", "UnresolvedSkew", "skew_prior", "unresolved_skew",
+           "with_skew_tolerance"]
 
 #: |τ̂| beyond this many standard deviations of (data + prior) is a skew beyond the tolerance.
 SKEW_BEYOND = 3.0
+#: A skew the record cannot resolve (1.96 σ_τ) moving a parameter by more than this many of its
+#: reduced σ is a caution.
+SKEW_SHIFT = 1.0
+#: The reduced parameters, their labels in the note.
+_LABELS = {"K": "K", "omega_hp": "ω_hp", "delta_hp": "δ_hp"}
 
 
 @dataclass(frozen=True)
@@ -107,6 +122,100 @@ class SkewAdjustment:
         """Plain-data form for JSON."""
         return {"tolerance": self.tolerance, "tau": self.tau, "tau_std": self.tau_std,
                 "tau_posterior": self.tau_posterior, "z": self.z, "beyond": self.beyond}
+
+
+@dataclass(frozen=True)
+class UnresolvedSkew:
+    """How far a skew the record cannot resolve could move the reduced estimates.
+
+    Parameters
+    ----------
+    tau : float
+        The ``reduced+skew`` fit's skew τ̂_d [s].
+    tau_std : float
+        Its standard deviation σ_τ [s].
+    shifts : dict of str to float
+        Per reduced parameter, the move a skew of 1.96 σ_τ causes, in
+        units of its reduced σ (signed; a positive skew reads y late).
+    free : dict of str to tuple of float
+        The skew fit's (value, std) of K, omega_hp, delta_hp: the
+        estimates with the skew left free.
+    """
+
+    tau: float
+    tau_std: float
+    shifts: dict[str, float]
+    free: dict[str, tuple[float, float]]
+
+    @property
+    def fires(self) -> bool:
+        """True when an unresolved skew moves a parameter by more than SKEW_SHIFT σ."""
+        return any(abs(v) > SKEW_SHIFT for v in self.shifts.values())
+
+    @property
+    def worst(self) -> str:
+        """The parameter an unresolved skew moves most (in its σ)."""
+        return max(self.shifts, key=lambda n: abs(self.shifts[n]))
+
+    @property
+    def value(self) -> str:
+        """Short form for the verdict: the skew's σ and the largest move."""
+        w = self.worst
+        return (f"±{_seconds('tau', self.tau_std)} → {_LABELS[w]} "
+                f"{abs(self.shifts[w]):.1f}σ")
+
+    @property
+    def note(self) -> str:
+        """The caution in words, with the numbers and what to do."""
+        moved = ", ".join(f"{_LABELS[n]} by {abs(v):.1f}σ"
+                          for n, v in sorted(self.shifts.items(), key=lambda kv: -abs(kv[1]))
+                          if abs(v) > SKEW_SHIFT)
+        w = self.worst
+        value, std = self.free[w]
+        return (f"channel skew: the record fixes the skew between the reference and position "
+                f"channels only to ±{_seconds('tau', self.tau_std)} (σ; estimate "
+                f"{_seconds('tau', self.tau)}), and a skew of "
+                f"{_seconds('tau', 1.96 * self.tau_std)} that it cannot tell from none would move "
+                f"{moved} of the reduced intervals, which assume no skew; with the skew free, "
+                f"{_LABELS[w]} = {value:.5g} ± {1.96 * std:.3g} (95 %). If the ADC multiplexes "
+                "its channels or the reference path has a dead time, state [loop] "
+                "skew_tolerance (its standard deviation [s]) and the intervals carry it")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form for JSON."""
+        return {"tau": self.tau, "tau_std": self.tau_std, "shifts": dict(self.shifts),
+                "free": {k: list(v) for k, v in self.free.items()}, "fires": self.fires}
+
+
+def unresolved_skew(wide: ClosedLoopResult, reduced: ClosedLoopResult) -> UnresolvedSkew:
+    """Return how far a skew the record cannot resolve moves the reduced estimates.
+
+    Parameters
+    ----------
+    wide : ClosedLoopResult
+        A one-step fit of the ``reduced+skew`` structure.
+    reduced : ClosedLoopResult
+        The reduced fit on the same data, whose σ the moves are measured in.
+
+    Returns
+    -------
+    UnresolvedSkew
+        σ_τ, the moves per parameter and the skew fit's estimates.
+    """
+    src = wide.source
+    k = src.names.index("tau_d")
+    cov = np.asarray(src.covariance, dtype=float)
+    var = float(cov[k, k])
+    tau_std = math.sqrt(max(var, 0.0))
+    red = reduced.estimate
+    shifts, free = {}, {}
+    for name in _LABELS:
+        i, j = src.names.index(name), red.names.index(name)
+        slope = float(cov[i, k]) / var if var > 0 else 0.0
+        std = float(red.std[j])
+        shifts[name] = slope * 1.96 * tau_std / std if std > 0 else 0.0
+        free[name] = (float(src.parameters[i]), float(math.sqrt(max(cov[i, i], 0.0))))
+    return UnresolvedSkew(float(src.parameters[k]), tau_std, shifts, free)
 
 
 def with_skew_tolerance(reduced: ClosedLoopResult, data: Any, loop: FeedbackLoop,

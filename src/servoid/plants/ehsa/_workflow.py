@@ -75,7 +75,7 @@ from ._nonlinear_model import NONLINEAR_PARAMETERS
 from ._onestep import DISCRETIZATIONS, fit_one_step
 from ._params import SET_B, SET_C
 from ._result import ClosedLoopResult
-from ._skew import with_skew_tolerance
+from ._skew import unresolved_skew, with_skew_tolerance
 from ._structure_test import compare_structures
 from ._structures import STRUCTURES, skew_structure
 
@@ -105,6 +105,7 @@ class ClosedLoopIdentification(Displayed):
     flow_law: Any = None
     dc_gain: Any = None
     conditions: tuple[Conditions, ...] = ()
+    skew: Any = None
     digests: dict[str, str] = field(default_factory=dict, repr=False)
 
     @property
@@ -144,6 +145,8 @@ class ClosedLoopIdentification(Displayed):
                        "the residual does not follow the valve's flow law (first order in the "
                        f"load pressure, level {100 * flow.level:.3g} %)")
             checks.append(Check("flow law", f"z = {flow.z:+.1f}", outcome, meaning))
+        if self.skew is not None:
+            checks.append(Check("channel skew", self.skew.value, "caution", self.skew.note))
         dc = self.dc_gain
         if dc is not None:
             checks.append(Check("DC gain", f"z = {dc.z:+.1f}", "fail" if dc.mismatch else "pass",
@@ -222,6 +225,7 @@ class ClosedLoopIdentification(Displayed):
             "nonlinear_refinement": self.refinement.to_dict() if self.refinement else None,
             "flow_law": self.flow_law.to_dict() if self.flow_law else None,
             "dc_gain": self.dc_gain.to_dict() if self.dc_gain else None,
+            "channel_skew": self.skew.to_dict() if self.skew else None,
             "notes": list(self.notes),
             "verdict": self.verdict().to_dict(),
             "summary": self.summary().to_dict(),
@@ -403,13 +407,19 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
             notes.append(dc_gain.verdict)
         if saturation_note(flow_law, dc_gain):
             notes.append(saturation_note(flow_law, dc_gain))
-    structure_test = None
+    structure_test = skew_caution = None
     if options["structure_test"] and "one-step" in results:
         with stage("testing the model structure (richer models fitted beside it)"):
-            structure_test = _structure_test(spec, estimation, loop, results["one-step"],
-                                             options["discretization"])
+            structure_test, unresolved = _structure_test(spec, estimation, loop,
+                                                         results["one-step"],
+                                                         options["discretization"])
         if structure_test.rejected:
             notes.append(rejection_note(structure_test, flow_law, results["one-step"], dc_gain))
+        named = structure_test.rejected and structure_test.preferred == "reduced+skew"
+        if (unresolved is not None and unresolved.fires and not named
+                and options["[loop]"]["skew_tolerance"] == 0):
+            skew_caution = unresolved  # a stated tolerance puts the skew in the intervals
+            notes.append(unresolved.note)
     if options["[loop]"]["skew_tolerance"] > 0 and "one-step" in results:
         with stage("estimating the channel skew beside the one-step model"):
             skew = with_skew_tolerance(results["one-step"], estimation, loop,
@@ -441,7 +451,8 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                                     structure_test=structure_test, refinement=refinement,
                                     flow_law=flow_law, dc_gain=dc_gain,
                                     conditions=spec_conditions(spec, estimation,
-                                                               (validation_data,)))
+                                                               (validation_data,)),
+                                    skew=skew_caution)
 
 
 #: How the record's limits begin among the notes (``_data_check.record_notes``).
@@ -478,8 +489,12 @@ def _disagreement(results: Mapping[str, ClosedLoopResult]) -> list[str]:
 
 
 def _structure_test(spec: ExperimentSpec, estimation: Any, loop: FeedbackLoop,
-                    reduced: ClosedLoopResult, discretization: str) -> Any:
-    """Fit the richer structures from the reduced estimate and test the reduced one."""
+                    reduced: ClosedLoopResult, discretization: str) -> tuple[Any, Any]:
+    """Fit the richer structures from the reduced estimate and test the reduced one.
+
+    Returns the test and, with a static feedback, how far a skew the record
+    cannot resolve moves the reduced estimates (:func:`._skew.unresolved_skew`).
+    """
     theta = reduced.estimate.parameters
     fits: dict[str, Any] = {"reduced": reduced}
     extra = {}
@@ -495,7 +510,9 @@ def _structure_test(spec: ExperimentSpec, estimation: Any, loop: FeedbackLoop,
                                       **_rig_options(spec, discretization))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ServoidWarning)  # the verdict is the note
-        return compare_structures(fits, estimation, structures=extra)
+        test = compare_structures(fits, estimation, structures=extra)
+    skew = unresolved_skew(fits["reduced+skew"], reduced) if "reduced+skew" in fits else None
+    return test, skew
 
 
 def _refine_rig_options(spec: ExperimentSpec) -> dict[str, Any]:

@@ -571,6 +571,85 @@ def hac_covariance(
     return np.asarray(0.5 * (cov + cov.T))
 
 
+def spectral_covariance(
+    groups: Sequence[tuple[NDArray[np.float64], ...]],
+    half_width: int = 4,
+) -> NDArray[np.float64]:
+    """LS/IV covariance with the residuals' spectra at the regressors' frequencies.
+
+    An SVF regression's residual is the sensor noise through the equation's
+    filter (in S1 ``F(s)·A(s)``, s² at mid frequencies; in S2 ``sF``):
+    nearly all its power lies far above the band the regressors occupy,
+    where its density is orders of magnitude lower.  σ̂²ΦᵀΦ weighs the
+    regressors with the residual's total power, and a Newey–West estimate
+    of a few hundred lags leaks the high band into the low one (S1's σ came
+    out 2.3× its seed-to-seed spread, R's in S2 1.6×).  With the DFTs
+    ``Z_{c,j}`` of the instruments and ``E_{c,j}`` of the residuals of the
+    records c that share one sample clock (S2's two chambers: their
+    residuals share the x_k and v_k noise) this returns ``A⁻¹ S A⁻ᵀ ·
+    n/(n − p)``, ``A = Σ_c Z_cᵀΦ_c`` and ``S = (1/N) Σ_j Σ_{c,d} Re(Z_{c,j}^*
+    Φ̂_{cd}(ω_j) Z_{d,j}ᵀ)``, Φ̂ the (cross-)periodogram smoothed over
+    ``2·half_width + 1`` bins (Daniell).  White residuals give back
+    σ̂² A⁻¹ZᵀZA⁻ᵀ.  Samples outside a record's rows count as zero.
+
+    Parameters
+    ----------
+    groups : sequence of (phi, resid, index) or (phi, resid, index, z)
+        Regression rows of each record with the sample index of each row
+        on the common clock; with instruments ``z`` (same shape as
+        ``phi``) the covariance of the IV estimate ``(ZᵀΦ)⁻¹ZᵀY``.
+    half_width : int
+        Half-width of the periodogram smoothing [bins of 1/(N·dt)].  The
+        residual's density rises as ω² (S2) to ω⁴ (S1) from the lowest
+        bins: a few bins keep that slope out of the regressors' band.
+
+    Returns
+    -------
+    ndarray, shape (p, p)
+        The covariance of the estimate.
+    """
+    start = min(int(g[2][0]) for g in groups if g[2].size)
+    span = max(int(g[2][-1]) for g in groups if g[2].size) - start + 1
+    p = groups[0][0].shape[1]
+    a = np.zeros((p, p))
+    zf, ef = [], []
+    n = 0
+    for phi, resid, index, *inst in groups:
+        z = inst[0] if inst else phi
+        a += z.T @ phi
+        n += resid.size
+        z_full, e_full = np.zeros((span, p)), np.zeros(span)
+        z_full[index - start] = z
+        e_full[index - start] = resid
+        zf.append(np.fft.rfft(z_full, axis=0))
+        ef.append(np.fft.rfft(e_full))
+    m = max(int(half_width), 0)
+    weight = np.full(ef[0].size, 2.0)  # rfft: interior bins stand for ±ω
+    weight[0] = 1.0
+    if span % 2 == 0:
+        weight[-1] = 1.0
+    s = np.zeros((p, p))
+    for c, (z_c, e_c) in enumerate(zip(zf, ef, strict=True)):
+        for d, (z_d, e_d) in enumerate(zip(zf, ef, strict=True)):
+            if d < c:
+                continue
+            cross = _daniell(e_c * e_d.conj(), m) / span
+            term = ((z_c.conj().T * (weight * cross)) @ z_d).real / span
+            s += term if c == d else term + term.T
+    a_inv = np.linalg.inv(a)
+    cov = a_inv @ s @ a_inv.T * (n / max(n - p, 1))
+    return np.asarray(0.5 * (cov + cov.T))
+
+
+def _daniell(x: NDArray[np.complex128], m: int) -> NDArray[np.complex128]:
+    """Moving average over 2m + 1 bins, mirrored at 0 and Nyquist."""
+    if m == 0 or x.size <= m + 1:
+        return x
+    ext = np.concatenate([x[m:0:-1].conj(), x, x[-2:-m - 2:-1].conj()])
+    kernel = np.full(2 * m + 1, 1.0 / (2 * m + 1))
+    return np.convolve(ext.real, kernel, "valid") + 1j * np.convolve(ext.imag, kernel, "valid")
+
+
 def propagate(
     cov: NDArray[np.float64],
     solve: Any,
