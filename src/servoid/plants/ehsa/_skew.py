@@ -34,8 +34,9 @@ from the ``reduced+skew`` fit the structure test makes anyway: a skew of
 1.96 σ_τ — one the record cannot tell from none at 95 % — moves each
 reduced parameter by ``g_i·1.96 σ_τ`` with ``g = Σ[:, τ]/Σ[τ, τ]`` (the
 joint fit's regression of θ on τ_d), and where that exceeds the reduced
-σ_i (:data:`SKEW_SHIFT`) the verdict carries a caution with the numbers
-and the skew fit's own interval (which covers a skew of either size).
+σ_i (:data:`SKEW_SHIFT`) the verdict states the assumption (an ``info``
+check, since the data cannot tell) with the numbers and the skew fit's own
+interval (which covers a skew of either size).
 """
 
 from __future__ import annotations
@@ -62,7 +63,7 @@ __all__ = ["SkewAdjustment", "UnresolvedSkew", "skew_prior", "unresolved_skew",
 #: |τ̂| beyond this many standard deviations of (data + prior) is a skew beyond the tolerance.
 SKEW_BEYOND = 3.0
 #: A skew the record cannot resolve (1.96 σ_τ) moving a parameter by more than this many of its
-#: reduced σ is a caution.
+#: reduced σ is stated in the verdict.
 SKEW_SHIFT = 1.0
 #: The reduced parameters, their labels in the note.
 _LABELS = {"K": "K", "omega_hp": "ω_hp", "delta_hp": "δ_hp"}
@@ -166,13 +167,14 @@ class UnresolvedSkew:
 
     @property
     def note(self) -> str:
-        """The caution in words, with the numbers and what to do."""
+        """The assumption in words, with the numbers and what to do."""
         moved = ", ".join(f"{_LABELS[n]} by {abs(v):.1f}σ"
                           for n, v in sorted(self.shifts.items(), key=lambda kv: -abs(kv[1]))
                           if abs(v) > SKEW_SHIFT)
         w = self.worst
         value, std = self.free[w]
-        return (f"channel skew: the record fixes the skew between the reference and position "
+        return (f"channel skew: the intervals assume the reference and position channels are "
+                f"sampled together; the record fixes the skew between the reference and position "
                 f"channels only to ±{_seconds('tau', self.tau_std)} (σ; estimate "
                 f"{_seconds('tau', self.tau)}), and a skew of "
                 f"{_seconds('tau', 1.96 * self.tau_std)} that it cannot tell from none would move "
