@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import time
+from functools import partial
 
 if __name__ == "__main__":  # before numpy is imported
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -58,9 +59,9 @@ def main() -> None:
         theta = search.model.parameters
         x0s = [np.zeros(search.model.n_states)]
         keep = np.setdiff1d(np.arange(search.n_model + search.model.n_states), search.ef)
-        t_all, (H_all, g_all, _) = _median(lambda: search.normal_equations(theta, x0s))
-        t_lin, (H_lin, g_lin, _) = _median(
-            lambda: search.normal_equations(theta, x0s, linear=True))
+        form = search.normal_equations
+        t_all, (H_all, _, _) = _median(partial(form, theta, x0s))
+        t_lin, (H_lin, _, _) = _median(partial(form, theta, x0s, linear=True))
         diff = float(np.max(np.abs(H_all[np.ix_(keep, keep)] - H_lin[np.ix_(keep, keep)]))
                      / np.max(np.abs(H_all[np.ix_(keep, keep)])))
         print(f"{name}: {search.model.n_parameters} parameters, {keep.size} linear columns "

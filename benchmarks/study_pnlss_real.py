@@ -77,9 +77,9 @@ def run_one(folder: Path, name: str, est: Experiment, val: Experiment) -> dict[s
 
 def table(results: list[dict[str, Any]]) -> str:
     """The Markdown table of the results."""
-    lines = ["| record | PNLSS chosen | kept on held-out data | its validation fit % "
-             "| best linear (hindsight) | its fit % | PNLSS ≥ it | linear by held-out score "
-             "| its fit % | PNLSS ≥ it | time s |",
+    lines = [("| record | PNLSS chosen | kept on held-out data | its validation fit % "
+              "| best linear (hindsight) | its fit % | PNLSS ≥ it | linear by held-out score "
+              "| its fit % | PNLSS ≥ it | time s |"),
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         fit = "diverged" if r["pnlss_validation"] is None else r["pnlss_validation"]

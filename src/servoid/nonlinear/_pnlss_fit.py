@@ -196,6 +196,7 @@ def fit_pnlss(
         return _Search(model, normal, ridge, held)
 
     search = setup(y_mean)
+    offset_rule = "the output's mean"
     if held is not None and initial is None:
         # the start fitted on the records as they are (no offset) is E = F = 0 only with the
         # offset G(1)·ū; the output's mean is the other natural one: the linear stage runs
@@ -205,12 +206,13 @@ def fit_pnlss(
             other = setup(offset)
             search.run_linear(max_iter, tol)
             other.run_linear(max_iter, tol)
-            assert search.linear_best is not None and other.linear_best is not None
-            if other.linear_best.score < search.linear_best.score:
-                search = other
+            scores = [s.linear_best.score if s.linear_best else np.inf for s in (search, other)]
+            better = scores[1] < scores[0]
+            offset_rule = (("G(1)·ū, the linear start's own, better" if better else
+                            "the output's mean, better") + " on the held-out records than "
+                           + ("the output's mean" if better else "G(1)·ū"))
+            search = other if better else search
     model = search.model
-    offset_rule = ("G(1)·ū, the linear start's own" if model.y_mean != y_mean else
-                   "the output's mean")
     theta, x0s, info = search.run(max_iter, tol)
     fixed = np.zeros(0, dtype=np.int64)
     pruned: list[str] = []
@@ -383,8 +385,7 @@ class _Search:
         iterate there so far (the linear start is the first)."""
         if self.linear is None:
             self.run_linear(max_iter, tol)
-        assert self.linear is not None
-        theta, x0s, first = self.linear
+        theta, x0s, first = self.linear  # type: ignore[misc]
         info = dict(first)
         info["linear_rms"] = np.sqrt(first["cost"] / self.n_total)
         if self.ef.size:
@@ -435,8 +436,7 @@ class _Search:
 
     def _held_info(self, linear: _Best) -> dict[str, Any]:
         """Which iterate was kept on the held-out records, and why (normalised units)."""
-        best = self.best
-        assert best is not None
+        best = self.best or linear
         if best.stage == "nonlinear":
             why = (f"the nonlinear terms lowered the held-out RMS error from {{linear:.4g}} "
                    f"(linear part, E = F = 0) to {{chosen:.4g}}: kept the iterate "

@@ -128,10 +128,8 @@ class PnlssResult(IdentificationResult):
         if held:
             text += (f" Every accepted iterate was also run freely on {held['samples']} held-out "
                      f"samples (not fitted) and the one with the lowest RMS error there kept: "
-                     f"{held['why']}. The output offset (the model's y_mean) is "
-                     f"{held['offset']}: the linear stage ran from both it and the other one "
-                     "(G(1)·ū of the linear start, or the output's mean) and went on from the "
-                     "one better on the held-out samples.")
+                     f"{held['why']}. The output offset (the model's y_mean): "
+                     f"{held['offset']}.")
         figures = []
         if "linear_bode.png" in files:
             figures.append(Figure.from_file(files["linear_bode.png"],
