@@ -196,24 +196,24 @@ def fit_pnlss(
         return _Search(model, normal, ridge, held)
 
     search = setup(y_mean)
+    theta, x0s, info = search.run(max_iter, tol)
     offset_rule = "the output's mean"
     if held is not None and initial is None:
         # the start fitted on the records as they are (no offset) is E = F = 0 only with the
-        # offset G(1)·ū; the output's mean is the other natural one: the linear stage runs
-        # from both and the search goes on from the one better on the held-out records
+        # offset G(1)·ū; the output's mean is the other natural one (a static nonlinearity
+        # shifts the mean): the whole search runs from both, the better on held-out kept
         offset = _offset(start, u_mean, u_scale, y_mean, y_scale)
         if offset != y_mean:
             other = setup(offset)
-            search.run_linear(max_iter, tol)
-            other.run_linear(max_iter, tol)
-            scores = [s.linear_best.score if s.linear_best else np.inf for s in (search, other)]
-            better = scores[1] < scores[0]
-            offset_rule = (("G(1)·ū, the linear start's own, better" if better else
-                            "the output's mean, better") + " on the held-out records than "
-                           + ("the output's mean" if better else "G(1)·ū"))
-            search = other if better else search
+            run = other.run(max_iter, tol)
+            score = [s.best.score if s.best else np.inf for s in (search, other)]
+            better = score[1] < score[0]
+            rules = ("the output's mean", "G(1)·ū, the linear start's own")[::-1 if better else 1]
+            offset_rule = (f"{rules[0]}: held-out RMS {min(score) * y_scale:.4g} against "
+                           f"{max(score) * y_scale:.4g} from {rules[1].split(',')[0]}")
+            if better:
+                search, (theta, x0s, info) = other, run
     model = search.model
-    theta, x0s, info = search.run(max_iter, tol)
     fixed = np.zeros(0, dtype=np.int64)
     pruned: list[str] = []
     if prune > 0 and search.ef.size and np.any(theta[search.ef] != 0):
