@@ -386,7 +386,7 @@ METHOD = Method(
     name="pnlss",
     summary="polynomial nonlinear state space x⁺ = Ax + Bu + Eζ(x, u), y = Cx + Du + Fη(x, u) "
             "from a linear start, by Levenberg–Marquardt on the simulation error; states and "
-            "degree from a grid on held-out data, never worse there than the linear start",
+            "degree from a grid on held-out data",
     options=(
         ROLE,
         OUTPUT,
