@@ -34,8 +34,10 @@ def test_the_grid_on_held_out_data_picks_states_and_degree_that_cover_the_system
 
 def test_the_free_run_reaches_the_example_noise(run):
     result, _ = run
-    # the example's output noise is 0.02 (workflows/_examples.py): within 10 % of it
-    assert result.validation.rmse < 1.10 * 0.02
+    # the example's output noise is 0.02 (workflows/_examples.py): within 15 % of it — the
+    # model is fitted on 750 of the 1000 estimation samples (60 parameters), the rest held out
+    # as its guard (measured 1.13; 1.07 when it was refitted on all 1000 unguarded)
+    assert result.validation.rmse < 1.15 * 0.02
 
 
 def test_the_report_has_the_linear_part_and_the_nonlinear_contribution(run):

@@ -11,12 +11,20 @@ sensitivity recursion (:mod:`._pnlss_kernel`); a step whose simulation
 diverges, or that does not lower the cost, is rejected and the damping
 raised.  A ridge term ``ridge·N·‖(E, F)‖²`` keeps unneeded nonlinear
 coefficients near zero.
+
+With ``held_out`` records, every accepted iterate is also run freely on
+them (from an estimated initial state) and the search returns the iterate
+with the lowest held-out RMS error (early stopping): the linear start is
+the first candidate, then the linear stage's iterates, then those of the
+full model, so the result is never worse there than its linear start, and
+an iterate that diverges there is never returned.
 """
 
 from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -46,6 +54,9 @@ LINEAR_STARTS = ("n4sid", "oe")
 #: BLOCK × parameters, not N × parameters.
 BLOCK = 4096
 
+#: Accepted iterations without a lower held-out error after which a stage stops early.
+PATIENCE = 10
+
 Record = tuple[NDArray[np.float64], NDArray[np.float64]]  # (u (N, nu), y (N,))
 
 
@@ -63,6 +74,7 @@ def fit_pnlss(
     output: str | None = None,
     max_iter: int = 100,
     tol: float = 1e-9,
+    held_out: Experiment | ExperimentSet | None = None,
 ) -> Estimate:
     """Fit a PNLSS model by simulation error (Levenberg–Marquardt).
 
@@ -102,6 +114,15 @@ def fit_pnlss(
         Most Levenberg–Marquardt iterations (Jacobian evaluations).
     tol : float
         Relative decrease of the cost below which the search stops.
+    held_out : Experiment or ExperimentSet, optional
+        Records not fitted, on which each accepted iterate's free run
+        (initial state estimated) is scored: the search returns the
+        iterate with the lowest held-out RMS error, starting with the
+        linear start itself, so never one worse there than the start or
+        than the best linear iterate (E = F = 0), and never one that
+        diverges there; a stage stops after :data:`PATIENCE` iterations
+        without a lower held-out error.  ``options["held_out"]`` says which
+        was kept and why.
 
     Returns
     -------
@@ -147,7 +168,9 @@ def fit_pnlss(
         raise IdentifiabilityError(f"an input of {', '.join(names['inputs'])} is constant: it "
                                    "excites nothing; excite the system with a multisine, PRBS "
                                    "or chirp")
-    normal = [((u - u_mean) / u_scale, (y - y_mean) / y_scale) for u, y in records]
+    held = None
+    if held_out is not None:
+        held = _held_records(held_out, input, output, names, dt)
     if initial is None:
         _check_size(n_states, nu, degree, monomials, len(records), y_all.size)
     start = _linear_start(data, initial, linear, n_states, input, output, dt, nu,
@@ -155,20 +178,52 @@ def fit_pnlss(
     nx = start[0].shape[0]
     powers = exponents(nx, nu, degree, monomials)
     nm = powers.shape[0]
-    A, B, C, D = _balanced(*start, normal)
-    model = PnlssModel(A, B, C, D, np.zeros((nx, nm)), np.zeros(nm), powers, dt,
-                       u_mean=u_mean, u_scale=u_scale, y_mean=y_mean, y_scale=y_scale,
-                       monomials=monomials, input_names=tuple(names["inputs"]),
-                       output_name=names["output"], input_units=tuple(names["input_units"]),
-                       output_unit=names["output_unit"])
     n_total = y_all.size
     n_free = _check_size(nx, nu, degree, monomials, len(records), n_total)
-    search = _Search(model, normal, ridge)
+    normal_u = [(u - u_mean) / u_scale for u, _ in records]
+    A, B, C, D = _balanced(*start, normal_u)
+
+    def setup(offset: float) -> _Search:
+        """The search with the output offset `offset` (the model's y_mean)."""
+        model = PnlssModel(A, B, C, D, np.zeros((nx, nm)), np.zeros(nm), powers, dt,
+                           u_mean=u_mean, u_scale=u_scale, y_mean=offset, y_scale=y_scale,
+                           monomials=monomials, input_names=tuple(names["inputs"]),
+                           output_name=names["output"],
+                           input_units=tuple(names["input_units"]),
+                           output_unit=names["output_unit"])
+        normal = [(un, (y - offset) / y_scale) for un, (_, y) in zip(normal_u, records,
+                                                                      strict=True)]
+        return _Search(model, normal, ridge, held)
+
+    search = setup(y_mean)
     theta, x0s, info = search.run(max_iter, tol)
+    offset_rule = "the output's mean"
+    if held is not None and initial is None:
+        # the start fitted on the records as they are (no offset) is E = F = 0 only with the
+        # offset G(1)·ū; the output's mean is the other natural one (a static nonlinearity
+        # shifts the mean): the whole search runs from both, the better on held-out kept
+        offset = _offset(start, u_mean, u_scale, y_mean, y_scale)
+        if offset != y_mean:
+            other = setup(offset)
+            run = other.run(max_iter, tol)
+            score = [s.best.score if s.best else np.inf for s in (search, other)]
+            better = score[1] < score[0]
+            rules = ("the output's mean", "G(1)·ū, the linear start's own")[::-1 if better else 1]
+            offset_rule = (f"{rules[0]}: held-out RMS {min(score) * y_scale:.4g} against "
+                           f"{max(score) * y_scale:.4g} from {rules[1].split(',')[0]}")
+            if better:
+                search, (theta, x0s, info) = other, run
+    model = search.model
     fixed = np.zeros(0, dtype=np.int64)
     pruned: list[str] = []
-    if prune > 0 and search.ef.size:
+    if prune > 0 and search.ef.size and np.any(theta[search.ef] != 0):
+        before = (theta, x0s, search.held_rms(theta))
         theta, x0s, fixed, pruned = _prune(search, theta, x0s, prune, info, max_iter, tol)
+        if held is not None and not search.held_rms(theta) <= before[2]:
+            # pruning raised the held-out error: keep the model before it
+            theta, x0s, _ = before
+            fixed, pruned = np.zeros(0, dtype=np.int64), []
+            info["held_out"]["why"] += "; pruning raised the held-out error and was undone"
     fitted = model.with_parameters(theta)
     n_model = model.n_parameters
     cov, r, _ = search.covariance(theta, x0s, fixed, n_free - fixed.size)
@@ -190,6 +245,7 @@ def fit_pnlss(
         "initial_states": [x.tolist() for x in x0s], "n_monomials": nm,
         "n_parameters": n_model, "linear_rms": info["linear_rms"] * y_scale,
         "linear_start": _physical(start, u_scale, y_scale),
+        "held_out": _held_summary(info.get("held_out"), y_scale, offset_rule),
     }
     return Estimate(model=fitted, parameters=theta, names=labels, covariance=cov,
                     noise_variance=noise, n_samples=n_total, method="pnlss",
@@ -201,25 +257,42 @@ def fit_pnlss(
 
 
 class _Search:
-    """Levenberg–Marquardt over A … F and the records' initial states."""
+    """Levenberg–Marquardt over A … F and the records' initial states.
 
-    def __init__(self, model: PnlssModel, records: Sequence[Record], ridge: float) -> None:
+    With held-out records (``held``: raw (u, y) pairs), :meth:`run` keeps
+    the iterate whose free run there has the lowest RMS error.
+    """
+
+    def __init__(self, model: PnlssModel, records: Sequence[Record], ridge: float,
+                 held: Sequence[Record] | None = None) -> None:
         self.model = model
         self.records = [(np.ascontiguousarray(u), y) for u, y in records]
         self.n_total = sum(y.size for _, y in records)
-        nx, nm = model.n_states, model.n_monomials
+        nx, nm, nu = model.n_states, model.n_monomials, model.n_inputs
         self.n_model = model.n_parameters
+        self.n_linear = nx * nx + nx * nu + nx + nu  # A, B, C, D lead θ
         self.ef = np.arange(self.n_model - nx * nm - nm, self.n_model)
         self.rho = ridge * self.n_total
+        self.held = held
+        self.best: _Best | None = None
+        self.linear_best: _Best | None = None
+        self.linear: tuple[Any, Any, dict[str, Any]] | None = None
 
     def penalty_matrix(self) -> NDArray[np.float64]:
         P = np.zeros((self.n_model, self.n_model))
         P[self.ef, self.ef] = self.rho
         return P
 
-    def _args(self, theta: NDArray[np.float64]) -> tuple[Any, ...]:
+    def _args(self, theta: NDArray[np.float64], linear: bool = False) -> tuple[Any, ...]:
+        """The kernels' arguments; ``linear``: without monomials (E = F = 0 must hold), so
+        the Jacobian kernel forms the columns of A, B, C, D and the initial state alone."""
         m = self.model.with_parameters(theta)
-        return m._kernel_args()
+        args = m._kernel_args()
+        if not linear:
+            return args
+        A, B, C, D, _, _, P = args
+        return (A, B, C, D, np.zeros((A.shape[0], 0)), np.zeros(0),
+                np.zeros((0, P.shape[1]), dtype=P.dtype))
 
     def cost(self, theta: NDArray[np.float64], x0s: Sequence[NDArray[np.float64]]
              ) -> float:
@@ -234,28 +307,48 @@ class _Search:
             total += float(np.sum((ys - y) ** 2))
         return total
 
-    def normal_equations(self, theta: NDArray[np.float64], x0s: Sequence[NDArray[np.float64]]
+    def held_rms(self, theta: NDArray[np.float64]) -> float:
+        """RMS free-run error on the held-out records (normalised units; inf if a run
+        diverges; NaN without held-out records), each from its estimated initial state."""
+        if self.held is None:
+            return np.nan
+        m = self.model.with_parameters(theta)
+        total, n = 0.0, 0
+        for u, y in self.held:
+            x0 = m.initial_state(y, u)
+            ys, where = m._run(m._normalised(u), x0, False)
+            if where >= 0:
+                return np.inf
+            total += float(np.sum((ys - (y - m.y_mean) / m.y_scale) ** 2))
+            n += y.size
+        return float(np.sqrt(total / n))
+
+    def normal_equations(self, theta: NDArray[np.float64], x0s: Sequence[NDArray[np.float64]],
+                         linear: bool = False
                          ) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                     NDArray[np.float64]]:
         """JᵀJ, Jᵀr and r = simulated − measured, J (N, n_model + nx·records) the exact
         Jacobian, accumulated over blocks of :data:`BLOCK` samples so that J is never held
-        whole (a block's rows are those of the whole record, bit for bit).  ConvergenceError
-        if the run diverges (it cannot: only accepted points are differentiated)."""
-        args = self._args(theta)
+        whole (a block's rows are those of the whole record, bit for bit).  ``linear``
+        (E = F = 0): only the columns of A, B, C, D and the initial states are formed, the
+        rows and columns of E and F are left zero.  ConvergenceError if the run diverges
+        (it cannot: only accepted points are differentiated)."""
+        args = self._args(theta, linear)
         nx, nmod = self.model.n_states, self.n_model
+        nown = self.n_linear if linear else nmod  # the model's columns the kernel forms
         n_all = nmod + nx * len(self.records)
         H = np.zeros((n_all, n_all))
         g = np.zeros(n_all)
         r = np.empty(self.n_total)
         row = 0
         for k, ((u, y), x0) in enumerate(zip(self.records, x0s, strict=True)):
-            cols = np.r_[np.arange(nmod), nmod + k * nx + np.arange(nx)]
+            cols = np.r_[np.arange(nown), nmod + k * nx + np.arange(nx)]
             x = np.array(x0, dtype=float)
-            S = np.zeros((nx, nmod + nx))
-            S[:, nmod:] = np.eye(nx)
-            Hk = np.zeros((nmod + nx, nmod + nx))
-            gk = np.zeros(nmod + nx)
-            Jb = np.empty((min(BLOCK, y.size), nmod + nx))
+            S = np.zeros((nx, nown + nx))
+            S[:, nown:] = np.eye(nx)
+            Hk = np.zeros((nown + nx, nown + nx))
+            gk = np.zeros(nown + nx)
+            Jb = np.empty((min(BLOCK, y.size), nown + nx))
             for a in range(0, y.size, BLOCK):
                 b = min(a + BLOCK, y.size)
                 Jk, ys = Jb[:b - a], np.empty(b - a)
@@ -286,24 +379,81 @@ class _Search:
 
     def run(self, max_iter: int, tol: float
             ) -> tuple[NDArray[np.float64], list[NDArray[np.float64]], dict[str, Any]]:
-        """The linear part alone first (E = F = 0, as the start of Paduart et al.), then all."""
+        """The linear part alone first (E = F = 0, as the start of Paduart et al.), then all.
+
+        With held-out records each stage starts from, and the search returns, the best
+        iterate there so far (the linear start is the first)."""
+        if self.linear is None:
+            self.run_linear(max_iter, tol)
+        theta, x0s, first = self.linear  # type: ignore[misc]
+        info = dict(first)
+        info["linear_rms"] = np.sqrt(first["cost"] / self.n_total)
+        if self.ef.size:
+            n_all = self.n_model + self.model.n_states * len(self.records)
+            theta, x0s, second = self._lm(theta, x0s, max_iter, tol, np.arange(n_all),
+                                          "nonlinear")
+            info.update(status=second["status"], cost=second["cost"])
+            for key in ("iterations", "rejected", "diverged"):
+                info[key] += second[key]
+        if self.best is not None and self.linear_best is not None:
+            theta, x0s = self.best.theta, self.best.x0s
+            info["cost"] = self.cost(theta, x0s)
+            info["held_out"] = self._held_info(self.linear_best)
+        return theta, x0s, info
+
+    def run_linear(self, max_iter: int, tol: float) -> None:
+        """The linear stage (E = F = 0): :attr:`linear` (θ, x(0)s, info) — with held-out
+        records the best iterate there, also :attr:`linear_best`."""
         nx = self.model.n_states
         theta = self.model.parameters.copy()
         x0s = [np.zeros(nx) for _ in self.records]
         n_all = self.n_model + nx * len(self.records)
-        linear = np.setdiff1d(np.arange(n_all), self.ef)
-        theta, x0s, first = self._lm(theta, x0s, max_iter, tol, linear)
-        info = dict(first)
-        if self.ef.size:
-            theta, x0s, second = self._lm(theta, x0s, max_iter, tol, np.arange(n_all))
-            info.update(status=second["status"], cost=second["cost"])
-            for key in ("iterations", "rejected", "diverged"):
-                info[key] += second[key]
-        info["linear_rms"] = np.sqrt(first["cost"] / self.n_total)
-        return theta, x0s, info
+        self.best = None
+        self._watch(theta, x0s, "the linear start", 0)
+        theta, x0s, first = self._lm(theta, x0s, max_iter, tol,
+                                     np.setdiff1d(np.arange(n_all), self.ef), "linear")
+        self.linear_best = self.best
+        if self.linear_best is not None:
+            theta, x0s = self.linear_best.theta, self.linear_best.x0s
+            first["cost"] = self.cost(theta, x0s)
+        self.linear = (theta, x0s, first)
+
+    def _watch(self, theta: NDArray[np.float64], x0s: list[NDArray[np.float64]], stage: str,
+               iteration: int) -> bool:
+        """Score an iterate on the held-out records; True if it is the best so far."""
+        if self.held is None:
+            return False
+        score = self.held_rms(theta)
+        if self.best is None:
+            self.best = _Best(score, theta.copy(), [x.copy() for x in x0s], stage, iteration,
+                              score)
+            return True
+        if score < self.best.score:
+            self.best = _Best(score, theta.copy(), [x.copy() for x in x0s], stage, iteration,
+                              self.best.start)
+            return True
+        return False
+
+    def _held_info(self, linear: _Best) -> dict[str, Any]:
+        """Which iterate was kept on the held-out records, and why (normalised units)."""
+        best = self.best or linear
+        if best.stage == "nonlinear":
+            why = (f"the nonlinear terms lowered the held-out RMS error from {{linear:.4g}} "
+                   f"(linear part, E = F = 0) to {{chosen:.4g}}: kept the iterate "
+                   f"{best.iteration} of the full model's search")
+        elif best.stage == "linear":
+            why = ("no iterate with nonlinear terms lowered the held-out RMS error below the "
+                   "linear part's {linear:.4g}: kept E = F = 0 (the linear model refined by "
+                   f"output error, iterate {best.iteration})")
+        else:
+            why = ("no iterate lowered the held-out RMS error below the linear start's "
+                   "{start:.4g}: kept the linear start, E = F = 0")
+        return {"start": best.start, "linear": linear.score, "chosen": best.score,
+                "kept": best.stage, "iteration": best.iteration, "why": why,
+                "samples": int(sum(y.size for _, y in self.held or ()))}
 
     def _lm(self, theta: NDArray[np.float64], x0s: list[NDArray[np.float64]], max_iter: int,
-            tol: float, free: NDArray[np.int64]
+            tol: float, free: NDArray[np.int64], stage: str = ""
             ) -> tuple[NDArray[np.float64], list[NDArray[np.float64]], dict[str, Any]]:
         nx = self.model.n_states
         cost = self.cost(theta, x0s)
@@ -313,11 +463,14 @@ class _Search:
                                    "use linear = \"oe\"")
         info: dict[str, Any] = {"cost_start": cost, "iterations": 0, "rejected": 0,
                                 "diverged": 0, "status": "ok"}
+        # E and F fixed at zero: the Jacobian's columns of A, B, C, D and x(0) suffice
+        linear = not np.isin(self.ef, free).any() and not np.any(theta[self.ef])
         lam = 1e-3
         small = 0
+        stale = 0  # accepted iterations since the last lower held-out error
         n_model = self.n_model
         for it in range(max_iter):
-            H, g, _ = self.normal_equations(theta, x0s)
+            H, g, _ = self.normal_equations(theta, x0s, linear)
             info["iterations"] = it + 1
             H[:n_model, :n_model] += self.penalty_matrix()
             g[self.ef] += self.rho * theta[self.ef]
@@ -350,6 +503,12 @@ class _Search:
                 lam *= 10.0
             if not accepted:
                 break  # no damping lowers the cost: a (local) minimum
+            if stage and self.held is not None:
+                stale = 0 if self._watch(theta, x0s, stage, it + 1) else stale + 1
+                if stale >= PATIENCE:
+                    info["status"] = (f"stopped early: {PATIENCE} iterations without a lower "
+                                      "held-out error")
+                    break
             small = small + 1 if drop < tol else 0
             if small >= 2:
                 break
@@ -358,6 +517,18 @@ class _Search:
                 info["status"] = f"stopped after max_iter = {max_iter} iterations"
         info["cost"] = cost
         return theta, x0s, info
+
+
+@dataclass(frozen=True)
+class _Best:
+    """The iterate with the lowest held-out RMS error so far."""
+
+    score: float
+    theta: NDArray[np.float64]
+    x0s: list[NDArray[np.float64]]
+    stage: str  # "the linear start", "linear" or "nonlinear"
+    iteration: int
+    start: float  # the linear start's score
 
 
 # -- pruning ------------------------------------------------------------------------------
@@ -485,13 +656,34 @@ def _fit_linear(data: Any, linear: str, n_states: int, input: str, output: str |
             np.asarray(ss.D, float))
 
 
+def _offset(start: Sequence[NDArray[np.float64]], u_mean: NDArray[np.float64],
+            u_scale: NDArray[np.float64], y_mean: float, y_scale: float) -> float:
+    """The output offset that makes E = F = 0 the fitted linear start itself.
+
+    n4sid and OE fit y = G u on the records as they are, with no offset;
+    on the inputs centred at their mean the same model reads
+    y = G(1)·ū + G (u − ū), so the model's output offset is G(1)·ū, not
+    the output's mean (which would add an offset ȳ − G(1)·ū the linear
+    start never had).  The output's mean when G(1) is not finite or puts
+    the offset more than 10 output standard deviations away (a near
+    integrator).
+    """
+    A, B, C, D = start
+    try:
+        gain = (C @ np.linalg.solve(np.eye(A.shape[0]) - A, B) + D) * y_scale / u_scale
+    except np.linalg.LinAlgError:
+        return y_mean
+    offset = float(gain @ u_mean)
+    return offset if np.isfinite(offset) and abs(offset - y_mean) < 10 * y_scale else y_mean
+
+
 def _balanced(A: NDArray[np.float64], B: NDArray[np.float64], C: NDArray[np.float64],
-              D: NDArray[np.float64], records: Sequence[Record]
+              D: NDArray[np.float64], inputs: Sequence[NDArray[np.float64]]
               ) -> tuple[NDArray[np.float64], ...]:
-    """The same linear model with states of unit covariance over the records."""
+    """The same linear model with states of unit covariance over the records' inputs."""
     nx = A.shape[0]
     states = []
-    for u, _ in records:
+    for u in inputs:
         x = np.zeros(nx)
         xs = np.empty((u.shape[0], nx))
         for t in range(u.shape[0]):
@@ -539,6 +731,33 @@ def _records(data: object, role: str, output: str | None
         names = {"inputs": list(inputs), "output": y_name, "output_unit": exp.unit(y_name),
                  "input_units": [exp.unit(n) for n in inputs]}
     return out, names
+
+
+def _held_records(data: object, role: str, output: str | None, names: dict[str, Any],
+                  dt: float) -> list[Record]:
+    """The held-out records' raw (u (N, nu), y), checked against the fitted ones."""
+    if not isinstance(data, (Experiment, ExperimentSet)):
+        raise type_error("held_out", data, "an Experiment or ExperimentSet")
+    records, held = _records(data, role, names["output"] if output is None else output)
+    if held["inputs"] != names["inputs"]:
+        raise DataError(f"held_out must have the inputs {', '.join(names['inputs'])} of the "
+                        f"fitted records, got {', '.join(held['inputs'])}")
+    if abs(float(data.dt) - dt) > 1e-9 * dt:
+        raise DataError(f"held_out must be sampled as the fitted records (dt = {dt:g} s), got "
+                        f"dt = {float(data.dt):g} s")
+    return records
+
+
+def _held_summary(held: dict[str, Any] | None, y_scale: float, offset: str
+                  ) -> dict[str, Any] | None:
+    """The held-out choice in the output's unit, with its sentence (None without one)."""
+    if held is None:
+        return None
+    out = dict(held, offset=offset)
+    for key in ("start", "linear", "chosen"):
+        out[key] = float(held[key] * y_scale)
+    out["why"] = held["why"].format(**{k: out[k] for k in ("start", "linear", "chosen")})
+    return out
 
 
 def _check_size(nx: int, nu: int, degree: int, monomials: Monomials, n_records: int,

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .._errors import DataError, ServoidError, ServoidWarning
+from .._errors import ConvergenceError, DataError, OptionError, ServoidError, ServoidWarning
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 from ..report import Figure, Section, Table
 from ._common import keyed, parameter_table, warnings_as_notes
@@ -24,9 +24,7 @@ __all__ = ["METHOD", "PnlssResult"]
 
 _KEYS = {name: f"[identify] {name}" for name in
          ("n_states", "degree", "monomials", "ridge", "prune", "linear", "plan",
-          "max_iter", "horizon")}
-#: Share of the estimation record held out to choose n_states and degree from a grid.
-HOLDOUT = 0.25
+          "max_iter", "holdout", "horizon")}
 
 
 @dataclass(frozen=True)
@@ -38,6 +36,8 @@ class Candidate:
     n_parameters: int
     rms: float  # free-run RMS error on the held-out part [output unit]; inf: failed
     status: str
+    linear_rms: float = np.nan  # the same for its linear part (E = F = 0) [output unit]
+    kept: str = ""  # "nonlinear", "linear" or "the linear start" (see fit_pnlss)
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -93,10 +93,13 @@ class PnlssResult(IdentificationResult):
         if share is not None:
             lines.append(f"  nonlinear terms: {100 * share:.3g} % of the output's RMS variation "
                          "on the first validation record")
-        if self.grid:
-            lines.append("  (n_states, degree) by free-run RMS on the held-out quarter:")
-            lines += [f"    {c.n_states}, {c.degree}: {c.rms:.4g} ({c.n_parameters} parameters)"
-                      for c in self.grid]
+        held = o.get("held_out")
+        if held:
+            lines.append(f"  held out ({held['samples']} samples): {held['why']}")
+        if len(self.grid) > 1:
+            lines.append("  (n_states, degree) by free-run RMS on the held-out data:")
+            lines += [f"    {c.n_states}, {c.degree}: {c.rms:.4g} ({c.n_parameters} parameters; "
+                      f"{c.status})" for c in self.grid]
         return lines
 
     def figures(self) -> dict[str, FigureWriter]:
@@ -121,6 +124,12 @@ class PnlssResult(IdentificationResult):
                 f"ridge {o['ridge']:g}{_pruned(o)}. Free-run RMS on the estimation data: linear "
                 f"{o['linear_rms']:.4g}, PNLSS {np.sqrt(o['cost']):.4g}. The covariance is "
                 "σ̂²(JᵀJ)⁺ with the similarity-transform directions left out.")
+        held = o.get("held_out")
+        if held:
+            text += (f" Every accepted iterate was also run freely on {held['samples']} held-out "
+                     f"samples (not fitted) and the one with the lowest RMS error there kept: "
+                     f"{held['why']}. The output offset (the model's y_mean): "
+                     f"{held['offset']}.")
         figures = []
         if "linear_bode.png" in files:
             figures.append(Figure.from_file(files["linear_bode.png"],
@@ -145,17 +154,22 @@ class PnlssResult(IdentificationResult):
                 figures=(Figure.from_file(files["nonlinear.png"],
                                           "Free run of the model and of its linear part, and "
                                           "their difference"),)))
-        if self.grid:
+        if len(self.grid) > 1:
             rows = tuple((str(c.n_states), str(c.degree), str(c.n_parameters),
-                          f"{c.rms:.4g}", c.status) for c in self.grid)
+                          f"{c.linear_rms:.4g}", f"{c.rms:.4g}", c.status) for c in self.grid)
+            share = 100 * self.estimate.options.get("holdout", 0.25)
             out.append(Section(
                 "States and degree",
-                paragraphs=((f"Each candidate fitted on the first {100 * (1 - HOLDOUT):g} % of "
-                             "the estimation data and scored by its free-run RMS error on the "
-                             "rest (initial state estimated); the best is refitted on all of "
-                             "it."),),
-                tables=(Table(("n_states", "degree", "parameters", "held-out RMS", "status"),
-                              rows, "Best first"),)))
+                paragraphs=((f"Each candidate fitted on the estimation data but its last "
+                             f"{share:g} % and scored by its free-run RMS error on that held-out "
+                             "part (initial state estimated); each search keeps its iterate "
+                             "with the lowest held-out error, its linear start first, so a "
+                             "candidate whose nonlinear terms do not pay there is its linear "
+                             "part. The best candidate is the model (it is not refitted: the "
+                             "held-out part stays its guard). A candidate that diverges on the "
+                             "held-out part is never chosen."),),
+                tables=(Table(("n_states", "degree", "parameters", "linear part's held-out RMS",
+                               "held-out RMS", "status"), rows, "Best first"),)))
         return out
 
     def _subtitle(self) -> str:
@@ -171,13 +185,16 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     degrees = _grid(options["degree"])
     grid: tuple[Candidate, ...] = ()
     with keyed(_KEYS), warnings_as_notes() as notes:
-        if len(states) * len(degrees) > 1:
-            grid = _search(estimation, states, degrees, fitting)
-            best = grid[0]
-            n_states, degree = best.n_states, best.degree
+        if options["holdout"] > 0:
+            grid, estimate = _search(estimation, states, degrees, fitting)
+        elif len(states) * len(degrees) > 1:
+            raise OptionError("[identify] n_states or degree is a list (a grid), which is "
+                              "chosen on held-out data, but holdout = 0 holds none out; give "
+                              "holdout > 0 (e.g. 0.25) or single values")
         else:
-            n_states, degree = states[0], degrees[0]
-        estimate = _fit(estimation, n_states, degree, fitting)
+            estimate = _fit(estimation, states[0], degrees[0], fitting)
+        estimate = replace(estimate, options={**estimate.options,
+                                              "holdout": options["holdout"]})
     model = estimate.model
     contribution: tuple[Any, ...] = ()
     first = validations[0]
@@ -192,6 +209,9 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     o = estimate.options
     title = (f"PNLSS (n_states = {o['n_states']}, degree = {o['degree']}, {o['monomials']} "
              f"monomials)")
+    held = o.get("held_out")
+    if held and held["kept"] != "nonlinear":
+        title += ", E = F = 0 kept on held-out data"
     result = lti_result(spec, "pnlss", estimate, title, validations, options, notes=notes,
                         truth=truth, modal=False, result_type=PnlssResult, records=estimation,
                         extra={"grid": grid, "contribution": contribution},
@@ -204,7 +224,7 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
 
 
 def _fit(data: Experiment | ExperimentSet, n_states: int, degree: int,
-         options: Mapping[str, Any]) -> Any:
+         options: Mapping[str, Any], held: Experiment | ExperimentSet | None = None) -> Any:
     from ..nonlinear import fit_pnlss
 
     bla = options["linear"] == "bla"
@@ -212,10 +232,8 @@ def _fit(data: Experiment | ExperimentSet, n_states: int, degree: int,
     est = fit_pnlss(data, n_states, degree, monomials=options["monomials"],
                     linear="n4sid" if bla else options["linear"], initial=start,
                     ridge=options["ridge"], prune=options["prune"], input=options["input"],
-                    output=options["output"], max_iter=options["max_iter"])
+                    output=options["output"], max_iter=options["max_iter"], held_out=held)
     if start is not None:
-        from dataclasses import replace
-
         est = replace(est, options={**est.options,
                                     "linear": f"BLA, ML fit in z of {n_states} poles"})
     return est
@@ -265,36 +283,70 @@ def _grid(value: int | Sequence[int]) -> list[int]:
     return [value] if isinstance(value, int) else list(dict.fromkeys(value))
 
 
-def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Sequence[int],
-            options: Mapping[str, Any]) -> tuple[Candidate, ...]:
-    """Fit every (n_states, degree) on the first part, score the free run on the rest."""
+def _holdout(value: Any, where: str, name: str) -> float:
+    """The holdout option: 0 (none) or a share below 1."""
+    share = number(nonneg=True)(value, where, name)
+    if share >= 1:
+        raise OptionError(f"{where} {name} = {share:g} is the share of the estimation data held "
+                          "out: 0 (none) or below 1, e.g. 0.25")
+    return share
+
+
+def _split(data: Experiment | ExperimentSet, share: float
+           ) -> tuple[Experiment | ExperimentSet, Experiment]:
+    """(fitted, held out): the last record whole when there are several, else the last
+    `share` of the one record."""
     records = [data] if isinstance(data, Experiment) else list(data)
-    if len(records) > 1:  # hold out the last record whole
+    if len(records) > 1:
         fit_on: Any = ExperimentSet(records[:-1]) if len(records) > 2 else records[0]
-        held = records[-1]
-    else:
-        whole = records[0]
-        cut = round(whole.n_samples * (1 - HOLDOUT))
-        fit_on, held = whole.slice(0, cut), whole.slice(cut, None)
+        return fit_on, records[-1]
+    whole = records[0]
+    cut = round(whole.n_samples * (1 - share))
+    if cut < 20 or whole.n_samples - cut < 20:
+        raise DataError(f"[identify] holdout = {share:g} of {whole.n_samples} samples leaves "
+                        "fewer than 20 to fit or to hold out; record more data or change "
+                        "holdout")
+    return whole.slice(0, cut), whole.slice(cut, None)
+
+
+def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Sequence[int],
+            options: Mapping[str, Any]) -> tuple[tuple[Candidate, ...], Any]:
+    """Fit every (n_states, degree) on the fitted part, each search guarded by the held-out
+    part; the candidates best first, and the best one's estimate."""
+    fit_on, held = _split(data, options["holdout"])
     rows = []
+    fits: dict[tuple[int, int], Any] = {}
+    single = len(states) * len(degrees) == 1
     for n in states:
         for d in degrees:
             try:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", ServoidWarning)
-                    est = _fit(fit_on, n, d, options)
-                    model = est.model
-                    u = held.signal(options["input"])
-                    y = held[est.options["output"]]
-                    y_sim, _, _ = model.replay(y, u, initial="estimate")
-                rms = float(np.sqrt(np.mean((y_sim - y) ** 2)))
-                rows.append(Candidate(n, d, est.parameters.size,
-                                      rms if np.isfinite(rms) else np.inf,
-                                      "ok" if np.isfinite(rms) else "diverged on held-out"))
+                    est = _fit(fit_on, n, d, options, held)
             except ServoidError as exc:
+                if single or isinstance(exc, OptionError):
+                    raise  # nothing to choose instead, or a wrong option: say it as it is
                 rows.append(Candidate(n, d, 0, np.inf, f"failed: {exc}"[:120]))
+                continue
+            h = est.options["held_out"]
+            finite = bool(np.isfinite(h["chosen"]))
+            status = ("diverged on held-out" if not finite else
+                      {"nonlinear": "nonlinear terms kept", "linear": "linear part kept "
+                       "(E = F = 0)", "the linear start": "linear start kept (E = F = 0)"}
+                      [h["kept"]])
+            rows.append(Candidate(n, d, est.parameters.size,
+                                  h["chosen"] if finite else np.inf, status,
+                                  h["linear"], h["kept"]))
+            if finite:
+                fits[n, d] = est
     rows.sort(key=lambda c: (c.rms, c.n_parameters))
-    return tuple(rows)
+    if not fits:
+        raise ConvergenceError("every PNLSS candidate failed or its free run diverged on the "
+                               f"held-out part ({'; '.join(sorted({c.status for c in rows}))}); "
+                               "lower n_states or degree, or try linear = \"oe\"")
+    best = rows[0]
+    rows[0] = replace(best, status=f"chosen: lowest held-out RMS; {best.status}")
+    return tuple(rows), fits[best.n_states, best.degree]
 
 
 def _plot_linear(result: PnlssResult, path: Path, overwrite: bool) -> None:
@@ -361,6 +413,11 @@ METHOD = Method(
                "(0: none)"),
         Option("max_iter", 100, integer(minimum=0, maximum=10000),
                "most Levenberg–Marquardt iterations per stage"),
+        Option("holdout", 0.25, _holdout,
+               "share of the estimation data held out (the last record when there are "
+               "several): the search keeps its iterate with the lowest free-run error there, "
+               "never worse than its linear start, and a grid is chosen there (0: fit on all "
+               "of it, unguarded)"),
         HORIZON,
     ),
     run=run,
