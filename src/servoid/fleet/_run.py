@@ -35,8 +35,7 @@ from ..workflows import listed_methods
 from ._cluster import check_scheduler, connect, dashboard_link, quiet_dask, start_local
 from ._result import FleetResult, assemble
 from ._spec import FleetRecord, FleetSpec, load_fleet_spec
-from ._task import (identify_record, identify_records_on_cluster, record_hashes,
-                    record_inputs)
+from ._task import identify_record, identify_records_on_cluster, record_hashes, record_inputs
 
 __all__ = ["run_fleet"]
 
