@@ -178,7 +178,7 @@ class UnresolvedSkew:
                 f"channels only to ±{_seconds('tau', self.tau_std)} (σ; estimate "
                 f"{_seconds('tau', self.tau)}), and a skew of "
                 f"{_seconds('tau', 1.96 * self.tau_std)} that it cannot tell from none would move "
-                f"{moved} of the reduced intervals, which assume no skew; with the skew free, "
+                f"{moved} of the reduced intervals; with the skew free, "
                 f"{_LABELS[w]} = {value:.5g} ± {1.96 * std:.3g} (95 %). If the ADC multiplexes "
                 "its channels or the reference path has a dead time, state [loop] "
                 "skew_tolerance (its standard deviation [s]) and the intervals carry it")
