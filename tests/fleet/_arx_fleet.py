@@ -54,3 +54,14 @@ def write_fleet(root: Path, serials: list[str], extra: str = "") -> Path:
     (root / "fleet.toml").write_text('[records]\nmanifest = "units.csv"\n' + extra,
                                      encoding="utf-8")
     return root / "fleet.toml"
+
+
+def write_pem(client, folder):
+    """Write a TLS client's CA, certificate and key to PEM files; return their paths by name."""
+    pem = {}
+    for name, text in (("ca", client.security.tls_ca_file),
+                       ("cert", client.security.tls_client_cert),
+                       ("key", client.security.tls_client_key)):
+        pem[name] = folder / f"{name}.pem"
+        pem[name].write_text(text, encoding="utf-8")
+    return pem

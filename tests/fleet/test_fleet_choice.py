@@ -7,6 +7,7 @@ import warnings
 
 import numpy as np
 import pytest
+from _arx_fleet import write_pem
 from scipy.signal import lfilter
 
 from servoid.data import Experiment, write_csv, write_experiment_spec
@@ -58,12 +59,7 @@ def test_a_fleet_on_dask_scores_each_units_candidates_as_cluster_tasks(tmp_path)
     pool = fleet_run._Pool(None, 2, 2)  # the fleet's own private cluster, two workers
     client = pool.client(2)
     try:
-        pem = {}
-        for name, text in (("ca", client.security.tls_ca_file),
-                           ("cert", client.security.tls_client_cert),
-                           ("key", client.security.tls_client_key)):
-            pem[name] = tmp_path / f"{name}.pem"
-            pem[name].write_text(text, encoding="utf-8")
+        pem = write_pem(client, tmp_path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             served = run_fleet(tmp_path / "fleet.toml", tmp_path / "dask",

@@ -15,7 +15,7 @@ import socket
 import urllib.request
 
 import pytest
-from _arx_fleet import write_fleet
+from _arx_fleet import write_fleet, write_pem
 
 import servoid.fleet._run as fleet_run
 from servoid import OptionError, OptionTypeError
@@ -91,12 +91,7 @@ def test_local_cluster_answers_only_its_own_credentials(private):
 
 def test_a_tls_scheduler_is_used_with_the_files_given(private, tmp_path):
     pool, client = private
-    pem = {}
-    for name, text in (("ca", client.security.tls_ca_file),
-                       ("cert", client.security.tls_client_cert),
-                       ("key", client.security.tls_client_key)):
-        pem[name] = tmp_path / f"{name}.pem"
-        pem[name].write_text(text, encoding="utf-8")
+    pem = write_pem(client, tmp_path)
     fleet = write_fleet(tmp_path / "f", ["A", "B", "C"])
     address = pool._cluster.scheduler_address
     served = run_fleet(fleet, tmp_path / "tls", scheduler=address, progress=False,
