@@ -36,6 +36,7 @@ from ..estimate import Covariance, Estimate, fit_bj, fit_iv, fit_oe
 from ._channels import aic_order, check_excites, ls_fit, output_name, reference_name, single_name
 from ._instruments import AUXILIARY, choose_instruments, describe
 from ._linearity import interval_check, is_noise_free
+from ._overid import LEVEL, overidentification
 from ._stagecov import Stage1, two_stage_covariance
 
 __all__ = ["fit_cliv", "fit_two_stage"]
@@ -361,8 +362,21 @@ def fit_cliv(
     est = chosen.estimate
     assert est is not None
     broken = [] if disagreement is None else [disagreement]
-    if broken:
-        warn(f"the closed-loop IV estimate is not consistent on this record: {broken[0]}",
+    signals = [tuple(np.asarray(seg[n], dtype=float) for n in (r_name, u_name, y_name))
+               for seg in segments]
+    overid = overidentification(signals, np.asarray(est.parameters, dtype=float), na, nb, nk)
+    if overid is not None and overid.rejects:
+        broken.append(
+            f"the instruments appear correlated with the noise: with {overid.dof} more lags "
+            f"of {r_name!r} than parameters, the over-identification test rejects them "
+            f"(Sargan J = {overid.statistic:.3g}, p = {overid.p_value:.2g} < {LEVEL:g}). "
+            f"The recorded reference {r_name!r} may carry the output's noise (crosstalk "
+            "in the acquisition, or a reference computed from the measured output), so "
+            "closed-loop IV is biased on this record. With the controller known use "
+            "method = \"indirect\"; otherwise fit the direct Box–Jenkins model on the "
+            "input and output (servoid.closedloop.fit_direct_bj)")
+    for reason in broken:
+        warn(f"the closed-loop IV estimate is not consistent on this record: {reason}",
              ServoidWarning)
     return dataclasses.replace(est, method="cliv", options={
         **est.options,
@@ -371,6 +385,7 @@ def fit_cliv(
         "instrument_choice": describe(chosen, candidates),
         "consistent": not broken,
         "broken_assumptions": broken,
+        "overidentification": None if overid is None else overid.to_dict(),
     })
 
 
