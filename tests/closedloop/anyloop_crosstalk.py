@@ -21,10 +21,10 @@ import numpy as np
 from scipy import signal
 
 sys.path.insert(0, str(Path(__file__).parent))
-from anyloop_rigs import RIGS, Rig, prbs_reference  # noqa: E402
+from anyloop_rigs import RIGS, Rig, prbs_reference
 
-from servoid.closedloop import fit_cliv  # noqa: E402
-from servoid.data import Experiment  # noqa: E402
+from servoid.closedloop import fit_cliv
+from servoid.data import Experiment
 
 
 def crosstalk_record(rig: Rig, seed: int, n: int, alpha: float,
@@ -107,7 +107,7 @@ def main() -> None:
             fired += any("correlated with the noise" in b
                          for b in est.options["broken_assumptions"])
         print(f"{name} (clock {args.clock or rig.clock}, noise σ {args.noise_std or rig.noise_std}, "
-              f"{'α = %g' % alpha if args.outer is None else 'outer β = %g' % args.outer}, "
+              f"{f'α = {alpha:g}' if args.outer is None else f'outer β = {args.outer:g}'}, "
               f"{args.samples} samples): held {held}/{args.seeds}, "
               f"median max|z| {np.median(zmax):.3g}, test fired {fired}/{args.seeds} "
               f"(p < 0.05 in {np.sum(np.array(pvals) < 0.05)}, no test in "

@@ -61,7 +61,7 @@ def test_crosstalk_on_the_reference_withdraws_the_cliv_claim(seed):
 @pytest.mark.parametrize(("rig", "clock", "seed"),
                          [("unstable", None, 0), ("delay", None, 1), ("motor", 2, 2)])
 def test_no_false_alarm_on_a_clean_reference(rig, clock, seed):
-    est, z, warned = _fit(rig, seed, 4000, 0.0, clock=clock)
+    est, _, warned = _fit(rig, seed, 4000, 0.0, clock=clock)
     test = est.options["overidentification"]
     # on these seeds the test's p-value is far from its 1 % level (checked, not tuned)
     assert test is not None and test["p_value"] > 0.05

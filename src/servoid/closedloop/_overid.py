@@ -133,7 +133,7 @@ def _equation_residual(r: NDArray[np.float64], u: NDArray[np.float64],
 def _prewhitener(resid: Sequence[NDArray[np.float64]]) -> tuple[NDArray[np.float64], int]:
     """``L = [1, −c1, …]`` of an AR(p) model of the residual, p by AIC (≤ _MAX_AR)."""
     best: tuple[float, NDArray[np.float64], int] | None = None
-    for order in range(0, _MAX_AR + 1):
+    for order in range(_MAX_AR + 1):
         rows_x, rows_y = [], []
         for e in resid:
             if e.size <= order + 1:
