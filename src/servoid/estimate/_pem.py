@@ -20,7 +20,7 @@ The search
 * **Steps**: Gauss–Newton on the exact gradient ψ = −∂ε/∂θ, formed by
   filtering the data (:mod:`servoid.estimate._pem_predictor`; no finite
   differences), damped Levenberg–Marquardt style (λ·diag(ΨᵀΨ)) whenever a
-  full step does not lower the cost.
+  full step does not lower the cost (:mod:`servoid.estimate._pem_search`).
 * **Stability**: a full Gauss–Newton step that carries a root of F_i, C
   or D out of the unit circle is first halved until it stays inside;
   otherwise the root is reflected to 1/conj(z), as MATLAB's System
@@ -44,7 +44,6 @@ The search
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -68,10 +67,10 @@ from ._cancel import cancellation_notes
 from ._covariance import COVARIANCES, Covariance, parameter_covariance, resolve
 from ._diagnostics import MAX_STARTS
 from ._estimate import Estimate
-from ._ls import damped_step
 from ._oe_kernel import StreamProblem
 from ._pem_orders import PemOrders, Polys, SignalData, check_record, prepare
 from ._pem_predictor import Problem, initial_sizes
+from ._pem_search import ADVICE, Search, search
 from ._pem_start import iv_start, random_start, sm_starts, stabilize
 
 __all__ = ["fit_armax", "fit_bj", "fit_oe", "fit_pem"]
@@ -80,11 +79,6 @@ Initial = Literal["auto", "zero", "estimate"]
 InputRole = Literal["u", "r"]
 Init = PolynomialModel | ArrayLike | None
 
-#: Damping increases (×10 each, from λ = 1e-4) tried before a step is given up.
-_MAX_DAMPING = 15
-#: Halvings of a Gauss–Newton step that leaves the stability region, tried before
-#: the reflected step is taken.
-_MAX_HALVINGS = 8
 #: The search has converged when a step would change the predictions by less
 #: than this fraction of the output's RMS (the floor of double-precision data).
 _PREDICTION_FLOOR = 1e-12
@@ -104,17 +98,6 @@ _TRANSIENT_SHARE = 0.01
 #: ... and only when eliminating them lowers the cost by more than this share: coloured
 #: noise on records from rest lowers it by 0.01–0.3 % by chance (tests/estimate/test_pem_start.py).
 _TRANSIENT_COST = 0.02
-
-
-@dataclass(frozen=True, eq=False)
-class _Search:
-    theta: NDArray[np.float64]
-    cost: float
-    h: NDArray[np.float64]
-    iterations: int
-    converged: bool
-    reflected: int
-    note: str
 
 
 def fit_pem(
@@ -430,7 +413,7 @@ def _fit(
         theta0, how = _user_start(init, orders, names), "user"
     theta0, reflected0 = stabilize(orders, theta0)
     generator = as_generator(rng) if multistart else None
-    results: list[_Search | None] = []
+    results: list[Search | None] = []
     failure: ConvergenceError | None = None
     for k in range(multistart + 1):
         if k == 0:
@@ -446,11 +429,11 @@ def _fit(
                     how += (f"; the descent from the runner-up start {won} reached the lowest "
                             "cost")
             else:
-                results.append(_search(problem, orders, theta_k, max_iter, tol, floor))
+                results.append(search(problem, orders, theta_k, max_iter, tol, floor))
         except ConvergenceError as exc:
             if not multistart:
                 # advise only what is not already in use
-                text = str(exc).replace(_ADVICE, _advice(multistart, initial))
+                text = str(exc).replace(ADVICE, _advice(multistart, initial))
                 if initial == "estimate":
                     text = text.replace("initial='estimate' or ", "")
                 raise ConvergenceError(text) from None
@@ -595,13 +578,13 @@ def _scored_starts(orders: PemOrders, sd: SignalData, start: int,
 
 def _descents(problem: Problem | StreamProblem, orders: PemOrders, theta0: NDArray[np.float64],
               others: Sequence[NDArray[np.float64]], max_iter: int, tol: float,
-              floor: float) -> tuple[_Search, int]:
+              floor: float) -> tuple[Search, int]:
     """The search from the best start and the runners-up; the lowest final cost, its index."""
-    found: list[tuple[bool, float, int, _Search]] = []
+    found: list[tuple[bool, float, int, Search]] = []
     failure: ConvergenceError | None = None
     for k, theta in enumerate((theta0, *others)):
         try:
-            r = _search(problem, orders, theta, max_iter, tol, floor)
+            r = search(problem, orders, theta, max_iter, tol, floor)
         except ConvergenceError as exc:
             failure = failure or exc
             continue
@@ -614,8 +597,8 @@ def _descents(problem: Problem | StreamProblem, orders: PemOrders, theta0: NDArr
 
 
 def _auto_initial(problem: Problem | StreamProblem, orders: PemOrders, sd: SignalData,
-                  start: int, best: _Search, max_iter: int, tol: float,
-                  floor: float) -> tuple[Problem, _Search] | None:
+                  start: int, best: Search, max_iter: int, tol: float,
+                  floor: float) -> tuple[Problem, Search] | None:
     """The search again with estimated initial values, when they are worth it; else None.
 
     Two tests, the first free: the predictor's slowest pole (F_i, C; A
@@ -650,7 +633,7 @@ def _auto_initial(problem: Problem | StreamProblem, orders: PemOrders, sd: Signa
             and rows * np.log(drop) > n_ic * np.log(rows)):
         return None
     try:
-        return fresh, _search(fresh, orders, best.theta, max_iter, tol, floor)
+        return fresh, search(fresh, orders, best.theta, max_iter, tol, floor)
     except ConvergenceError:
         return None
 
@@ -703,114 +686,6 @@ def _user_start(init: Init, orders: PemOrders, names: tuple[str, ...]) -> NDArra
     return theta.copy()
 
 
-def _search(problem: Problem, orders: PemOrders, theta: NDArray[np.float64], max_iter: int,
-            tol: float, floor: float) -> _Search:
-    """Damped Gauss–Newton from θ (stable) to a local minimum of Σε²."""
-    cost = problem.cost(theta)
-    if not np.isfinite(cost):
-        raise ConvergenceError(
-            "the search diverged: the prediction errors overflow at the start. Rescale the data "
-            "(calibrate to SI units, remove offsets with detrend), give a sensible init, or try "
-            "multistart=5")
-    h, g = problem.normal_equations(theta)
-    lam, iterations, reflected, converged, note = 0.0, 0, 0, False, ""
-    while True:
-        step = damped_step(h, g, 0.0)
-        predicted = float(g @ step)  # = ‖ΨΔ‖², twice the decrease of ½Σε² the step promises
-        if not np.isfinite(predicted):
-            raise ConvergenceError(
-                "the search diverged: the gradient is not finite. Rescale the data, lower the "
-                "orders, or try initial='estimate' or multistart=5")
-        if predicted <= tol * cost or predicted <= floor:
-            converged = True
-            break
-        if iterations >= max_iter:
-            break
-        lam_try = lam
-        for _ in range(_MAX_DAMPING):
-            delta = step if lam_try == 0.0 else damped_step(h, g, lam_try)
-            trial, n_ref = stabilize(orders, theta + delta)
-            trial_cost = problem.cost(trial)
-            if lam_try == 0.0 and n_ref == 0:
-                trial, trial_cost, n_ref = _line_search(problem, orders, theta, delta, cost,
-                                                        predicted, trial, trial_cost)
-            elif lam_try == 0.0:
-                trial, trial_cost, n_ref = _inside_step(problem, orders, theta, delta,
-                                                        trial, trial_cost, n_ref)
-            if trial_cost < cost:
-                break
-            lam_try = max(10.0 * lam_try, 1e-4)
-        else:
-            if predicted <= 1e-4 * cost:
-                converged, note = True, "stopped where no step lowers the cost further"
-                break
-            raise ConvergenceError(
-                f"the search stalled after {iterations} steps: no damped step lowers the cost "
-                f"although the predicted decrease is {predicted / cost:.2g} of it. Try "
-                f"{_ADVICE}")
-        theta, cost = trial, trial_cost
-        reflected += n_ref
-        iterations += 1
-        lam = 0.0 if lam_try <= 1e-3 else lam_try / 10.0
-        h, g = problem.normal_equations(theta)
-    return _Search(theta, cost, h, iterations, converged, reflected, note)
-
-
-def _line_search(problem: Problem, orders: PemOrders, theta: NDArray[np.float64],
-                 delta: NDArray[np.float64], cost: float, predicted: float,
-                 trial: NDArray[np.float64], trial_cost: float) -> tuple[NDArray[np.float64],
-                                                                         float, int]:
-    """One parabolic correction of the step length along a Gauss–Newton step.
-
-    Along θ + αΔ the cost starts at c₀ with slope −2·gᵀΔ; with the cost c₁
-    at α = 1 the parabola has its minimum at α* = gᵀΔ/(c₁ − c₀ + 2 gᵀΔ),
-    which is 1 when the Gauss–Newton model is exact (small residuals).
-    Large-residual problems (under-modelled structures) overshoot and
-    zig-zag; one evaluation at α* removes most of it.
-    """
-    curvature = trial_cost - cost + 2.0 * predicted
-    if not (np.isfinite(trial_cost) and curvature > 0):
-        alpha = 0.25
-    else:
-        alpha = float(np.clip(predicted / curvature, 0.05, 2.0))
-    if abs(alpha - 1.0) < 0.25:
-        return trial, trial_cost, 0
-    other, n_ref = stabilize(orders, theta + alpha * delta)
-    other_cost = problem.cost(other)
-    if other_cost < trial_cost:
-        return other, other_cost, n_ref
-    return trial, trial_cost, 0
-
-
-def _inside_step(problem: Problem, orders: PemOrders, theta: NDArray[np.float64],
-                 delta: NDArray[np.float64], trial: NDArray[np.float64], trial_cost: float,
-                 n_ref: int) -> tuple[NDArray[np.float64], float, int]:
-    """The Gauss–Newton direction shortened until F_i, C, D stay stable.
-
-    A full step that carries a root of F, C or D across the unit circle is
-    halved until none crosses (Ljung, *System Identification*, 2nd ed.,
-    §10.2: the step length is reduced until the model is stable); the
-    shortened step wins over the reflected one when it costs less.  Near a
-    lightly damped pole the reflected full step is far off, and without
-    this the search crawls on tiny damped steps (a 6th-order OE with poles
-    at radius 0.98 stopped at max_iter; tests/estimate/test_pem_start.py).
-    """
-    alpha = 1.0
-    for _ in range(_MAX_HALVINGS):
-        alpha *= 0.5
-        candidate = theta + alpha * delta
-        if stabilize(orders, candidate)[1] == 0:
-            other_cost = problem.cost(candidate)
-            if other_cost < trial_cost:
-                return candidate, other_cost, 0
-            break
-    return trial, trial_cost, n_ref
-
-
-#: What a stalled search advises, before :func:`_advice` drops the settings already in use.
-_ADVICE = "multistart=5, initial='estimate', lower orders or detrended data"
-
-
 def _advice(multistart: int, initial: str,
             tail: tuple[str, ...] = ("lower orders", "detrended data")) -> str:
     """The remedies for a stalled search, without the ones the fit already used."""
@@ -819,7 +694,7 @@ def _advice(multistart: int, initial: str,
     return ", ".join(parts[:-1]) + " or " + parts[-1] if len(parts) > 1 else parts[0]
 
 
-def _status(best: _Search, reflected: int, singular: bool) -> str:
+def _status(best: Search, reflected: int, singular: bool) -> str:
     parts = []
     if not best.converged:
         parts.append(f"stopped at max_iter after {best.iterations} steps, not converged")
