@@ -114,6 +114,14 @@ def run_records(found: dict[str, tuple[Experiment, Experiment]], only: str | Non
     return results
 
 
+def write_results(path: Path, results: list[dict[str, Any]]) -> None:
+    """Record a study's rows with today's date (a whole file, replaced at once)."""
+    text = json.dumps({"date": time.strftime("%Y-%m-%d"), "results": results}, indent=1)
+    partial = path.with_suffix(".partial")
+    partial.write_text(text + "\n", encoding="utf-8")
+    partial.replace(path)
+
+
 def run_one(folder: Path, name: str, est: Experiment, val: Experiment,
             folds: int = 0) -> dict[str, Any]:
     """``auto`` on one record: the chosen candidate, the best by validation, every row."""
@@ -174,8 +182,7 @@ def main(argv: list[str] | None = None) -> int:
     results = run_records(records(args.wh, args.wh_n), args.only,
                           lambda *a: run_one(*a, folds=args.folds), table)
     if args.write:
-        RECORDED.write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "results": results},
-                                       indent=1) + "\n")
+        write_results(RECORDED, results)
     return 0
 
 

@@ -27,14 +27,13 @@ import argparse
 import json
 import os
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
 if __name__ == "__main__":  # before numpy is imported
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from study_model_choice_real import identify_record, records, run_records
+from study_model_choice_real import identify_record, records, run_records, write_results
 
 from servoid.data import Experiment
 
@@ -105,8 +104,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     results = run_records(records(None, 0), args.only, run_one, table)
     if args.write:
-        RECORDED.write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "results": results},
-                                       indent=1) + "\n")
+        write_results(RECORDED, results)
     return 0
 
 
