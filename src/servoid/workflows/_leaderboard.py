@@ -189,7 +189,7 @@ class ChoiceResult(Displayed):
                 s.status if s.status == "ok" else s.status[:60]))
         return Table(("candidate", "parameters", "held-out fit %", "validation fit %",
                       "input–residual", "nonlinearity", "fit time s", "status"),
-                     tuple(rows), f"Leaderboard: ▶ chosen — {self.reason}")
+                     tuple(rows), "Leaderboard (▶ the chosen candidate; why: above)")
 
     def __str__(self) -> str:
         table = self.table()
