@@ -7,7 +7,9 @@ validation), ``identify`` runs ``[identify] method = "pnlss"`` with the
 states and degree chosen on held-out estimation data from a grid
 (``n_states`` 1–4, ``degree`` 2–3, state monomials; each search guarded
 by the held-out quarter, so a candidate whose nonlinear terms do not pay
-there is its linear part), and its validation fit is set beside two linear
+there is its linear part; a chosen candidate that kept its linear part is
+then refitted by output error on all the estimation half), and its
+validation fit is set beside two linear
 models of ``auto`` on the same records (ARX, OE, BJ, tf, n4sid), read from
 ``results-model-choice-real.json``: the best found in hindsight on the
 validation part, which favours the linear side, and the one ``auto``'s own
@@ -18,7 +20,11 @@ Usage, from the repository root::
     PYTHONPATH=src python benchmarks/study_pnlss_real.py            # print the table
     PYTHONPATH=src python benchmarks/study_pnlss_real.py --write    # ... and record it
 
-``--write`` replaces ``benchmarks/results-pnlss-real.json``.
+    PYTHONPATH=src python benchmarks/study_pnlss_real.py --linear n4sid,oe --write
+
+``--write`` replaces ``benchmarks/results-pnlss-real.json`` (with
+``--linear n4sid,oe``, each order's linear start chosen between n4sid and
+OE on the held-out part: ``benchmarks/results-pnlss-real-starts.json``).
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ import argparse
 import json
 import os
 import sys
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +47,7 @@ from servoid.data import Experiment
 HERE = Path(__file__).resolve().parent
 LINEAR = HERE / "results-model-choice-real.json"
 RECORDED = HERE / "results-pnlss-real.json"
+RECORDED_STARTS = HERE / "results-pnlss-real-starts.json"
 _LINEAR_FAMILIES = ("arx", "oe", "bj", "tf", "n4sid")
 
 
@@ -54,18 +62,23 @@ def best_linear(name: str, by: str = "validation") -> tuple[str, float | None]:
     return best["label"], best["validation"]  # None: its free run diverged there
 
 
-def run_one(folder: Path, name: str, est: Experiment, val: Experiment) -> dict[str, Any]:
+def run_one(folder: Path, name: str, est: Experiment, val: Experiment,
+            linear: str | list[str] = "n4sid") -> dict[str, Any]:
     """PNLSS on one record, with the grid's choice and the validation fit."""
     result, seconds = identify_record(folder, name, est, val, {
-        "method": "pnlss", "n_states": [1, 2, 3, 4], "degree": [2, 3], "monomials": "state"})
+        "method": "pnlss", "n_states": [1, 2, 3, 4], "degree": [2, 3], "monomials": "state",
+        "linear": linear})
     o = result.estimate.options
+    refit = o.get("refit")
+    chosen = result.grid[0]
     label, linear = best_linear(name)
     held_label, held_linear = best_linear(name, "held_out")
     v = result.validation
     fit = round(float(v.fit_percent), 2) if hasattr(v, "fit_percent") else None  # diverged
     kept = o["held_out"]["kept"]
-    return {"record": name, "pnlss": f"n_states = {o['n_states']}, degree = {o['degree']}",
-            "kept": kept, "why": o["held_out"]["why"],
+    return {"record": name, "linear_start": chosen.linear,
+            "pnlss": f"n_states = {chosen.n_states}, degree = {chosen.degree}",
+            "kept": kept, "refitted": refit is not None, "why": o["held_out"]["why"],
             "pnlss_validation": fit, "best_linear": label, "best_linear_validation": linear,
             "held_out_linear": held_label, "held_out_linear_validation": held_linear,
             "at_least_as_good": fit is not None and fit >= linear,
@@ -76,7 +89,7 @@ def run_one(folder: Path, name: str, est: Experiment, val: Experiment) -> dict[s
 
 def table(results: list[dict[str, Any]]) -> str:
     """The Markdown table of the results."""
-    lines = [("| record | PNLSS chosen | kept on held-out data | its validation fit % "
+    lines = [("| record | PNLSS chosen (start) | kept on held-out data | its validation fit % "
               "| best linear (hindsight) | its fit % | PNLSS ≥ it | linear by held-out score "
               "| its fit % | PNLSS ≥ it | time s |"),
              "|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -84,7 +97,9 @@ def table(results: list[dict[str, Any]]) -> str:
         fit = "diverged" if r["pnlss_validation"] is None else r["pnlss_validation"]
         kept = {"nonlinear": "nonlinear terms", "linear": "linear part (E = F = 0)",
                 "the linear start": "linear start (E = F = 0)"}[r["kept"]]
-        lines.append(f"| {r['record']} | {r['pnlss']} | {kept} | {fit} | "
+        if r["refitted"]:
+            kept += ", refitted on all"
+        lines.append(f"| {r['record']} | {r['pnlss']} ({r['linear_start']}) | {kept} | {fit} | "
                      f"{r['best_linear']} | {r['best_linear_validation']} | "
                      f"{'yes' if r['at_least_as_good'] else 'no'} | {r['held_out_linear']} | "
                      f"{_or_diverged(r['held_out_linear_validation'])} | "
@@ -101,10 +116,17 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--write", action="store_true", help=f"record in {RECORDED.name}")
     parser.add_argument("--only", default=None, help="comma-separated record names")
+    parser.add_argument("--linear", default="n4sid",
+                        help="the [identify] linear start; comma-separated: a list, chosen "
+                             "per order on the held-out part (e.g. n4sid,oe)")
     args = parser.parse_args(argv)
-    results = run_records(records(None, 0), args.only, run_one, table)
+    starts = args.linear.split(",")
+    results = run_records(records(None, 0), args.only,
+                          partial(run_one, linear=starts[0] if len(starts) == 1 else starts),
+                          table)
     if args.write:
-        write_results(RECORDED, results)
+        write_results(RECORDED if len(starts) == 1 and starts[0] == "n4sid" else
+                      RECORDED_STARTS, results)
     return 0
 
 

@@ -75,6 +75,7 @@ def fit_pnlss(
     max_iter: int = 100,
     tol: float = 1e-9,
     held_out: Experiment | ExperimentSet | None = None,
+    offset: float | None = None,
 ) -> Estimate:
     """Fit a PNLSS model by simulation error (Levenberg–Marquardt).
 
@@ -123,6 +124,9 @@ def fit_pnlss(
         diverges there; a stage stops after :data:`PATIENCE` iterations
         without a lower held-out error.  ``options["held_out"]`` says which
         was kept and why.
+    offset : float, optional
+        The output offset (the model's ``y_mean``) [output unit], fixed.  Default the
+        output's mean (with `held_out` and a fitted start also G(1)·ū: the better there).
 
     Returns
     -------
@@ -195,10 +199,10 @@ def fit_pnlss(
                                                                       strict=True)]
         return _Search(model, normal, ridge, held)
 
-    search = setup(y_mean)
+    search = setup(y_mean if offset is None else as_float("offset", offset))
     theta, x0s, info = search.run(max_iter, tol)
-    offset_rule = "the output's mean"
-    if held is not None and initial is None:
+    offset_rule = "the output's mean" if offset is None else "given"
+    if held is not None and initial is None and offset is None:
         # the start fitted on the records as they are (no offset) is E = F = 0 only with the
         # offset G(1)·ū; the output's mean is the other natural one (a static nonlinearity
         # shifts the mean): the whole search runs from both, the better on held-out kept

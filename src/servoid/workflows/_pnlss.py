@@ -17,7 +17,18 @@ from ..report import Figure, Section, Table
 from ._common import keyed, parameter_table, warnings_as_notes
 from ._examples import open_loop
 from ._lti import IdentificationResult, lti_result
-from ._options import HORIZON, OUTPUT, ROLE, choice, integer, number, optional, orders, text
+from ._options import (
+    HORIZON,
+    OUTPUT,
+    ROLE,
+    choice,
+    choices,
+    integer,
+    number,
+    optional,
+    orders,
+    text,
+)
 from ._registry import FigureWriter, Method, Option
 
 __all__ = ["METHOD", "PnlssResult"]
@@ -38,6 +49,7 @@ class Candidate:
     status: str
     linear_rms: float = np.nan  # the same for its linear part (E = F = 0) [output unit]
     kept: str = ""  # "nonlinear", "linear" or "the linear start" (see fit_pnlss)
+    linear: str = ""  # its linear start (n4sid, oe, bla)
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -99,7 +111,7 @@ class PnlssResult(IdentificationResult):
         if len(self.grid) > 1:
             lines.append("  (n_states, degree) by free-run RMS on the held-out data:")
             lines += [f"    {c.n_states}, {c.degree}: {c.rms:.4g} ({c.n_parameters} parameters; "
-                      f"{c.status})" for c in self.grid]
+                      f"{c.linear} start; {c.status})" for c in self.grid]
         return lines
 
     def figures(self) -> dict[str, FigureWriter]:
@@ -124,12 +136,25 @@ class PnlssResult(IdentificationResult):
                 f"ridge {o['ridge']:g}{_pruned(o)}. Free-run RMS on the estimation data: linear "
                 f"{o['linear_rms']:.4g}, PNLSS {np.sqrt(o['cost']):.4g}. The covariance is "
                 "σ̂²(JᵀJ)⁺ with the similarity-transform directions left out.")
+        refit = o.get("refit")
+        if refit:
+            text = (f"PNLSS model (Paduart et al. 2010) with {o['n_states']} states, on the "
+                    f"signals normalised to zero mean and unit variance: started from a linear "
+                    f"model ({o['linear']}), fitted with monomials of degree ≤ "
+                    f"{refit['degree']} ({o['monomials']}) on {refit['fitted_samples']} "
+                    f"samples, whose held-out part kept E = F = 0; that linear model was then "
+                    f"refitted by output error on all {refit['samples']} estimation samples, "
+                    f"from itself, by Levenberg–Marquardt on the simulation error with the "
+                    f"exact Jacobian ({refit['iterations']} iterations; free-run RMS on the "
+                    f"estimation data {refit['rms_before']:.4g} → {refit['rms']:.4g}). The "
+                    "covariance is σ̂²(JᵀJ)⁺ with the similarity-transform directions left out.")
         held = o.get("held_out")
         if held:
             text += (f" Every accepted iterate was also run freely on {held['samples']} held-out "
                      f"samples (not fitted) and the one with the lowest RMS error there kept: "
                      f"{held['why']}. The output offset (the model's y_mean): "
-                     f"{held['offset']}.")
+                     + (f"{held['offset']}." if not refit else
+                        "the kept model's, its steady-state map y = k + G(1)·u held."))
         figures = []
         if "linear_bode.png" in files:
             figures.append(Figure.from_file(files["linear_bode.png"],
@@ -155,7 +180,7 @@ class PnlssResult(IdentificationResult):
                                           "Free run of the model and of its linear part, and "
                                           "their difference"),)))
         if len(self.grid) > 1:
-            rows = tuple((str(c.n_states), str(c.degree), str(c.n_parameters),
+            rows = tuple((str(c.n_states), str(c.degree), c.linear, str(c.n_parameters),
                           f"{c.linear_rms:.4g}", f"{c.rms:.4g}", c.status) for c in self.grid)
             share = 100 * self.estimate.options.get("holdout", 0.25)
             out.append(Section(
@@ -165,10 +190,15 @@ class PnlssResult(IdentificationResult):
                              "part (initial state estimated); each search keeps its iterate "
                              "with the lowest held-out error, its linear start first, so a "
                              "candidate whose nonlinear terms do not pay there is its linear "
-                             "part. The best candidate is the model (it is not refitted: the "
-                             "held-out part stays its guard). A candidate that diverges on the "
-                             "held-out part is never chosen."),),
-                tables=(Table(("n_states", "degree", "parameters", "linear part's held-out RMS",
+                             "part. With several linear starts, each order's linear model "
+                             "(degree 1) from each start is scored there first and the better "
+                             "start grows the nonlinear terms. The best candidate is the model; "
+                             "it is not refitted (the held-out part stays its guard) unless it "
+                             "kept its linear part (E = F = 0): then that linear model is "
+                             "refitted by output error on all the estimation data. A candidate "
+                             "that diverges on the held-out part is never chosen."),),
+                tables=(Table(("n_states", "degree", "linear start", "parameters",
+                               "linear part's held-out RMS",
                                "held-out RMS", "status"), rows, "Best first"),)))
         return out
 
@@ -191,10 +221,20 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
             raise OptionError("[identify] n_states or degree is a list (a grid), which is "
                               "chosen on held-out data, but holdout = 0 holds none out; give "
                               "holdout > 0 (e.g. 0.25) or single values")
-        else:
-            estimate = _fit(estimation, states[0], degrees[0], fitting)
+        else:  # nothing held out to choose a start on: the first
+            estimate = _fit(estimation, states[0], degrees[0],
+                            {**fitting, "linear": _starts(options["linear"])[0]})
+        held = estimate.options.get("held_out")
+        if held and (held["kept"] == "linear" or (held["kept"] == "the linear start"
+                                                  and estimate.options["linear"] == "oe")):
+            # an output-error fit, E = F = 0, kept there: refit it on all the data (n4sid's
+            # start kept means its refinement by output error did not pay there: no refit)
+            estimate = _refit(estimation, estimate, fitting)
         estimate = replace(estimate, options={**estimate.options,
                                               "holdout": options["holdout"]})
+    if grid and estimate.options.get("refit"):
+        grid = (replace(grid[0], status=f"{grid[0].status}; refitted on all the estimation "
+                                        "data"), *grid[1:])
     model = estimate.model
     contribution: tuple[Any, ...] = ()
     first = validations[0]
@@ -209,9 +249,11 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     o = estimate.options
     title = (f"PNLSS (n_states = {o['n_states']}, degree = {o['degree']}, {o['monomials']} "
              f"monomials)")
-    held = o.get("held_out")
-    if held and held["kept"] != "nonlinear":
-        title += ", E = F = 0 kept on held-out data"
+    refit = o.get("refit")
+    if refit:
+        title = (f"PNLSS (n_states = {o['n_states']}, degree = {refit['degree']}, "
+                 f"{o['monomials']} monomials), E = F = 0 kept on held-out data, that linear "
+                 "model refitted on all the estimation data")
     result = lti_result(spec, "pnlss", estimate, title, validations, options, notes=notes,
                         truth=truth, modal=False, result_type=PnlssResult, records=estimation,
                         extra={"grid": grid, "contribution": contribution},
@@ -237,6 +279,67 @@ def _fit(data: Experiment | ExperimentSet, n_states: int, degree: int,
         est = replace(est, options={**est.options,
                                     "linear": f"BLA, ML fit in z of {n_states} poles"})
     return est
+
+
+def _refit(data: Experiment | ExperimentSet, kept: Any, options: Mapping[str, Any]) -> Any:
+    """The linear model the held-out guard kept (E = F = 0), refitted by output error on
+    all the estimation data (the held-out part included), from itself.
+
+    Its held-out score was needed only to decide "linear"; the refit starts from the kept
+    model's own input-output map, its offset included (y = k + G(q) u, with
+    k = y_mean − G(1)·u_mean held), and no data are left out.  The kept model when the
+    refit fails."""
+    from ..nonlinear import fit_pnlss
+
+    model = kept.model
+    lin = model.linear_part()
+    records = [data] if isinstance(data, Experiment) else list(data)
+    u_all = np.concatenate([np.asarray(r.signal(options["input"]), dtype=float)
+                            .reshape(r.n_samples, -1) for r in records])
+    try:
+        gain = (lin.C @ np.linalg.solve(np.eye(lin.A.shape[0]) - lin.A, lin.B) + lin.D)[0]
+        offset: float | None = float(model.y_mean - gain @ model.u_mean
+                                     + gain @ u_all.mean(axis=0))
+    except np.linalg.LinAlgError:
+        offset = None
+    if offset is not None and not np.isfinite(offset):
+        offset = None  # a pure integrator: the output's mean, as fit_pnlss takes it
+    o = kept.options
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ServoidWarning)
+            est = fit_pnlss(data, model.n_states, 1, monomials=o["monomials"], initial=lin,
+                            input=options["input"], output=o["output"],
+                            max_iter=options["max_iter"], offset=offset)
+    except ServoidError as exc:
+        held = {**o["held_out"], "why": f"{o['held_out']['why']}; its refit on all the "
+                                        f"estimation data failed ({exc}), so it is as kept"}
+        return replace(kept, options={**o, "held_out": held})
+    before = _rms(model, records, options["input"], o["output"])
+    after = float(np.sqrt(est.options["cost"]))
+    held = {**o["held_out"], "why": (
+        f"{o['held_out']['why']}; that linear model was then refitted by output error on "
+        f"all {est.n_samples} estimation samples (the held-out part included: its score was "
+        f"needed only to decide \"linear\"), from itself: free-run RMS on them "
+        f"{before:.4g} → {after:.4g}")}
+    refit = {"degree": o["degree"], "fitted_samples": kept.n_samples,
+             "samples": est.n_samples, "rms_before": before, "rms": after,
+             "iterations": est.options["iterations"]}
+    return replace(est, options={**est.options, "held_out": held, "refit": refit,
+                                 "linear": o["linear"], "linear_start": o["linear_start"],
+                                 "offset": offset})
+
+
+def _rms(model: Any, records: Sequence[Experiment], role: str, output: str) -> float:
+    """A model's free-run RMS error over records, each from its estimated initial state."""
+    total, n = 0.0, 0
+    for r in records:
+        u = np.asarray(r.signal(role), dtype=float)
+        y = np.asarray(r[output], dtype=float)
+        ys = model.simulate(u, model.initial_state(y, u))
+        total += float(np.sum((ys - y) ** 2))
+        n += y.size
+    return float(np.sqrt(total / n))
 
 
 def _plan(spec: ExperimentSpec, options: Mapping[str, Any]) -> Any:
@@ -279,6 +382,21 @@ def _pruned(o: Mapping[str, Any]) -> str:
             f"monomials" + (f" ({', '.join(gone)})" if gone else ""))
 
 
+def _starts(value: str | Sequence[str]) -> list[str]:
+    """The linear starts to choose from (one: no choice)."""
+    return [value] if isinstance(value, str) else list(value)
+
+
+def _linear(value: Any, where: str, name: str) -> str | list[str]:
+    """The linear option: one start, or a list of n4sid and oe chosen per order."""
+    items = choices(("n4sid", "oe", "bla"))(value, where, name)
+    if len(items) > 1 and "bla" in items:
+        raise OptionError(f'{where} {name} = {items}: "bla" starts from the multisine test\'s '
+                          'best linear approximation and is given alone; a list chooses '
+                          'between "n4sid" and "oe" per order on the held-out part')
+    return items[0] if len(items) == 1 else items
+
+
 def _grid(value: int | Sequence[int]) -> list[int]:
     return [value] if isinstance(value, int) else list(dict.fromkeys(value))
 
@@ -314,31 +432,44 @@ def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Se
     """Fit every (n_states, degree) on the fitted part, each search guarded by the held-out
     part; the candidates best first, and the best one's estimate."""
     fit_on, held = _split(data, options["holdout"])
-    rows = []
-    fits: dict[tuple[int, int], Any] = {}
-    single = len(states) * len(degrees) == 1
+    starts = _starts(options["linear"])
+    rows: list[Candidate] = []
+    fits: dict[tuple[int, int, str], Any] = {}
+    single = len(states) * len(degrees) * len(starts) == 1
+
+    def candidate(n: int, d: int, start: str) -> float:
+        """Fit one candidate, add its row; its held-out RMS (inf: failed or diverged)."""
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ServoidWarning)
+                est = _fit(fit_on, n, d, {**options, "linear": start}, held)
+        except ServoidError as exc:
+            if single or isinstance(exc, OptionError):
+                raise  # nothing to choose instead, or a wrong option: say it as it is
+            rows.append(Candidate(n, d, 0, np.inf, f"failed: {exc}"[:120], linear=start))
+            return np.inf
+        h = est.options["held_out"]
+        finite = bool(np.isfinite(h["chosen"]))
+        status = ("diverged on held-out" if not finite else
+                  {"nonlinear": "nonlinear terms kept", "linear": "linear part kept "
+                   "(E = F = 0)", "the linear start": "linear start kept (E = F = 0)"}
+                  [h["kept"]])
+        rows.append(Candidate(n, d, est.parameters.size, h["chosen"] if finite else np.inf,
+                              status, h["linear"], h["kept"], start))
+        if finite:
+            fits[n, d, start] = est
+        return float(h["chosen"]) if finite else np.inf
+
     for n in states:
+        start = starts[0]
+        if len(starts) > 1:
+            # each start's linear model of this order (degree 1: E = F = 0, refined by output
+            # error), scored on the held-out part; the better start grows the nonlinear terms
+            scores = [candidate(n, 1, s) for s in starts]
+            start = starts[int(np.argmin(scores))]
         for d in degrees:
-            try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore", ServoidWarning)
-                    est = _fit(fit_on, n, d, options, held)
-            except ServoidError as exc:
-                if single or isinstance(exc, OptionError):
-                    raise  # nothing to choose instead, or a wrong option: say it as it is
-                rows.append(Candidate(n, d, 0, np.inf, f"failed: {exc}"[:120]))
-                continue
-            h = est.options["held_out"]
-            finite = bool(np.isfinite(h["chosen"]))
-            status = ("diverged on held-out" if not finite else
-                      {"nonlinear": "nonlinear terms kept", "linear": "linear part kept "
-                       "(E = F = 0)", "the linear start": "linear start kept (E = F = 0)"}
-                      [h["kept"]])
-            rows.append(Candidate(n, d, est.parameters.size,
-                                  h["chosen"] if finite else np.inf, status,
-                                  h["linear"], h["kept"]))
-            if finite:
-                fits[n, d] = est
+            if d > 1 or len(starts) == 1:
+                candidate(n, d, start)
     rows.sort(key=lambda c: (c.rms, c.n_parameters))
     if not fits:
         raise ConvergenceError("every PNLSS candidate failed or its free run diverged on the "
@@ -346,7 +477,7 @@ def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Se
                                "lower n_states or degree, or try linear = \"oe\"")
     best = rows[0]
     rows[0] = replace(best, status=f"chosen: lowest held-out RMS; {best.status}")
-    return tuple(rows), fits[best.n_states, best.degree]
+    return tuple(rows), fits[best.n_states, best.degree, best.linear]
 
 
 def _plot_linear(result: PnlssResult, path: Path, overwrite: bool) -> None:
@@ -399,9 +530,11 @@ METHOD = Method(
         Option("monomials", "full", choice(("full", "state", "input")),
                "monomials of states and inputs (full), of the states (state) or of the inputs "
                "(input)"),
-        Option("linear", "n4sid", choice(("n4sid", "oe", "bla")),
+        Option("linear", "n4sid", _linear,
                "the linear start: n4sid, OE turned into state space, or the best linear "
-               "approximation of a multisine test (its ML fit in z; needs the plan)"),
+               "approximation of a multisine test (its ML fit in z; needs the plan); a list "
+               "of n4sid and oe: each order's start chosen by its linear model's free-run "
+               "error on the held-out part (the first when holdout = 0)"),
         Option("plan", None, optional(text()),
                'the multisine plan file of linear = "bla" (default: <data file>.plan.json '
                "beside it)"),
