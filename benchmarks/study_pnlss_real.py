@@ -63,11 +63,12 @@ def best_linear(name: str, by: str = "validation") -> tuple[str, float | None]:
 
 
 def run_one(folder: Path, name: str, est: Experiment, val: Experiment,
-            linear: str | list[str] = "n4sid") -> dict[str, Any]:
+            linear: str | list[str] = "n4sid", states: list[int] | None = None
+            ) -> dict[str, Any]:
     """PNLSS on one record, with the grid's choice and the validation fit."""
     result, seconds = identify_record(folder, name, est, val, {
-        "method": "pnlss", "n_states": [1, 2, 3, 4], "degree": [2, 3], "monomials": "state",
-        "linear": linear})
+        "method": "pnlss", "n_states": states or [1, 2, 3, 4], "degree": [2, 3],
+        "monomials": "state", "linear": linear})
     o = result.estimate.options
     refit = o.get("refit")
     chosen = result.grid[0]
@@ -84,7 +85,10 @@ def run_one(folder: Path, name: str, est: Experiment, val: Experiment,
             "at_least_as_good": fit is not None and fit >= linear,
             "at_least_as_good_as_held_out_linear": fit is not None and (
                 held_linear is None or fit >= held_linear),
-            "seconds": round(seconds, 1)}
+            "seconds": round(seconds, 1),
+            "grid": [{"n_states": c.n_states, "degree": c.degree, "linear": c.linear,
+                      "held_out_rms": c.rms, "linear_part_held_out_rms": c.linear_rms,
+                      "status": c.status} for c in result.grid]}
 
 
 def table(results: list[dict[str, Any]]) -> str:
@@ -119,14 +123,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--linear", default="n4sid",
                         help="the [identify] linear start; comma-separated: a list, chosen "
                              "per order on the held-out part (e.g. n4sid,oe)")
+    parser.add_argument("--states", default="1,2,3,4",
+                        help="the n_states grid, comma-separated (only the default is recorded)")
     args = parser.parse_args(argv)
     starts = args.linear.split(",")
+    states = [int(n) for n in args.states.split(",")]
+    if args.write and (states != [1, 2, 3, 4] or args.only):
+        parser.error("--write records the whole study: all records, the default --states")
     results = run_records(records(None, 0), args.only,
-                          partial(run_one, linear=starts[0] if len(starts) == 1 else starts),
-                          table)
+                          partial(run_one, linear=starts[0] if len(starts) == 1 else starts,
+                                  states=states), table)
     if args.write:
-        write_results(RECORDED if len(starts) == 1 and starts[0] == "n4sid" else
-                      RECORDED_STARTS, results)
+        write_results(RECORDED if starts == ["n4sid"] else RECORDED_STARTS, results)
     return 0
 
 

@@ -154,7 +154,8 @@ class PnlssResult(IdentificationResult):
                      f"samples (not fitted) and the one with the lowest RMS error there kept: "
                      f"{held['why']}. The output offset (the model's y_mean): "
                      + (f"{held['offset']}." if not refit else
-                        "the kept model's, its steady-state map y = k + G(1)·u held."))
+                        "set so that the refit starts from the kept model's map "
+                        "y = k + G(q)·u, its constant k included."))
         figures = []
         if "linear_bode.png" in files:
             figures.append(Figure.from_file(files["linear_bode.png"],
@@ -254,6 +255,8 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         title = (f"PNLSS (n_states = {o['n_states']}, degree = {refit['degree']}, "
                  f"{o['monomials']} monomials), E = F = 0 kept on held-out data, that linear "
                  "model refitted on all the estimation data")
+    elif o.get("held_out") and o["held_out"]["kept"] != "nonlinear":
+        title += ", E = F = 0 kept on held-out data"
     result = lti_result(spec, "pnlss", estimate, title, validations, options, notes=notes,
                         truth=truth, modal=False, result_type=PnlssResult, records=estimation,
                         extra={"grid": grid, "contribution": contribution},
