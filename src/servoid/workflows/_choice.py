@@ -459,13 +459,18 @@ def _block_fits(report: Any, prediction: bool) -> list[float]:
     y = np.asarray(report.measured[first:], dtype=float)
     yhat = np.asarray((report.predicted if prediction else report.simulated)[first:],
                       dtype=float)
+    # each block's error on the scale of the whole held part (its spread per sample), so a
+    # block where the output barely moves weighs as much as the others, not more
+    scale = float(np.std(y)) if y.size > 1 else 0.0
+    if not scale > 0:
+        return []
     out = []
     for part_y, part_s in zip(np.array_split(y, BLOCKS), np.array_split(yhat, BLOCKS),
                               strict=True):
-        spread = float(np.linalg.norm(part_y - part_y.mean()))
-        if part_y.size < 2 or not spread > 0:
+        if part_y.size < 2:
             continue
-        out.append(100.0 * (1.0 - float(np.linalg.norm(part_y - part_s)) / spread))
+        rms = float(np.sqrt(np.mean((part_y - part_s) ** 2)))
+        out.append(100.0 * (1.0 - rms / scale))
     return out
 
 
