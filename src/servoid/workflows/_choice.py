@@ -20,7 +20,9 @@ for the final verdict:
 The score is the fit percentage of the free-run simulation on the held
 part (``purpose = "prediction"``: of the ``horizon``-step prediction), on
 four equal blocks of each held part: its mean, and its standard error
-(the spread of the block fits over √blocks).  A candidate whose model is
+(the spread of the block fits over √blocks).  Each block's RMS error is
+taken relative to the spread of the whole held part, so a block where the
+output barely moves does not outweigh the others.  A candidate whose model is
 unstable, whose free run diverges or whose fit fails is never chosen.
 Among the rest, ``rule = "one-se"`` (default) takes the candidate with
 the fewest parameters whose mean lies within one standard error of the
@@ -30,10 +32,13 @@ candidate is then fitted on the whole estimation data and validated on the
 ``[validation]`` records like a single-method run; the others too, for the
 leaderboard (their validation fits are shown, never used to choose).
 Each candidate's whole-data model and its fold models then simulate the
-folds' own fitting samples (:func:`refit_gap`): when the chosen one's fit
-changes with the samples it is given, the held-out scores judged other
-models than those returned, and the reason says the held-out data cannot
-rank the candidates.
+folds' own fitting samples (:func:`refit_gap`).  When the whole-data fit
+fails, is unstable or ends elsewhere than the fold fits, and a fold's
+model simulates all the estimation data better, that scored fold model is
+returned instead (the reason says so; the estimation data alone decide).
+When the chosen one's fit still changes with the samples it is given, the
+held-out scores judged other models than those returned, and the reason
+says the held-out data cannot rank the candidates.
 
 ``workers = N`` scores the candidates in N local processes (forked, so the
 records are read once); the default 1 scores them one after the other.  A
