@@ -331,11 +331,8 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
             entries.append(Entry(s))
             continue
         f = fitted[id(s)]
-        gap = math.nan if f.result is None else refit_gap(s, [
-            fit_on(getattr(f.result, "estimate", None), fold.fit, _input_of(s, options, spec))
-            for fold in folds])
-        entries.append(Entry(s, f.result, error=f.error, seconds=f.seconds, refit_gap=gap,
-                             fitted_on=f.fitted_on))
+        entries.append(Entry(s, f.result, error=f.error, seconds=f.seconds,
+                             refit_gap=f.refit_gap, fitted_on=f.fitted_on))
     caveat = _reproducibility(entries, chosen)
     return ChoiceResult(spec, result, tuple(entries), chosen.candidate.label,
                         reason + caveat, scheme_of(options), gate, rankable=not caveat,
@@ -360,6 +357,8 @@ class Fitted:
         because the fit on all the data failed or ended elsewhere.
     kept : str
         Why a fold's model was returned, in words ('' when it was not).
+    refit_gap : float
+        The returned model's :func:`refit_gap` (NaN: no model).
     """
 
     result: Any
@@ -367,6 +366,7 @@ class Fitted:
     seconds: float = math.nan
     fitted_on: str = "all"
     kept: str = ""
+    refit_gap: float = math.nan
 
 
 def _fit(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Fold],
@@ -387,7 +387,6 @@ def _fit(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Fold]
     method = get_method(score.candidate.method)
     parsed = parsed_options(score.candidate, options, spec)
     role = str(parsed.get("input", "u"))
-    estimation, validations = spec.records()
     result, error = None, ""
     try:
         with warnings.catch_warnings():
@@ -396,12 +395,17 @@ def _fit(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Fold]
             result = method.run(spec, parsed, truth)
     except ServoidError as exc:
         error = str(exc)
-    whole = math.nan
+    def gap_of(fit: Any) -> float:
+        return refit_gap(score, [fit_on(getattr(fit, "estimate", None), f.fit, role)
+                                 for f in folds])
+
+    whole, gap = math.nan, math.nan
     if result is not None:
-        gap = refit_gap(score, [fit_on(getattr(result, "estimate", None), f.fit, role)
-                                for f in folds])
+        gap = gap_of(result)
         if _status(result) == "ok" and not abs(gap) > REFIT_TOLERANCE:
-            return Fitted(result, seconds=time.perf_counter() - start)
+            return Fitted(result, seconds=time.perf_counter() - start, refit_gap=gap)
+    estimation, validations = spec.records()  # read again only here: the exception
+    if result is not None:
         whole = fit_on(getattr(result, "estimate", None), estimation, role)
     best: tuple[float, int, Any] | None = None
     for k, fold in enumerate(folds):
@@ -420,7 +424,7 @@ def _fit(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Fold]
     seconds = time.perf_counter() - start
     if best is None or (result is not None and _status(result) == "ok" and
                         not best[0] > whole):
-        return Fitted(result, error, seconds)
+        return Fitted(result, error, seconds, refit_gap=gap)
     own, k, candidate = best
     n_fold = sum(seg.n_samples for seg in as_segments(folds[k].fit))
     n_all = sum(seg.n_samples for seg in as_segments(estimation))
@@ -434,11 +438,7 @@ def _fit(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Fold]
     kept = (f"the fit of {score.candidate.label} on all the estimation data {why}; the model "
             f"the held-out data scored, fitted on {n_fold} of the {n_all} estimation samples, "
             "is returned")
-    return Fitted(candidate, error, seconds, f"fold {k + 1}", kept)
-
-
-def _input_of(score: Score, options: Mapping[str, Any], spec: ExperimentSpec) -> str:
-    return str(parsed_options(score.candidate, options, spec).get("input", "u"))
+    return Fitted(candidate, error, seconds, f"fold {k + 1}", kept, gap_of(candidate))
 
 
 def _reproducibility(entries: Sequence[Entry], chosen: Score) -> str:
