@@ -140,6 +140,9 @@ class Score:
     blocks : tuple of float
         The fit [%] of each held block, in fold and block order (``mean`` and
         ``se`` summarise them).
+    open_loop : bool
+        The method fits the plant from (u, y) as if the record were open loop
+        (no noise model of its own, no reference): biased under feedback.
     """
 
     candidate: Candidate
@@ -151,6 +154,7 @@ class Score:
     nonlinearity: bool | None = None
     fold_fits: tuple[float, ...] = ()
     blocks: tuple[float, ...] = ()
+    open_loop: bool = False
 
     @property
     def admissible(self) -> bool:
@@ -371,6 +375,7 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
     own: list[float] = []
     n_par = 0
     nonlinear: bool | None = None
+    open_loop = False
     try:
         parsed = parsed_options(candidate, options, spec)
         method = get_method(candidate.method)
@@ -381,6 +386,10 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
             estimate = getattr(result, "estimate", None)
             own.append(fit_on(estimate, fold.fit, parsed.get("input", "u")))
             n_par = int(np.size(estimate.parameters)) if estimate is not None else n_par
+            # the feedback test runs for the methods that fit (u, y) as if open; the
+            # direct approach (a noise model of its own) is consistent in a loop
+            open_loop = getattr(result, "feedback", None) is not None and \
+                not getattr(result, "direct", False)
             status = _status(result)
             if status != "ok":
                 return Score(candidate, math.nan, math.nan, n_par,
@@ -400,7 +409,7 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
                      "failed: no held block could be scored")
     se = float(values.std(ddof=1) / math.sqrt(values.size)) if values.size > 1 else math.nan
     return Score(candidate, float(values.mean()), se, n_par, time.perf_counter() - start,
-                 "ok", nonlinear, tuple(own), tuple(float(v) for v in values))
+                 "ok", nonlinear, tuple(own), tuple(float(v) for v in values), open_loop)
 
 
 def fit_on(estimate: Any, data: Experiment | ExperimentSet, input_role: str = "u") -> float:

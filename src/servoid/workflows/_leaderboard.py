@@ -37,6 +37,7 @@ from ._choice import (
     _HeldSpec,
     _status,
     candidates_of,
+    declares_loop,
     fit_on,
     folds_of,
     map_candidates,
@@ -288,6 +289,7 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
     estimation, _validations = spec.records()
     folds = folds_of(estimation, int(options["folds"]), float(options["holdout"]))
     scores = score_candidates(spec, candidates, options, folds)
+    scores = _in_the_loop(spec, scores)
     gate = ""
     if spec.identify.get("method") == "auto":
         scores, gate = gate_of(spec, options, folds, scores)
@@ -337,6 +339,24 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
     return ChoiceResult(spec, result, tuple(entries), chosen.candidate.label,
                         reason + caveat, scheme_of(options), gate, rankable=not caveat,
                         digests=getattr(result, "digests", {}))
+
+
+def _in_the_loop(spec: ExperimentSpec, scores: Sequence[Score]) -> list[Score]:
+    """In a declared loop the fits of (u, y) as if open are not chosen.
+
+    Held-out data from the same loop carry the same feedback, so they
+    cannot show such a fit's bias; the closed-loop candidates and the
+    direct approach are consistent there.  When none of those could be
+    scored the open-loop fits stay (each with its own feedback caution).
+    """
+    if not declares_loop(spec):
+        return list(scores)
+    consistent = [s for s in scores if s.admissible and not s.open_loop]
+    if not consistent:
+        return list(scores)
+    return [dataclasses.replace(s, status="passed over: fits (u, y) as if open, biased in "
+                                "the loop the file declares") if s.admissible and s.open_loop
+            else s for s in scores]
 
 
 @dataclass(frozen=True)
