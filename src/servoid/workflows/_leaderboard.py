@@ -304,7 +304,7 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
     fitted: dict[int, Fitted] = {}
     passed: list[str] = []
     while True:
-        fitted[id(chosen)] = _fit(spec, options, folds, chosen, truth, quiet=False)
+        fitted[id(chosen)] = _whole_fit(spec, options, folds, chosen, truth, quiet=False)
         if fitted[id(chosen)].result is not None:
             break
         passed.append(chosen.candidate.label)
@@ -324,7 +324,7 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
         reason += f"; {fitted[id(chosen)].kept}"
     # the others for the leaderboard (on the fleet's cluster when it runs there)
     rest = [s for s in scores if s.admissible and id(s) not in fitted]
-    for s, outcome in zip(rest, map_candidates(partial(_fit, spec, options, tuple(folds)),
+    for s, outcome in zip(rest, map_candidates(partial(_whole_fit, spec, options, tuple(folds)),
                                                rest), strict=True):
         fitted[id(s)] = outcome
     entries = []
@@ -389,8 +389,9 @@ class Fitted:
     refit_gap: float = math.nan
 
 
-def _fit(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Fold],
-         score: Score, truth: Mapping[str, float] | None = None, quiet: bool = True) -> Fitted:
+def _whole_fit(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Fold],
+               score: Score, truth: Mapping[str, float] | None = None,
+               quiet: bool = True) -> Fitted:
     """A candidate fitted on the whole estimation data — or its scored fold model.
 
     The model fitted on all the estimation data is returned when it is
