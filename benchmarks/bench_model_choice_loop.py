@@ -1,7 +1,7 @@
 """Model choice in a loop (issue 25): what ``method = "auto"`` picks on closed-loop records.
 
-Case
-----
+Cases
+-----
 picks-loop-reference, picks-loop-controller
     ``auto`` on 20 seeds (2 under ``--quick``) of the closed-loop record
     ``servoid.workflows._examples.closed_loop`` writes: a continuous
@@ -21,6 +21,13 @@ picks-loop-reference, picks-loop-controller
     response against the true plant's over 0.1–2 ω_n (the band the
     reference excites; a discrete model against the plant sampled with a
     zero-order hold, as the DAC drives it).
+feedback-level-white, -coloured, -wiener, -saturation
+    The feedback test every open-loop method runs (``servoid.closedloop.
+    feedback_test``, at its 1 % level) on 200 open-loop records each (20
+    under ``--quick``): a continuous second-order plant simulated far above
+    the rate from a random input held two samples, with white or AR(1)
+    coloured noise, or through tanh or a saturation after it (coloured
+    noise): its false alarms at the 1, 5 and 10 % levels.
 """
 
 from __future__ import annotations
@@ -31,7 +38,11 @@ from tempfile import TemporaryDirectory
 
 import numpy as np
 from _harness import Result
+from scipy.signal import lfilter
 
+from servoid.bench import simulate_lti
+from servoid.closedloop import feedback_test
+from servoid.data import Experiment
 from servoid.models import TransferFunction, c2d, freqresp
 from servoid.workflows import identify
 from servoid.workflows._examples import closed_loop
@@ -44,6 +55,20 @@ PI = {"controller": {"num": [0.5 + 3.0 * 0.02, -0.5], "den": [1.0, -1.0]}}
 #: (its noise model in the predictor); OE, tf, n4sid and ARX on (u, y) are biased there.
 CONSISTENT = {"closedloop-auto", "bj"}
 OMEGA = np.linspace(0.1, 2.0, 40) * WN
+
+
+def _open_loop(kind: str, seed: int, n: int = 3000) -> Experiment:
+    """An open-loop record of the plant of ``bench_model_choice`` (ω_n = 4π, ζ = 0.5)."""
+    dt, wn = 0.01, 2 * np.pi * 2.0
+    plant = TransferFunction([wn**2], [1.0, 2 * 0.5 * wn, wn**2])
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.standard_normal(n // 2), 2)
+    x = simulate_lti(plant, u, dt, rng=seed)["y"]
+    x = np.tanh(1.2 * x) if kind == "wiener" else np.clip(x, -0.8, 0.8) \
+        if kind == "saturation" else x
+    e = 0.01 * rng.standard_normal(n)
+    return Experiment.from_arrays(dt, u=u, y=x + (e if kind == "white" else
+                                                  lfilter([1.0], [1.0, -0.9], e)))
 
 
 def run(quick: bool = False) -> list[Result]:
@@ -76,6 +101,17 @@ def run(quick: bool = False) -> list[Result]:
                           extra={"consistent": right / seeds,
                                  "within_2": near / seeds, "chosen": chosen,
                                  "response_error": [round(e, 4) for e in errors]}))
+    tests = 20 if quick else 200
+    for kind in ("white", "coloured", "wiener", "saturation"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            p = np.array([feedback_test(_open_loop(kind, s)).pvalue for s in range(tests)])
+        rates = {f"{100 * a:g} %": int(np.sum(p < a)) for a in (0.01, 0.05, 0.10)}
+        out.append(Result(SUITE, f"feedback-level-{kind}", 3000, "feedback_test", float("nan"),
+                          float("nan"), tests,
+                          note="false alarms " + ", ".join(f"{v}/{tests} at {k}"
+                                                           for k, v in rates.items()),
+                          extra={"false_alarms": rates, "mean_p": round(float(p.mean()), 3)}))
     return out
 
 
