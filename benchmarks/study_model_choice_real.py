@@ -137,6 +137,7 @@ def run_one(folder: Path, name: str, est: Experiment, val: Experiment,
                      "fold_fits": [None if not np.isfinite(f) else round(f, 2)
                                    for f in e.score.fold_fits],
                      "refit_gap": None if not np.isfinite(e.refit_gap) else round(e.refit_gap, 2),
+                     "fitted_on": e.fitted_on,
                      "validation": None if v is None or not np.isfinite(v.fit_percent) else
                      round(float(v.fit_percent), 2)})
     fits = [r["validation"] for r in rows if r["validation"] is not None]

@@ -38,9 +38,10 @@ def test_a_fleet_with_a_method_list_shows_the_chosen_candidate_per_unit(tmp_path
         warnings.simplefilter("ignore")
         result = run_fleet(tmp_path / "fleet.toml", workers=1, progress=False)
     assert result.count("ok") == 2, [r["error"] for r in result.rows]
-    # the simpler ARX(1, 1) is the true structure: within one SE of OE(2, 2), it is chosen
-    assert [r["candidate"] for r in result.rows] == ["arx (na=1, nb=1)"] * 2
-    assert all(r["method"] == "arx" for r in result.rows)
+    # each unit's row names the candidate its own choice took, and that candidate's method
+    # (ARX(1, 1) is the true structure, but OE(2, 2) may simulate the held-out part better)
+    assert all(r["candidate"] in ("arx (na=1, nb=1)", "oe (nb=2, nf=2)") for r in result.rows)
+    assert all(r["method"] == r["candidate"].split()[0] for r in result.rows)
     with open(result.folder / "fleet.csv", encoding="utf-8") as fh:
         header = next(csv.reader(fh))
     assert header[header.index("method") + 1] == "candidate"

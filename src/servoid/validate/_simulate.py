@@ -186,7 +186,14 @@ def simulate_model(
     if free.shape[1] == 0:
         return forced, int(transient), "estimate"
     rows = free.shape[0]  # the free responses vanish (below 1e-20 of their peak) after these
-    x0, *_ = np.linalg.lstsq(free, y[:rows] - forced[:rows], rcond=None)
+    if not (np.all(np.isfinite(free)) and np.all(np.isfinite(forced[:rows]))):
+        # an unstable model's run leaves the floats: no initial state can be fitted to it,
+        # and the caller names the divergence from the run itself
+        return forced, int(transient), "zero"
+    try:
+        x0, *_ = np.linalg.lstsq(free, y[:rows] - forced[:rows], rcond=None)
+    except np.linalg.LinAlgError:  # free responses too far apart in scale to solve for x(0)
+        return forced, int(transient), "zero"
     if not forced.flags.writeable:  # a model may hand out a read-only result
         forced = forced.copy()
     forced[:rows] += free @ x0

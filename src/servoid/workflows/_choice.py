@@ -20,7 +20,9 @@ for the final verdict:
 The score is the fit percentage of the free-run simulation on the held
 part (``purpose = "prediction"``: of the ``horizon``-step prediction), on
 four equal blocks of each held part: its mean, and its standard error
-(the spread of the block fits over √blocks).  A candidate whose model is
+(the spread of the block fits over √blocks).  Each block's RMS error is
+taken relative to the spread of the whole held part, so a block where the
+output barely moves does not outweigh the others.  A candidate whose model is
 unstable, whose free run diverges or whose fit fails is never chosen.
 Among the rest, ``rule = "one-se"`` (default) takes the candidate with
 the fewest parameters whose mean lies within one standard error of the
@@ -30,10 +32,13 @@ candidate is then fitted on the whole estimation data and validated on the
 ``[validation]`` records like a single-method run; the others too, for the
 leaderboard (their validation fits are shown, never used to choose).
 Each candidate's whole-data model and its fold models then simulate the
-folds' own fitting samples (:func:`refit_gap`): when the chosen one's fit
-changes with the samples it is given, the held-out scores judged other
-models than those returned, and the reason says the held-out data cannot
-rank the candidates.
+folds' own fitting samples (:func:`refit_gap`).  When the whole-data fit
+fails, is unstable or ends elsewhere than the fold fits, and a fold's
+model simulates all the estimation data better, that scored fold model is
+returned instead (the reason says so; the estimation data alone decide).
+When the chosen one's fit still changes with the samples it is given, the
+held-out scores judged other models than those returned, and the reason
+says the held-out data cannot rank the candidates.
 
 ``workers = N`` scores the candidates in N local processes (forked, so the
 records are read once); the default 1 scores them one after the other.  A
@@ -135,6 +140,9 @@ class Score:
     blocks : tuple of float
         The fit [%] of each held block, in fold and block order (``mean`` and
         ``se`` summarise them).
+    open_loop : bool
+        The method fits the plant from (u, y) as if the record were open loop
+        (no noise model of its own, no reference): biased under feedback.
     """
 
     candidate: Candidate
@@ -146,6 +154,7 @@ class Score:
     nonlinearity: bool | None = None
     fold_fits: tuple[float, ...] = ()
     blocks: tuple[float, ...] = ()
+    open_loop: bool = False
 
     @property
     def admissible(self) -> bool:
@@ -366,6 +375,7 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
     own: list[float] = []
     n_par = 0
     nonlinear: bool | None = None
+    open_loop = False
     try:
         parsed = parsed_options(candidate, options, spec)
         method = get_method(candidate.method)
@@ -376,6 +386,10 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
             estimate = getattr(result, "estimate", None)
             own.append(fit_on(estimate, fold.fit, parsed.get("input", "u")))
             n_par = int(np.size(estimate.parameters)) if estimate is not None else n_par
+            # the feedback test runs for the methods that fit (u, y) as if open; the
+            # direct approach (a noise model of its own) is consistent in a loop
+            open_loop = getattr(result, "feedback", None) is not None and \
+                not getattr(result, "direct", False)
             status = _status(result)
             if status != "ok":
                 return Score(candidate, math.nan, math.nan, n_par,
@@ -395,7 +409,7 @@ def score_one(spec: ExperimentSpec, candidate: Candidate, options: Mapping[str, 
                      "failed: no held block could be scored")
     se = float(values.std(ddof=1) / math.sqrt(values.size)) if values.size > 1 else math.nan
     return Score(candidate, float(values.mean()), se, n_par, time.perf_counter() - start,
-                 "ok", nonlinear, tuple(own), tuple(float(v) for v in values))
+                 "ok", nonlinear, tuple(own), tuple(float(v) for v in values), open_loop)
 
 
 def fit_on(estimate: Any, data: Experiment | ExperimentSet, input_role: str = "u") -> float:
@@ -459,13 +473,18 @@ def _block_fits(report: Any, prediction: bool) -> list[float]:
     y = np.asarray(report.measured[first:], dtype=float)
     yhat = np.asarray((report.predicted if prediction else report.simulated)[first:],
                       dtype=float)
+    # each block's error on the scale of the whole held part (its spread per sample), so a
+    # block where the output barely moves weighs as much as the others, not more
+    scale = float(np.std(y)) if y.size > 1 else 0.0
+    if not scale > 0:
+        return []
     out = []
     for part_y, part_s in zip(np.array_split(y, BLOCKS), np.array_split(yhat, BLOCKS),
                               strict=True):
-        spread = float(np.linalg.norm(part_y - part_y.mean()))
-        if part_y.size < 2 or not spread > 0:
+        if part_y.size < 2:
             continue
-        out.append(100.0 * (1.0 - float(np.linalg.norm(part_y - part_s)) / spread))
+        rms = float(np.sqrt(np.mean((part_y - part_s) ** 2)))
+        out.append(100.0 * (1.0 - rms / scale))
     return out
 
 

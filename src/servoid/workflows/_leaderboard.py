@@ -26,15 +26,18 @@ from typing import Any
 import numpy as np
 
 from .._errors import ConvergenceError, ServoidError
-from ..data import ExperimentSpec
+from ..data import ExperimentSpec, as_segments
 from ..report import Check, Figure, Page, Section, Table, Verdict, new_figure, save_figure
 from ..validate import ValidationReport
 from ._choice import (
     REFIT_TOLERANCE,
-    Candidate,
+    Fold,
     Scheme,
     Score,
+    _HeldSpec,
+    _status,
     candidates_of,
+    declares_loop,
     fit_on,
     folds_of,
     map_candidates,
@@ -65,6 +68,7 @@ class Entry:
     error: str = ""
     seconds: float = math.nan
     refit_gap: float = math.nan
+    fitted_on: str = "all"
 
     @property
     def label(self) -> str:
@@ -94,7 +98,7 @@ class Entry:
                 "fit_seconds": _finite(s.seconds), "full_fit_seconds": _finite(self.seconds),
                 "held_out_nonlinearity": s.nonlinearity,
                 "held_out_blocks": [_finite(b) for b in s.blocks],
-                "refit_gap_points": _finite(self.refit_gap),
+                "refit_gap_points": _finite(self.refit_gap), "fitted_on": self.fitted_on,
                 "validation_fit_percent": None if v is None else _finite(v.fit_percent),
                 "validation_independence_pvalue": None if v is None else
                 _finite(v.residuals.independence_pvalue),
@@ -285,6 +289,7 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
     estimation, _validations = spec.records()
     folds = folds_of(estimation, int(options["folds"]), float(options["holdout"]))
     scores = score_candidates(spec, candidates, options, folds)
+    scores = _in_the_loop(spec, scores)
     gate = ""
     if spec.identify.get("method") == "auto":
         scores, gate = gate_of(spec, options, folds, scores)
@@ -295,64 +300,166 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
         raise ConvergenceError(f"no candidate gave a stable model that could be scored on the "
                                f"held-out data ({listed}); try other orders or methods")
     # the chosen one is fitted first, with the run's warnings and the truth; a chosen model
-    # whose fit on the whole estimation data fails is passed over for the next choice
-    fitted: dict[int, tuple[Any, str, float]] = {}
+    # that has no fit (on the whole estimation data nor on a fold) is passed over
+    fitted: dict[int, Fitted] = {}
     passed: list[str] = []
     while True:
-        start = time.perf_counter()
-        try:
-            result = get_method(chosen.candidate.method).run(
-                spec, parsed_options(chosen.candidate, options, spec), truth)
-        except ServoidError as exc:
-            fitted[id(chosen)] = (None, str(exc), math.nan)
-            passed.append(chosen.candidate.label)
-            rest = [s for s in scores if id(s) not in fitted]
-            chosen, reason = pick(rest, options["rule"], what)
-            if chosen is None:
-                raise
-            continue
-        fitted[id(chosen)] = (result, "", time.perf_counter() - start)
-        break
+        fitted[id(chosen)] = _whole_fit(spec, options, folds, chosen, truth, quiet=False)
+        if fitted[id(chosen)].result is not None:
+            break
+        passed.append(chosen.candidate.label)
+        rest = [s for s in scores if id(s) not in fitted]
+        chosen, reason = pick(rest, options["rule"], what)
+        if chosen is None:
+            failed = [s for s in scores if id(s) in fitted]
+            raise ConvergenceError("no scored candidate could be fitted on the estimation data ("
+                                   + "; ".join(f"{s.candidate.label}: {fitted[id(s)].error}"
+                                               for s in failed) + "); try other orders or "
+                                   "methods")
+    result = fitted[id(chosen)].result
     if passed:
         reason += (f" ({', '.join(passed)} scored better but failed on the whole estimation "
                    "data: passed over)")
+    if fitted[id(chosen)].kept:
+        reason += f"; {fitted[id(chosen)].kept}"
     # the others for the leaderboard (on the fleet's cluster when it runs there)
     rest = [s for s in scores if s.admissible and id(s) not in fitted]
-    for s, outcome in zip(rest, map_candidates(partial(_whole_fit, spec, options),
-                                               [s.candidate for s in rest]), strict=True):
+    for s, outcome in zip(rest, map_candidates(partial(_whole_fit, spec, options, tuple(folds)),
+                                               rest), strict=True):
         fitted[id(s)] = outcome
     entries = []
     for s in scores:
         if not s.admissible:
             entries.append(Entry(s))
             continue
-        model, error, seconds = fitted[id(s)]
-        gap = math.nan if model is None else refit_gap(s, [
-            fit_on(getattr(model, "estimate", None), f.fit, _input_of(s, options, spec))
-            for f in folds])
-        entries.append(Entry(s, model, error=error, seconds=seconds, refit_gap=gap))
+        f = fitted[id(s)]
+        entries.append(Entry(s, f.result, error=f.error, seconds=f.seconds,
+                             refit_gap=f.refit_gap, fitted_on=f.fitted_on))
     caveat = _reproducibility(entries, chosen)
     return ChoiceResult(spec, result, tuple(entries), chosen.candidate.label,
                         reason + caveat, scheme_of(options), gate, rankable=not caveat,
                         digests=getattr(result, "digests", {}))
 
 
-def _whole_fit(spec: ExperimentSpec, options: Mapping[str, Any],
-               candidate: Candidate) -> tuple[Any, str, float]:
-    """A candidate fitted on the whole estimation data: (result or None, error, seconds)."""
+def _in_the_loop(spec: ExperimentSpec, scores: Sequence[Score]) -> list[Score]:
+    """In a declared loop the fits of (u, y) as if open are not chosen.
+
+    Held-out data from the same loop carry the same feedback, so they
+    cannot show such a fit's bias; the closed-loop candidates and the
+    direct approach are consistent there.  When none of those could be
+    scored the open-loop fits stay (each with its own feedback caution).
+    """
+    if not declares_loop(spec):
+        return list(scores)
+    consistent = [s for s in scores if s.admissible and not s.open_loop]
+    if not consistent:
+        return list(scores)
+    return [dataclasses.replace(s, status="passed over: fits (u, y) as if open, biased in "
+                                "the loop the file declares") if s.admissible and s.open_loop
+            else s for s in scores]
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """A candidate's model for the leaderboard and where it was fitted.
+
+    Attributes
+    ----------
+    result : Identification or None
+        Validated on the ``[validation]`` records (None: no fit succeeded).
+    error : str
+        Why the fit on the whole estimation data failed ('' when it did not).
+    seconds : float
+        Wall time of the fits.
+    fitted_on : str
+        ``"all"`` (the estimation data), or ``"fold k"`` (the fit part of
+        fold k, 1-based): the model scored on held-out data, returned
+        because the fit on all the data failed or ended elsewhere.
+    kept : str
+        Why a fold's model was returned, in words ('' when it was not).
+    refit_gap : float
+        The returned model's :func:`refit_gap` (NaN: no model).
+    """
+
+    result: Any
+    error: str = ""
+    seconds: float = math.nan
+    fitted_on: str = "all"
+    kept: str = ""
+    refit_gap: float = math.nan
+
+
+def _whole_fit(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Fold],
+               score: Score, truth: Mapping[str, float] | None = None,
+               quiet: bool = True) -> Fitted:
+    """A candidate fitted on the whole estimation data — or its scored fold model.
+
+    The model fitted on all the estimation data is returned when it is
+    the model the held-out data scored (its refit gap within
+    :data:`REFIT_TOLERANCE`).  When it is not — its fit failed, is
+    unstable, or ended elsewhere than the folds' fits (a search or an
+    iteration that stops at another point on more data) — each fold's fit
+    is repeated, validated on the ``[validation]`` records, and the one
+    that simulates all the estimation data best is returned if it does so
+    better than the whole-data model: the model the held-out score judged.
+    Only the estimation data decide; the validation records are not used.
+    """
     start = time.perf_counter()
+    method = get_method(score.candidate.method)
+    parsed = parsed_options(score.candidate, options, spec)
+    role = str(parsed.get("input", "u"))
+    result, error = None, ""
     try:
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # only the chosen model's notes are warned
-            result = get_method(candidate.method).run(
-                spec, parsed_options(candidate, options, spec), None)
+            if quiet:
+                warnings.simplefilter("ignore")  # only the chosen model's notes are warned
+            result = method.run(spec, parsed, truth)
     except ServoidError as exc:
-        return None, str(exc), math.nan
-    return result, "", time.perf_counter() - start
+        error = str(exc)
+    def gap_of(fit: Any) -> float:
+        return refit_gap(score, [fit_on(getattr(fit, "estimate", None), f.fit, role)
+                                 for f in folds])
 
-
-def _input_of(score: Score, options: Mapping[str, Any], spec: ExperimentSpec) -> str:
-    return str(parsed_options(score.candidate, options, spec).get("input", "u"))
+    whole, gap = math.nan, math.nan
+    if result is not None:
+        gap = gap_of(result)
+        if _status(result) == "ok" and not abs(gap) > REFIT_TOLERANCE:
+            return Fitted(result, seconds=time.perf_counter() - start, refit_gap=gap)
+    estimation, validations = spec.records()  # read again only here: the exception
+    if result is not None:
+        whole = fit_on(getattr(result, "estimate", None), estimation, role)
+    best: tuple[float, int, Any] | None = None
+    for k, fold in enumerate(folds):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                candidate = method.run(_HeldSpec(spec, Fold(fold.fit, tuple(validations))),
+                                       parsed, truth)
+        except ServoidError:
+            continue
+        if _status(candidate) != "ok":
+            continue
+        own = fit_on(getattr(candidate, "estimate", None), estimation, role)
+        if math.isfinite(own) and (best is None or own > best[0]):
+            best = (own, k, candidate)
+    seconds = time.perf_counter() - start
+    if best is None or (result is not None and _status(result) == "ok" and
+                        not best[0] > whole):
+        return Fitted(result, error, seconds, refit_gap=gap)
+    own, k, candidate = best
+    n_fold = sum(seg.n_samples for seg in as_segments(folds[k].fit))
+    n_all = sum(seg.n_samples for seg in as_segments(estimation))
+    if result is None:
+        why = f"failed ({error.split(':')[0]})"
+    elif _status(result) != "ok":
+        why = "is unstable"
+    else:
+        why = (f"ended elsewhere: it simulates them at {whole:.1f} %, the model fitted to "
+               f"{'the fold' if len(folds) == 1 else f'fold {k + 1}'} at {own:.1f} %")
+    kept = (f"the fit of {score.candidate.label} on all the estimation data {why}; the model "
+            f"the held-out data scored, fitted on {n_fold} of the {n_all} estimation samples, "
+            "is returned")
+    return Fitted(candidate, error, seconds, f"fold {k + 1}", kept, gap_of(candidate))
 
 
 def _reproducibility(entries: Sequence[Entry], chosen: Score) -> str:
