@@ -225,31 +225,40 @@ def test_the_purpose_decides_between_simulation_and_prediction(noisy_rig, purpos
     assert result.to_dict()["choice"]["purpose"] == purpose
 
 
-def test_a_chosen_model_whose_whole_fit_fails_is_passed_over(linear_rig, monkeypatch):
-    # OE fits its fold but (here, by construction) not the whole estimation data: the run
-    # takes the next choice and says so, instead of failing with the OE error
+def _with_stalled_oe(rig, monkeypatch, on_folds):
+    """["oe", "arx"] whose OE fits after the scoring stall: on the whole estimation data, and
+    on the folds too when `on_folds`; the result and its OE entry."""
     from servoid import ConvergenceError
     from servoid.workflows import _leaderboard
+    from servoid.workflows._choice import _HeldSpec
 
     real = _leaderboard.get_method
 
-    class Failing:
+    class Stalling:
         def __init__(self, method):
             self._method = method
 
-        def run(self, *args, **kwargs):
-            raise ConvergenceError("the search stalled (a test's stand-in)")
+        def run(self, spec, *args, **kwargs):
+            if on_folds or not isinstance(spec, _HeldSpec):
+                raise ConvergenceError("the search stalled (a test's stand-in)")
+            return self._method.run(spec, *args, **kwargs)
 
     monkeypatch.setattr(_leaderboard, "get_method",
-                        lambda name: Failing(real(name)) if name == "oe" else real(name))
-    path = _toml(linear_rig, {"method": ["oe", "arx"], "oe": {"nb": 2, "nf": 2},
-                              "arx": {"na": 1, "nb": 1}}, "passed")
+                        lambda name: Stalling(real(name)) if name == "oe" else real(name))
+    path = _toml(rig, {"method": ["oe", "arx"], "oe": {"nb": 2, "nf": 2},
+                       "arx": {"na": 1, "nb": 1}}, f"stalled{int(on_folds)}")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = identify(path, write=False)
+    return result, next(e for e in result.entries if e.label.startswith("oe"))
+
+
+def test_a_chosen_model_whose_whole_fit_fails_is_passed_over(linear_rig, monkeypatch):
+    # OE scored on its fold, but (here, by construction) no later fit of it succeeds: the run
+    # takes the next choice and says so, instead of failing with the OE error
+    result, oe = _with_stalled_oe(linear_rig, monkeypatch, on_folds=True)
     assert result.label.startswith("arx")
     assert "oe (nb=2, nf=2) scored better but failed" in result.reason
-    oe = next(e for e in result.entries if e.label.startswith("oe"))
     assert oe.result is None and "stalled" in oe.error
 
 
@@ -311,32 +320,10 @@ def test_a_fit_that_changes_with_its_samples_is_said_to_leave_the_choice_unranke
 def test_a_whole_fit_that_fails_returns_the_scored_fold_model(linear_rig, monkeypatch):
     # OE converges on its fold but (here, by construction) not on the whole estimation data:
     # the model the held-out data scored is returned, fitted on the fold, and the reason says
-    # so — before, the next candidate was chosen instead (the test above fails every fit)
-    from servoid import ConvergenceError
-    from servoid.workflows import _leaderboard
-    from servoid.workflows._choice import _HeldSpec
-
-    real = _leaderboard.get_method
-
-    class WholeFails:
-        def __init__(self, method):
-            self._method = method
-
-        def run(self, spec, *args, **kwargs):
-            if not isinstance(spec, _HeldSpec):
-                raise ConvergenceError("the search stalled (a test's stand-in)")
-            return self._method.run(spec, *args, **kwargs)
-
-    monkeypatch.setattr(_leaderboard, "get_method",
-                        lambda name: WholeFails(real(name)) if name == "oe" else real(name))
-    path = _toml(linear_rig, {"method": ["oe", "arx"], "oe": {"nb": 2, "nf": 2},
-                              "arx": {"na": 1, "nb": 1}}, "fold")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = identify(path, write=False)
+    # so — before, the next candidate was chosen instead (as in the test above)
+    result, oe = _with_stalled_oe(linear_rig, monkeypatch, on_folds=False)
     assert result.label.startswith("oe")
     assert "failed (the search stalled" in result.reason and "is returned" in result.reason
-    oe = next(e for e in result.entries if e.label.startswith("oe"))
     assert oe.fitted_on == "fold 1" and "stalled" in oe.error
     # 3000 samples, 30 % held out: the returned model was fitted on the 2100 others
     assert result.estimate.n_samples == 2100
