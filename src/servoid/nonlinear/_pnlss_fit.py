@@ -44,11 +44,20 @@ from ..data import Experiment, ExperimentSet
 from ..estimate import Estimate, output_name
 from ._pnlss import MONOMIALS, Monomials, PnlssModel, exponents
 from ._pnlss_kernel import jacobian_block, simulate
+from ._pnlss_weight import (
+    PeriodicWeights,
+    periodic_weights,
+    weighted_cost,
+    weighted_normal_equations,
+)
 
-__all__ = ["LINEAR_STARTS", "fit_pnlss"]
+__all__ = ["LINEAR_STARTS", "WEIGHTINGS", "fit_pnlss"]
 
 #: Where the linear start comes from when no ``initial`` model is given.
 LINEAR_STARTS = ("n4sid", "oe")
+
+#: How the simulation error is weighted: not at all, or per DFT line by 1/σ²_Y (periodic data).
+WEIGHTINGS = ("none", "bla")
 
 #: Samples per block of the Jacobian: JᵀJ and Jᵀr are summed block by block, so memory is
 #: BLOCK × parameters, not N × parameters.
@@ -75,6 +84,8 @@ def fit_pnlss(
     max_iter: int = 100,
     tol: float = 1e-9,
     held_out: Experiment | ExperimentSet | None = None,
+    weighting: Literal["none", "bla"] | None = None,
+    plan: Any = None,
 ) -> Estimate:
     """Fit a PNLSS model by simulation error (Levenberg–Marquardt).
 
@@ -123,6 +134,18 @@ def fit_pnlss(
         diverges there; a stage stops after :data:`PATIENCE` iterations
         without a lower held-out error.  ``options["held_out"]`` says which
         was kept and why.
+    weighting : {"none", "bla"}, optional
+        ``"bla"``: the squared simulation error of each measured period of
+        a multisine test, line by line of its DFT, weighted by 1/σ̂²_Y(k),
+        the output's noise variance from the spread over periods (as in
+        :func:`servoid.frequency.estimate_bla`), on every line; the records
+        must follow `plan` from their first sample, with at least two
+        measured periods in a realisation.  None or ``"none"``: the plain
+        squared simulation error over every sample.
+        ``options["weighting_info"]`` gives the periods, the smoothing
+        and the range of the weights.
+    plan : MultisinePlan, optional
+        The multisine test's plan, for ``weighting = "bla"``.
 
     Returns
     -------
@@ -139,7 +162,8 @@ def fit_pnlss(
     ------
     DataError
         Fewer samples than parameters, non-finite samples, a linear start
-        of the wrong shape or sample period.
+        of the wrong shape or sample period; with ``weighting = "bla"`` no
+        plan, or fewer than two measured periods per realisation.
     IdentifiabilityError
         A constant input.
     ConvergenceError
@@ -148,6 +172,8 @@ def fit_pnlss(
     check_option("monomials", monomials, MONOMIALS)
     check_option("linear", linear, LINEAR_STARTS)
     check_option("input", input, ("u", "r"))
+    weighting = "none" if weighting is None else weighting
+    check_option("weighting", weighting, WEIGHTINGS)
     n_states = as_int("n_states", n_states, minimum=1, maximum=20)
     degree = as_int("degree", degree, minimum=1, maximum=6)
     ridge = as_float("ridge", ridge, nonneg=True)
@@ -168,6 +194,11 @@ def fit_pnlss(
         raise IdentifiabilityError(f"an input of {', '.join(names['inputs'])} is constant: it "
                                    "excites nothing; excite the system with a multisine, PRBS "
                                    "or chirp")
+    weights = (periodic_weights([y for _, y in records], dt, plan) if weighting == "bla"
+               else None)
+    if weights is not None:
+        y_all = np.concatenate([y[s:s + weights.period] for (_, y), starts
+                                in zip(records, weights.starts, strict=True) for s in starts])
     held = None
     if held_out is not None:
         held = _held_records(held_out, input, output, names, dt)
@@ -193,7 +224,7 @@ def fit_pnlss(
                            output_unit=names["output_unit"])
         normal = [(un, (y - offset) / y_scale) for un, (_, y) in zip(normal_u, records,
                                                                       strict=True)]
-        return _Search(model, normal, ridge, held)
+        return _Search(model, normal, ridge, held, weights)
 
     search = setup(y_mean)
     theta, x0s, info = search.run(max_iter, tol)
@@ -246,6 +277,7 @@ def fit_pnlss(
         "n_parameters": n_model, "linear_rms": info["linear_rms"] * y_scale,
         "linear_start": _physical(start, u_scale, y_scale),
         "held_out": _held_summary(info.get("held_out"), y_scale, offset_rule),
+        "weighting": weighting, "weighting_info": None if weights is None else weights.info,
     }
     return Estimate(model=fitted, parameters=theta, names=labels, covariance=cov,
                     noise_variance=noise, n_samples=n_total, method="pnlss",
@@ -264,10 +296,13 @@ class _Search:
     """
 
     def __init__(self, model: PnlssModel, records: Sequence[Record], ridge: float,
-                 held: Sequence[Record] | None = None) -> None:
+                 held: Sequence[Record] | None = None,
+                 weights: PeriodicWeights | None = None) -> None:
         self.model = model
         self.records = [(np.ascontiguousarray(u), y) for u, y in records]
-        self.n_total = sum(y.size for _, y in records)
+        self.weights = weights  # the cost per DFT line of the measured periods (None: plain)
+        self.n_total = (sum(y.size for _, y in records) if weights is None
+                        else weights.n_samples)
         nx, nm, nu = model.n_states, model.n_monomials, model.n_inputs
         self.n_model = model.n_parameters
         self.n_linear = nx * nx + nx * nu + nx + nu  # A, B, C, D lead θ
@@ -299,6 +334,8 @@ class _Search:
         """Σ squared simulation error + penalty; inf for a diverging run."""
         args = self._args(theta)
         total = self.rho * float(theta[self.ef] @ theta[self.ef])
+        if self.weights is not None:
+            return total + weighted_cost(args, self.records, x0s, self.weights)
         for (u, y), x0 in zip(self.records, x0s, strict=True):
             ys = np.empty(y.size)
             xs = np.empty((y.size + 1, self.model.n_states))
@@ -336,6 +373,9 @@ class _Search:
         args = self._args(theta, linear)
         nx, nmod = self.model.n_states, self.n_model
         nown = self.n_linear if linear else nmod  # the model's columns the kernel forms
+        if self.weights is not None:  # JᴴWJ of the periods' DFTs; r: the periods' errors
+            return weighted_normal_equations(args, self.records, x0s, self.weights, nown,
+                                             nmod, BLOCK)
         n_all = nmod + nx * len(self.records)
         H = np.zeros((n_all, n_all))
         g = np.zeros(n_all)
@@ -371,7 +411,9 @@ class _Search:
         the ``fixed`` ones zero), the residuals and σ̂² (normalised units)."""
         H, _, r = self.normal_equations(theta, x0s)
         H[:self.n_model, :self.n_model] += self.penalty_matrix()
-        sigma2 = float(r @ r) / max(self.n_total - n_free, 1)
+        sse = float(r @ r) if self.weights is None else weighted_cost(
+            self._args(theta), self.records, x0s, self.weights)  # the cost H belongs to
+        sigma2 = sse / max(self.n_total - n_free, 1)
         keep = np.setdiff1d(np.arange(H.shape[0]), fixed)
         cov_all = np.zeros_like(H)
         cov_all[np.ix_(keep, keep)] = _inverse(H[np.ix_(keep, keep)])
