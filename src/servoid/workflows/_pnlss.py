@@ -24,7 +24,7 @@ __all__ = ["METHOD", "PnlssResult"]
 
 _KEYS = {name: f"[identify] {name}" for name in
          ("n_states", "degree", "monomials", "ridge", "prune", "linear", "plan",
-          "max_iter", "holdout", "horizon")}
+          "max_iter", "holdout", "horizon", "weighting")}
 
 
 @dataclass(frozen=True)
@@ -232,7 +232,8 @@ def _fit(data: Experiment | ExperimentSet, n_states: int, degree: int,
     est = fit_pnlss(data, n_states, degree, monomials=options["monomials"],
                     linear="n4sid" if bla else options["linear"], initial=start,
                     ridge=options["ridge"], prune=options["prune"], input=options["input"],
-                    output=options["output"], max_iter=options["max_iter"], held_out=held)
+                    output=options["output"], max_iter=options["max_iter"], held_out=held,
+                    weighting=options["weighting"], plan=options["_plan"])
     if start is not None:
         est = replace(est, options={**est.options,
                                     "linear": f"BLA, ML fit in z of {n_states} poles"})
@@ -240,8 +241,9 @@ def _fit(data: Experiment | ExperimentSet, n_states: int, degree: int,
 
 
 def _plan(spec: ExperimentSpec, options: Mapping[str, Any]) -> Any:
-    """The multisine plan of ``linear = "bla"`` (None otherwise)."""
-    if options["linear"] != "bla":
+    """The multisine plan of ``linear = "bla"`` or ``weighting = "bla"`` (None otherwise)."""
+    need = [f'{k} = "bla"' for k in ("linear", "weighting") if options[k] == "bla"]
+    if not need:
         return None
     from ..signals import read_plan
 
@@ -251,10 +253,11 @@ def _plan(spec: ExperimentSpec, options: Mapping[str, Any]) -> Any:
         return read_plan(path if path.is_absolute() else spec.base_dir / path)
     beside = spec.data_path.with_name(spec.data_path.stem + ".plan.json")
     if not beside.is_file():
-        raise DataError(f'[identify] linear = "bla" needs the multisine plan: none beside the '
+        other = 'linear = "n4sid"' if need[0].startswith("linear") else 'weighting = "none"'
+        raise DataError(f"[identify] {need[0]} needs the multisine plan: none beside the "
                         f"data file ({beside.name}); write the test with servoid excite "
                         "random-multisine (it writes the plan beside the data file), name it "
-                        'with [identify] plan, or use linear = "n4sid"')
+                        f"with [identify] plan, or use {other}")
     return read_plan(beside)
 
 
@@ -403,8 +406,12 @@ METHOD = Method(
                "the linear start: n4sid, OE turned into state space, or the best linear "
                "approximation of a multisine test (its ML fit in z; needs the plan)"),
         Option("plan", None, optional(text()),
-               'the multisine plan file of linear = "bla" (default: <data file>.plan.json '
-               "beside it)"),
+               'the multisine plan file of linear = "bla" and weighting = "bla" (default: '
+               "<data file>.plan.json beside it)"),
+        Option("weighting", "none", choice(("none", "bla")),
+               "the simulation error as it is (none), or per DFT line of each measured period "
+               "weighted by 1/σ² of the output's noise from the spread over periods (bla: a "
+               "multisine test with its plan, ≥ 2 periods per realisation)"),
         Option("ridge", 0.0, number(nonneg=True),
                "weight α of the penalty α·N·‖(E, F)‖² on the nonlinear coefficients"),
         Option("prune", 0.0, number(nonneg=True),
