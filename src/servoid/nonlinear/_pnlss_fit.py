@@ -430,7 +430,9 @@ class _Search:
             self.run_linear(max_iter, tol)
         theta, x0s, first = self.linear  # type: ignore[misc]
         info = dict(first)
-        info["linear_rms"] = np.sqrt(first["cost"] / self.n_total)
+        sse = first["cost"] if self.weights is None else weighted_cost(
+            self._args(theta), self.records, x0s, self.weights.plain())  # not the weighted one
+        info["linear_rms"] = np.sqrt(sse / self.n_total)
         if self.ef.size:
             n_all = self.n_model + self.model.n_states * len(self.records)
             theta, x0s, second = self._lm(theta, x0s, max_iter, tol, np.arange(n_all),

@@ -124,6 +124,7 @@ class PnlssResult(IdentificationResult):
                 f"ridge {o['ridge']:g}{_pruned(o)}. Free-run RMS on the estimation data: linear "
                 f"{o['linear_rms']:.4g}, PNLSS {np.sqrt(o['cost']):.4g}. The covariance is "
                 "σ̂²(JᵀJ)⁺ with the similarity-transform directions left out.")
+        text += _weighting(o.get("weighting_info"))
         held = o.get("held_out")
         if held:
             text += (f" Every accepted iterate was also run freely on {held['samples']} held-out "
@@ -271,6 +272,18 @@ def _bla_start(data: Experiment | ExperimentSet, n_states: int,
     bla = estimate_bla(first, options["_plan"], input=options["input"],
                        output=options["output"])
     return fit_ml(bla, n_states, n_states, domain="z")
+
+
+def _weighting(info: Mapping[str, Any] | None) -> str:
+    """The weighting, for the model section's text ("" when none)."""
+    if not info:
+        return ""
+    return (f" The simulation error of each of the {info['periods']} whole periods of "
+            f"{info['period']} samples was weighted line by line of its DFT by 1/σ² of the "
+            f"output's noise, from the spread over the measured periods ({info['variance_dof']} "
+            f"degrees of freedom a line after averaging {info['smoothing_lines']} neighbouring "
+            f"lines); the weights, the noise's mean variance over the line's, ran from "
+            f"{info['weight_min']:.3g} to {info['weight_max']:.3g}.")
 
 
 def _pruned(o: Mapping[str, Any]) -> str:
