@@ -44,11 +44,21 @@ from ..data import Experiment, ExperimentSet
 from ..estimate import Estimate, output_name
 from ._pnlss import MONOMIALS, Monomials, PnlssModel, exponents
 from ._pnlss_kernel import jacobian_block, simulate
+from ._pnlss_prune import prune_monomials as _prune
+from ._pnlss_weight import (
+    PeriodicWeights,
+    periodic_weights,
+    weighted_cost,
+    weighted_normal_equations,
+)
 
-__all__ = ["LINEAR_STARTS", "fit_pnlss"]
+__all__ = ["LINEAR_STARTS", "WEIGHTINGS", "fit_pnlss"]
 
 #: Where the linear start comes from when no ``initial`` model is given.
 LINEAR_STARTS = ("n4sid", "oe")
+
+#: How the simulation error is weighted: not at all, or per DFT line by 1/σ²_Y (periodic data).
+WEIGHTINGS = ("none", "bla")
 
 #: Samples per block of the Jacobian: JᵀJ and Jᵀr are summed block by block, so memory is
 #: BLOCK × parameters, not N × parameters.
@@ -76,6 +86,8 @@ def fit_pnlss(
     tol: float = 1e-9,
     held_out: Experiment | ExperimentSet | None = None,
     offset: float | None = None,
+    weighting: Literal["none", "bla"] | None = None,
+    plan: Any = None,
 ) -> Estimate:
     """Fit a PNLSS model by simulation error (Levenberg–Marquardt).
 
@@ -127,6 +139,18 @@ def fit_pnlss(
     offset : float, optional
         The output offset (the model's ``y_mean``) [output unit], fixed.  Default the
         output's mean (with `held_out` and a fitted start also G(1)·ū: the better there).
+    weighting : {"none", "bla"}, optional
+        ``"bla"``: the squared simulation error of each whole period of
+        a multisine test, line by line of its DFT, weighted by 1/σ̂²_Y(k),
+        the output's noise variance from the spread over periods (as in
+        :func:`servoid.frequency.estimate_bla`), on every line; the records
+        must follow `plan` from their first sample, with at least two
+        measured periods in a realisation.  None or ``"none"``: the plain
+        squared simulation error over every sample.
+        ``options["weighting_info"]`` gives the periods, the smoothing
+        and the range of the weights.
+    plan : MultisinePlan, optional
+        The multisine test's plan, for ``weighting = "bla"``.
 
     Returns
     -------
@@ -143,7 +167,8 @@ def fit_pnlss(
     ------
     DataError
         Fewer samples than parameters, non-finite samples, a linear start
-        of the wrong shape or sample period.
+        of the wrong shape or sample period; with ``weighting = "bla"`` no
+        plan, or fewer than two measured periods per realisation.
     IdentifiabilityError
         A constant input.
     ConvergenceError
@@ -152,6 +177,8 @@ def fit_pnlss(
     check_option("monomials", monomials, MONOMIALS)
     check_option("linear", linear, LINEAR_STARTS)
     check_option("input", input, ("u", "r"))
+    weighting = "none" if weighting is None else weighting
+    check_option("weighting", weighting, WEIGHTINGS)
     n_states = as_int("n_states", n_states, minimum=1, maximum=20)
     degree = as_int("degree", degree, minimum=1, maximum=6)
     ridge = as_float("ridge", ridge, nonneg=True)
@@ -172,6 +199,11 @@ def fit_pnlss(
         raise IdentifiabilityError(f"an input of {', '.join(names['inputs'])} is constant: it "
                                    "excites nothing; excite the system with a multisine, PRBS "
                                    "or chirp")
+    weights = (periodic_weights([y for _, y in records], dt, plan) if weighting == "bla"
+               else None)
+    if weights is not None:
+        y_all = np.concatenate([y[s:s + weights.period] for (_, y), starts
+                                in zip(records, weights.starts, strict=True) for s in starts])
     held = None
     if held_out is not None:
         held = _held_records(held_out, input, output, names, dt)
@@ -197,7 +229,7 @@ def fit_pnlss(
                            output_unit=names["output_unit"])
         normal = [(un, (y - offset) / y_scale) for un, (_, y) in zip(normal_u, records,
                                                                       strict=True)]
-        return _Search(model, normal, ridge, held)
+        return _Search(model, normal, ridge, held, weights)
 
     search = setup(y_mean if offset is None else as_float("offset", offset))
     theta, x0s, info = search.run(max_iter, tol)
@@ -250,6 +282,7 @@ def fit_pnlss(
         "n_parameters": n_model, "linear_rms": info["linear_rms"] * y_scale,
         "linear_start": _physical(start, u_scale, y_scale),
         "held_out": _held_summary(info.get("held_out"), y_scale, offset_rule),
+        "weighting": weighting, "weighting_info": None if weights is None else weights.info,
     }
     return Estimate(model=fitted, parameters=theta, names=labels, covariance=cov,
                     noise_variance=noise, n_samples=n_total, method="pnlss",
@@ -268,10 +301,13 @@ class _Search:
     """
 
     def __init__(self, model: PnlssModel, records: Sequence[Record], ridge: float,
-                 held: Sequence[Record] | None = None) -> None:
+                 held: Sequence[Record] | None = None,
+                 weights: PeriodicWeights | None = None) -> None:
         self.model = model
         self.records = [(np.ascontiguousarray(u), y) for u, y in records]
-        self.n_total = sum(y.size for _, y in records)
+        self.weights = weights  # the cost per DFT line of the whole periods (None: plain)
+        self.n_total = (sum(y.size for _, y in records) if weights is None
+                        else weights.n_samples)
         nx, nm, nu = model.n_states, model.n_monomials, model.n_inputs
         self.n_model = model.n_parameters
         self.n_linear = nx * nx + nx * nu + nx + nu  # A, B, C, D lead θ
@@ -303,6 +339,8 @@ class _Search:
         """Σ squared simulation error + penalty; inf for a diverging run."""
         args = self._args(theta)
         total = self.rho * float(theta[self.ef] @ theta[self.ef])
+        if self.weights is not None:
+            return total + weighted_cost(args, self.records, x0s, self.weights)
         for (u, y), x0 in zip(self.records, x0s, strict=True):
             ys = np.empty(y.size)
             xs = np.empty((y.size + 1, self.model.n_states))
@@ -340,6 +378,9 @@ class _Search:
         args = self._args(theta, linear)
         nx, nmod = self.model.n_states, self.n_model
         nown = self.n_linear if linear else nmod  # the model's columns the kernel forms
+        if self.weights is not None:  # JᴴWJ of the periods' DFTs; r: the periods' errors
+            return weighted_normal_equations(args, self.records, x0s, self.weights, nown,
+                                             nmod, BLOCK)
         n_all = nmod + nx * len(self.records)
         H = np.zeros((n_all, n_all))
         g = np.zeros(n_all)
@@ -375,7 +416,9 @@ class _Search:
         the ``fixed`` ones zero), the residuals and σ̂² (normalised units)."""
         H, _, r = self.normal_equations(theta, x0s)
         H[:self.n_model, :self.n_model] += self.penalty_matrix()
-        sigma2 = float(r @ r) / max(self.n_total - n_free, 1)
+        sse = float(r @ r) if self.weights is None else weighted_cost(
+            self._args(theta), self.records, x0s, self.weights)  # the cost H belongs to
+        sigma2 = sse / max(self.n_total - n_free, 1)
         keep = np.setdiff1d(np.arange(H.shape[0]), fixed)
         cov_all = np.zeros_like(H)
         cov_all[np.ix_(keep, keep)] = _inverse(H[np.ix_(keep, keep)])
@@ -391,7 +434,9 @@ class _Search:
             self.run_linear(max_iter, tol)
         theta, x0s, first = self.linear  # type: ignore[misc]
         info = dict(first)
-        info["linear_rms"] = np.sqrt(first["cost"] / self.n_total)
+        sse = first["cost"] if self.weights is None else weighted_cost(
+            self._args(theta), self.records, x0s, self.weights.plain())  # not the weighted one
+        info["linear_rms"] = np.sqrt(sse / self.n_total)
         if self.ef.size:
             n_all = self.n_model + self.model.n_states * len(self.records)
             theta, x0s, second = self._lm(theta, x0s, max_iter, tol, np.arange(n_all),
@@ -533,65 +578,6 @@ class _Best:
     stage: str  # "the linear start", "linear" or "nonlinear"
     iteration: int
     start: float  # the linear start's score
-
-
-# -- pruning ------------------------------------------------------------------------------
-
-
-def _prune(search: _Search, theta: NDArray[np.float64], x0s: list[NDArray[np.float64]],
-           alpha: float, info: dict[str, Any], max_iter: int, tol: float
-           ) -> tuple[NDArray[np.float64], list[NDArray[np.float64]], NDArray[np.int64],
-                      list[str]]:
-    """Remove the monomials the data cannot tell from zero, refit, until none is removed.
-
-    A monomial's group is its column of E and its entry of F; the Wald
-    statistic θ_gᵀ C_g⁺ θ_g of the group (C_g its block of the
-    covariance) is χ² with rank(C_g) degrees of freedom when the
-    coefficients are zero.  Whether a column of E is zero does not depend
-    on the states' basis, so the test means the same in any realisation.
-    """
-    from scipy.stats import chi2
-
-    model = search.model
-    nx, nm, n_model = model.n_states, model.n_monomials, search.n_model
-    o_e, o_f = n_model - nx * nm - nm, n_model - nm
-    groups = [np.r_[o_e + np.arange(nx) * nm + j, o_f + j] for j in range(nm)]
-    gone: set[int] = set()
-    n_all = n_model + nx * len(search.records)
-    n_free = n_all
-    for _ in range(10):
-        fixed = np.array(sorted(k for j in gone for k in groups[j]), dtype=np.int64)
-        cov, _, _ = search.covariance(theta, x0s, fixed, n_free - fixed.size)
-        drop = []
-        for j, g in enumerate(groups):
-            if j in gone:
-                continue
-            c = cov[np.ix_(g, g)]
-            w, V = np.linalg.eigh(0.5 * (c + c.T))
-            keep = w > 1e-12 * max(float(w.max()), 1e-300)
-            if not keep.any():
-                continue
-            z = V[:, keep].T @ theta[g]
-            stat = float(np.sum(z**2 / w[keep]))
-            if chi2.sf(stat, int(keep.sum())) > alpha:
-                drop.append(j)
-        if not drop:
-            break
-        fixed = np.array(sorted(k for j in gone | set(drop) for k in groups[j]),
-                         dtype=np.int64)
-        trial = theta.copy()
-        trial[fixed] = 0.0
-        if not np.isfinite(search.cost(trial, x0s)):
-            break  # the model without them diverges: they are needed after all
-        gone.update(drop)
-        free = np.setdiff1d(np.arange(n_all), fixed)
-        theta, x0s, again = search._lm(trial, x0s, max_iter, tol, free)
-        info.update(status=again["status"], cost=again["cost"])
-        for key in ("iterations", "rejected", "diverged"):
-            info[key] += again[key]
-    fixed = np.array(sorted(k for j in gone for k in groups[j]), dtype=np.int64)
-    names = model.monomial_names
-    return theta, x0s, fixed, [names[j] for j in sorted(gone)]
 
 
 # -- the linear start ---------------------------------------------------------------------

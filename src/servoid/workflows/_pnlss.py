@@ -35,7 +35,7 @@ __all__ = ["METHOD", "PnlssResult"]
 
 _KEYS = {name: f"[identify] {name}" for name in
          ("n_states", "degree", "monomials", "ridge", "prune", "linear", "plan",
-          "max_iter", "holdout", "horizon")}
+          "max_iter", "holdout", "horizon", "weighting")}
 
 
 @dataclass(frozen=True)
@@ -148,6 +148,7 @@ class PnlssResult(IdentificationResult):
                     f"exact Jacobian ({refit['iterations']} iterations; free-run RMS on the "
                     f"estimation data {refit['rms_before']:.4g} → {refit['rms']:.4g}). The "
                     "covariance is σ̂²(JᵀJ)⁺ with the similarity-transform directions left out.")
+        text += _weighting(o.get("weighting_info"))
         held = o.get("held_out")
         if held:
             text += (f" Every accepted iterate was also run freely on {held['samples']} held-out "
@@ -277,7 +278,8 @@ def _fit(data: Experiment | ExperimentSet, n_states: int, degree: int,
     est = fit_pnlss(data, n_states, degree, monomials=options["monomials"],
                     linear="n4sid" if bla else options["linear"], initial=start,
                     ridge=options["ridge"], prune=options["prune"], input=options["input"],
-                    output=options["output"], max_iter=options["max_iter"], held_out=held)
+                    output=options["output"], max_iter=options["max_iter"], held_out=held,
+                    weighting=options["weighting"], plan=options["_plan"])
     if start is not None:
         est = replace(est, options={**est.options,
                                     "linear": f"BLA, ML fit in z of {n_states} poles"})
@@ -313,7 +315,8 @@ def _refit(data: Experiment | ExperimentSet, kept: Any, options: Mapping[str, An
             warnings.simplefilter("ignore", ServoidWarning)
             est = fit_pnlss(data, model.n_states, 1, monomials=o["monomials"], initial=lin,
                             input=options["input"], output=o["output"],
-                            max_iter=options["max_iter"], offset=offset)
+                            max_iter=options["max_iter"], offset=offset,
+                            weighting=options["weighting"], plan=options["_plan"])
     except ServoidError as exc:
         held = {**o["held_out"], "why": f"{o['held_out']['why']}; its refit on all the "
                                         f"estimation data failed ({exc}), so it is as kept"}
@@ -346,8 +349,9 @@ def _rms(model: Any, records: Sequence[Experiment], role: str, output: str) -> f
 
 
 def _plan(spec: ExperimentSpec, options: Mapping[str, Any]) -> Any:
-    """The multisine plan of ``linear = "bla"`` (None otherwise)."""
-    if options["linear"] != "bla":
+    """The multisine plan of ``linear = "bla"`` or ``weighting = "bla"`` (None otherwise)."""
+    need = [f'{k} = "bla"' for k in ("linear", "weighting") if options[k] == "bla"]
+    if not need:
         return None
     from ..signals import read_plan
 
@@ -357,10 +361,11 @@ def _plan(spec: ExperimentSpec, options: Mapping[str, Any]) -> Any:
         return read_plan(path if path.is_absolute() else spec.base_dir / path)
     beside = spec.data_path.with_name(spec.data_path.stem + ".plan.json")
     if not beside.is_file():
-        raise DataError(f'[identify] linear = "bla" needs the multisine plan: none beside the '
+        other = 'linear = "n4sid"' if need[0].startswith("linear") else 'weighting = "none"'
+        raise DataError(f"[identify] {need[0]} needs the multisine plan: none beside the "
                         f"data file ({beside.name}); write the test with servoid excite "
                         "random-multisine (it writes the plan beside the data file), name it "
-                        'with [identify] plan, or use linear = "n4sid"')
+                        f"with [identify] plan, or use {other}")
     return read_plan(beside)
 
 
@@ -374,6 +379,18 @@ def _bla_start(data: Experiment | ExperimentSet, n_states: int,
     bla = estimate_bla(first, options["_plan"], input=options["input"],
                        output=options["output"])
     return fit_ml(bla, n_states, n_states, domain="z")
+
+
+def _weighting(info: Mapping[str, Any] | None) -> str:
+    """The weighting, for the model section's text ("" when none)."""
+    if not info:
+        return ""
+    return (f" The simulation error of each of the {info['periods']} whole periods of "
+            f"{info['period']} samples was weighted line by line of its DFT by 1/σ² of the "
+            f"output's noise, from the spread over the measured periods ({info['variance_dof']} "
+            f"degrees of freedom a line after averaging {info['smoothing_lines']} neighbouring "
+            f"lines); the weights, the noise's mean variance over the line's, ran from "
+            f"{info['weight_min']:.3g} to {info['weight_max']:.3g}.")
 
 
 def _pruned(o: Mapping[str, Any]) -> str:
@@ -539,8 +556,12 @@ METHOD = Method(
                "of n4sid and oe: each order's start chosen by its linear model's free-run "
                "error on the held-out part (the first when holdout = 0)"),
         Option("plan", None, optional(text()),
-               'the multisine plan file of linear = "bla" (default: <data file>.plan.json '
-               "beside it)"),
+               'the multisine plan file of linear = "bla" and weighting = "bla" (default: '
+               "<data file>.plan.json beside it)"),
+        Option("weighting", "none", choice(("none", "bla")),
+               "the simulation error as it is (none), or per DFT line of each measured period "
+               "weighted by 1/σ² of the output's noise from the spread over periods (bla: a "
+               "multisine test with its plan, ≥ 2 periods per realisation)"),
         Option("ridge", 0.0, number(nonneg=True),
                "weight α of the penalty α·N·‖(E, F)‖² on the nonlinear coefficients"),
         Option("prune", 0.0, number(nonneg=True),
