@@ -329,6 +329,7 @@ def test_a_whole_fit_that_fails_returns_the_scored_fold_model(linear_rig, monkey
     assert result.estimate.n_samples == 2100
     # the returned model is the scored one: its refit gap is 0 (to rounding) and it ranks
     assert abs(oe.refit_gap) < 1e-6 and result.rankable
+    assert "ok; the model of fold 1" in str(result)  # the leaderboard marks it too
     row = next(r for r in result.to_dict()["choice"]["candidates"] if r["label"] == oe.label)
     assert row["fitted_on"] == "fold 1"
 

@@ -190,7 +190,8 @@ class ChoiceResult(Displayed):
                 "—" if nl is None or not nl.tested else
                 ("LEFT" if nl.detected else "none"),
                 f"{s.seconds:.2f}",
-                s.status if s.status == "ok" else s.status[:60]))
+                (s.status if s.status == "ok" else s.status[:60]) +
+                ("" if e.fitted_on == "all" else f"; the model of {e.fitted_on}")))
         return Table(("candidate", "parameters", "held-out fit %", "validation fit %",
                       "input–residual", "nonlinearity", "fit time s", "status"),
                      tuple(rows), "Leaderboard (▶ the chosen candidate; why: above)")
