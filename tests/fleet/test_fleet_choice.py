@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import time
 import warnings
 
 import numpy as np
@@ -83,3 +84,62 @@ def test_a_fleet_on_dask_scores_each_units_candidates_as_cluster_tasks(tmp_path)
     assert tasks == {"score_on": 6, "whole_fit": 4}
     # the same choice as the serial run: where a candidate is scored does not change its score
     assert [r["candidate"] for r in served.rows] == [r["candidate"] for r in serial.rows]
+
+
+def test_a_dask_fleet_row_counts_the_cpu_of_its_candidate_tasks(tmp_path):
+    pytest.importorskip("distributed")
+    pytest.importorskip("cryptography")
+    import servoid.fleet._run as fleet_run
+    from servoid.fleet import tls_security
+
+    _unit(tmp_path, 0)  # one unit: every task on the cluster is its record's or a candidate's
+    (tmp_path / "fleet.toml").write_text(
+        '[records]\nglob = "unit*.toml"\n\n[identify]\nmethod = ["oe", "tf", "bj"]\n\n'
+        "[identify.oe]\nnb = 2\nnf = 2\n\n[identify.tf]\nn_poles = 2\n", encoding="utf-8")
+    pool = fleet_run._Pool(None, 2, 2)  # the fleet's own private cluster, two workers
+    client = pool.client(2)
+    try:
+        pem = write_pem(client, tmp_path)
+        before = client.run(time.process_time)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = run_fleet(tmp_path / "fleet.toml", tmp_path / "dask",
+                               scheduler=pool._cluster.scheduler_address, progress=False,
+                               security=tls_security(pem["ca"], pem["cert"], pem["key"]))
+        after = client.run(time.process_time)
+    finally:
+        pool.close()
+    row = result.rows[0]
+    assert row["status"] == "ok", row["error"]
+    workers = sum(after[w] - before[w] for w in after)  # every task's CPU, and the workers' own
+    # the candidates ran on both workers; the row counted only its own worker's share before
+    # (0.42 of the workers' CPU, measured); now every task once: the rest is the workers' event
+    # loops (3 % measured), and the tasks that ran beside the waiting record are not counted twice
+    assert 0.75 * workers <= row["cpu_seconds"] <= workers + 0.05, (row["cpu_seconds"], workers)
+    with open(result.folder / "fleet.csv", encoding="utf-8") as fh:
+        header = next(csv.reader(fh))
+    assert header[header.index("seconds") + 1] == "cpu_seconds"
+
+
+def test_a_serial_fleet_row_counts_the_cpu_of_its_local_candidate_processes(tmp_path):
+    import resource
+
+    _unit(tmp_path, 0)
+    (tmp_path / "fleet.toml").write_text(
+        '[records]\nglob = "unit*.toml"\n\n[identify]\nmethod = ["oe", "tf"]\nworkers = 2\n\n'
+        "[identify.oe]\nnb = 2\nnf = 2\n\n[identify.tf]\nn_poles = 2\n", encoding="utf-8")
+
+    def children():
+        usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return usage.ru_utime + usage.ru_stime
+
+    start = children()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = run_fleet(tmp_path / "fleet.toml", workers=1, progress=False)
+    forked = children() - start  # the candidates, scored in two forked processes
+    row = result.rows[0]
+    assert row["status"] == "ok", row["error"]
+    assert forked > 0.05  # they did run there (a candidate costs ~0.1 s or more)
+    # the record's own process works too (the whole-data fits, the validation), so more
+    assert row["cpu_seconds"] > forked, (row["cpu_seconds"], forked)
