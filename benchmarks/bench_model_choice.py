@@ -12,14 +12,21 @@ auto-1e4
     the folds and its held-out score, so the leaderboard's times are here.
 picks
     ``auto`` on 20 seeds (2 under ``--quick``) of each generator family —
-    linear (the plant alone), Wiener (tanh after it), Hammerstein
-    (u + 0.5·u² before it) and NARX (a discrete NARX with a y·u cross term,
-    which no block model has) — 3000-sample records with AR(1) noise: the
-    share of seeds whose chosen candidate is of the true family (linear: a
-    linear method; Wiener: a Wiener model; Hammerstein: a Hammerstein model
-    or NARX; NARX: NARX), the share within 2 fit points of the best
-    candidate on the validation record, and which test opened ``auto``'s
-    gate to the nonlinear families.
+    linear (the plant alone), ARX (an ARX(2, 2) with a lightly damped pair,
+    its noise through 1/A: the structure ARX fits), Wiener (tanh after the
+    plant), Hammerstein (u + 0.5·u² before it) and NARX (a discrete NARX
+    with a y·u cross term, which no block model has) — 3000-sample records
+    with AR(1) noise (ARX: white through 1/A): the share of seeds whose
+    chosen candidate is of the true family (linear and ARX: a linear method;
+    Wiener: a Wiener model; Hammerstein: a Hammerstein model or NARX; NARX:
+    NARX), the share within 2 fit points of the best candidate on the
+    validation record, and which test opened ``auto``'s gate to the
+    nonlinear families.  And the refit gaps (``refit_gap``): per seed the
+    chosen candidate's gap and whether the run was flagged (``rankable``
+    false: its |gap| beyond ``REFIT_TOLERANCE``), the false flags (a choice
+    of the true family flagged), and over every candidate the 95th
+    percentile and largest |gap| per method and the share of its gaps beyond
+    the tolerance (how often it would be flagged were it chosen).
 level / power
     ``nonlinearity_tests`` on the residuals of the true linear model with
     AR(1)-coloured noise (200 seeds: the false-alarm rate at the 1 % level)
@@ -48,19 +55,25 @@ from servoid.data import Experiment, write_csv, write_experiment_spec
 from servoid.models import TransferFunction
 from servoid.validate import nonlinearity_tests
 from servoid.workflows import identify
+from servoid.workflows._choice import REFIT_TOLERANCE
 from servoid.workflows._gate import output_power_pvalue
 
 SUITE = "model-choice"
 DT = 0.01
 WN = 2 * np.pi * 2.0
 PLANT = TransferFunction([WN**2], [1.0, 2 * 0.5 * WN, WN**2])
-FAMILY = {"linear": {"arx", "oe", "bj", "tf", "n4sid"}, "wiener": {"wiener"},
+FAMILY = {"linear": {"arx", "oe", "bj", "tf", "n4sid"}, "arx": {"arx", "oe", "bj", "tf", "n4sid"},
+          "wiener": {"wiener"},
           "hammerstein": {"hammerstein", "narx"}, "narx": {"narx"}}
 
 
 def _record(kind: str, n: int, seed: int) -> Experiment:
     rng = np.random.default_rng(seed)
     u = np.repeat(rng.standard_normal(n // 2), 2)
+    if kind == "arx":  # ARX(2, 2) itself: a lightly damped pair, the noise through 1/A
+        a = np.poly([0.97 * np.exp(1j * 0.3), 0.97 * np.exp(-1j * 0.3)]).real
+        y = lfilter([0.0, 0.05, 0.03], a, u) + lfilter([1.0], a, 0.02 * rng.standard_normal(n))
+        return Experiment.from_arrays(DT, u=u, y=y)
     if kind == "narx":
         y = np.zeros(n)
         for t in range(2, n):
@@ -90,6 +103,59 @@ def _auto(folder: Path, kind: str, n: int, seed: int, workers: int = 1) -> tuple
         warnings.simplefilter("ignore")
         result = identify(path, write=False)
     return result, time.perf_counter() - start
+
+
+def _gap(value: float) -> float | None:
+    return round(float(value), 2) if np.isfinite(value) else None
+
+
+def _picks(folder: Path, kind: str, seeds: int) -> Result:
+    """``auto`` on `seeds` records of one family: its picks and the refit gaps."""
+    right = near = flagged = false_flags = 0
+    chosen, gates, runs = [], [], []
+    gaps: dict[str, list[float]] = {}  # every admissible candidate's gap, by method
+    for seed in range(seeds):
+        res, _ = _auto(folder, kind, 3000, 100 + seed)
+        entry = next(e for e in res.entries if e.label == res.label)  # type: ignore[attr-defined]
+        chosen.append(res.label)  # type: ignore[attr-defined]
+        gate = res.gate  # type: ignore[attr-defined]
+        gates.append("closed" if "no nonlinear family" in gate else
+                     "output-power" if "output-power" in gate else "higher-order")
+        true = entry.score.candidate.method in FAMILY[kind]
+        right += true
+        flagged += not res.rankable  # type: ignore[attr-defined]
+        false_flags += true and not res.rankable  # type: ignore[attr-defined]
+        fits = [e.validation.fit_percent for e in res.entries  # type: ignore[attr-defined]
+                if e.validation is not None]
+        near += entry.validation.fit_percent > max(fits) - 2.0
+        for e in res.entries:  # type: ignore[attr-defined]
+            if np.isfinite(e.refit_gap):
+                gaps.setdefault(e.score.candidate.method, []).append(float(e.refit_gap))
+        runs.append({"seed": 100 + seed, "chosen": res.label,  # type: ignore[attr-defined]
+                     "true_family": bool(true), "chosen_gap": _gap(entry.refit_gap),
+                     "rankable": bool(res.rankable),  # type: ignore[attr-defined]
+                     "gaps": {e.label: _gap(e.refit_gap)
+                              for e in res.entries}})  # type: ignore[attr-defined]
+    every = np.abs(np.concatenate([np.asarray(v) for v in gaps.values()])) if gaps else \
+        np.array([np.nan])
+    p95 = {m: round(float(np.percentile(np.abs(v), 95)), 2) for m, v in sorted(gaps.items())}
+    worst = {m: round(float(np.max(np.abs(v))), 2) for m, v in sorted(gaps.items())}
+    over = {m: round(float(np.mean(np.abs(v) > REFIT_TOLERANCE)), 3)
+            for m, v in sorted(gaps.items())}  # would be flagged if chosen
+    chosen_abs = [abs(r["chosen_gap"]) for r in runs if r["chosen_gap"] is not None]
+    return Result(SUITE, f"picks-{kind}", 3000, "auto", float("nan"), float("nan"), seeds,
+                  note=(f"true family {right}/{seeds}, within 2 points {near}/{seeds}, "
+                        f"flagged {flagged}/{seeds} (true family flagged {false_flags}); "
+                        f"|refit gap| of all candidates: 95th percentile "
+                        f"{np.percentile(every, 95):.2f}, max {np.max(every):.2f}"),
+                  extra={"true_family": right / seeds, "within_2": near / seeds,
+                         "flagged": flagged / seeds, "false_flags": false_flags / seeds,
+                         "chosen_gap_abs_max": round(max(chosen_abs), 2) if chosen_abs else None,
+                         "gap_abs_p95": round(float(np.percentile(every, 95)), 2),
+                         "gap_abs_max": round(float(np.max(every)), 2),
+                         "gap_abs_p95_by_method": p95, "gap_abs_max_by_method": worst,
+                         "over_tolerance_by_method": over,
+                         "chosen": chosen, "gate": gates, "runs": runs})
 
 
 def _linear_residual(seed: int, kind: str, n: int = 2000) -> tuple[np.ndarray, np.ndarray]:
@@ -138,25 +204,8 @@ def run(quick: bool = False) -> list[Result]:
                           seconds * 1e3, seconds * 1e3, 1,
                           note=f"chosen {result.label}; {len(per)} candidates, workers = 2",  # type: ignore[attr-defined]
                           extra={"candidates": per}))
-        for kind in ("linear", "wiener", "hammerstein", "narx"):
-            right = near = 0
-            chosen, gates = [], []
-            for seed in range(seeds):
-                res, _ = _auto(folder, kind, 3000, 100 + seed)
-                entry = next(e for e in res.entries if e.label == res.label)  # type: ignore[attr-defined]
-                chosen.append(res.label)  # type: ignore[attr-defined]
-                gate = res.gate  # type: ignore[attr-defined]
-                gates.append("closed" if "no nonlinear family" in gate else
-                             "output-power" if "output-power" in gate else "higher-order")
-                right += entry.score.candidate.method in FAMILY[kind]
-                fits = [e.validation.fit_percent for e in res.entries  # type: ignore[attr-defined]
-                        if e.validation is not None]
-                near += entry.validation.fit_percent > max(fits) - 2.0
-            out.append(Result(SUITE, f"picks-{kind}", 3000, "auto", float("nan"),
-                              float("nan"), seeds,
-                              note=f"true family {right}/{seeds}, within 2 points {near}/{seeds}",
-                              extra={"true_family": right / seeds, "within_2": near / seeds,
-                                     "chosen": chosen, "gate": gates}))
+        for kind in ("linear", "arx", "wiener", "hammerstein", "narx"):
+            out.append(_picks(folder, kind, seeds))
     for kind in ("linear", "wiener", "hammerstein"):
         start = time.perf_counter()
         hits = sum(nonlinearity_tests(*_linear_residual(s, kind)).detected for s in range(tests))

@@ -39,7 +39,7 @@ SUITES: dict[str, str] = {
     "signals": "bench_signals",
     "frf": "bench_frf",
     "demo": "bench_demo",
-    "model-choice": "bench_model_choice",  # auto on 1e4 samples, 80 auto runs, 1000 tests (~25 min loaded)
+    "model-choice": "bench_model_choice",  # auto on 1e4 samples, 100 auto runs, 1000 tests (~25 min loaded)
     "model-choice-loop": "bench_model_choice_loop",  # auto on 2 × 20 closed-loop records (~4 min)
     "pem": "bench_pem",
     "subspace": "bench_subspace",

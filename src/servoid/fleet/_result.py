@@ -213,6 +213,7 @@ def _row(row: dict[str, Any], outcome: Mapping[str, Any] | None, names: Mapping[
     row.update(status=outcome["status"], error=outcome.get("error", ""),
                method=outcome.get("method"), candidate=outcome.get("candidate"),
                seconds=_float(outcome.get("seconds")),
+               cpu_seconds=_float(outcome.get("cpu_seconds")),
                peak_rss_mb=outcome.get("peak_rss_mb"))
     summary = outcome.get("summary")
     if not summary:

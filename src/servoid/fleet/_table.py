@@ -1,7 +1,8 @@
 """The fleet table: one row per record, written as CSV and Parquet.
 
 Columns, in order: ``record``, the manifest's metadata, ``status``,
-``error``, ``method``, ``seconds``, ``fit_percent``, ``white``,
+``error``, ``method``, ``seconds`` (wall), ``cpu_seconds`` (the CPU time
+the record cost, its candidate tasks included), ``fit_percent``, ``white``,
 ``independent``, ``structure_rejected``, ``flags``, then per parameter
 ``<p>``, ``<p>_std``, ``<p>_ci_low``, ``<p>_ci_high``, then per limit
 ``pass_<p>``, then ``outlier`` (the parameters whose robust z-score
@@ -30,8 +31,8 @@ from .._spreadsheet import neutralise
 
 __all__ = ["columns", "write_csv", "write_parquet"]
 
-_FIXED = ("status", "error", "method", "seconds", "fit_percent", "white", "independent",
-          "structure_rejected", "flags")
+_FIXED = ("status", "error", "method", "seconds", "cpu_seconds", "fit_percent", "white",
+          "independent", "structure_rejected", "flags")
 
 
 def columns(meta: Sequence[str], parameters: Sequence[str], limited: Sequence[str]) -> list[str]:

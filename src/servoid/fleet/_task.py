@@ -13,7 +13,11 @@ import hashlib
 import json
 import time
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -97,12 +101,78 @@ def identify_records_on_cluster(paths: Sequence[str], identify: Mapping[str, Any
         return identify_records(paths, identify, allow_code)
 
 
-def _on_cluster(function: Any, items: Sequence[Any]) -> list[Any]:
-    """``[function(x) for x in items]`` as tasks of the cluster this task runs on."""
+@dataclass
+class _Spent:
+    """CPU time [s] a record's task spent outside itself while it waited for its candidates.
+
+    ``tasks``: the candidate tasks' own CPU, each measured in its task;
+    ``others``: the CPU of this worker process during the waits, less this
+    thread's: the tasks that ran in this process meanwhile (the record's
+    own candidates among them, counted in ``tasks`` already).
+    """
+
+    tasks: float = 0.0
+    others: float = 0.0
+
+
+#: The record being identified in this thread (None outside :func:`identify_record`).
+_SPENT: ContextVar[_Spent | None] = ContextVar("servoid_record_cpu", default=None)
+
+
+def _on_cluster(function: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
+    """``[function(x) for x in items]`` as tasks of the cluster this task runs on.
+
+    Each task returns its CPU time with its result; the record's
+    :class:`_Spent` adds them up, and takes out what else this worker
+    process ran while the record waited (see :func:`identify_record`).
+    """
+    from dask.utils import funcname
     from distributed import worker_client
 
     with worker_client() as client:  # secedes: the candidates may run on this worker too
-        return list(client.gather(client.map(function, list(items), pure=False)))
+        process, thread = time.process_time(), time.thread_time()
+        futures = client.map(partial(_timed, function), list(items), key=funcname(function),
+                             pure=False)  # the key names the candidate's function, not _timed
+        done = client.gather(futures)
+        others = (time.process_time() - process) - (time.thread_time() - thread)
+    spent = _SPENT.get()
+    if spent is not None:
+        spent.tasks += sum(cpu for _, cpu in done)
+        spent.others += max(others, 0.0)
+    return [result for result, _ in done]
+
+
+def _timed(function: Callable[[Any], Any], item: Any) -> tuple[Any, float]:
+    """``function(item)`` and the CPU time [s] of this process while it ran.
+
+    A worker runs one task at a time in its slot (the fleet's workers have
+    one thread each), so the process's CPU over the call is the task's,
+    whatever threads its numerics start.
+    """
+    start = time.process_time()
+    out = function(item)
+    return out, time.process_time() - start
+
+
+@contextmanager
+def _counting() -> Iterator[_Spent]:
+    """Count the CPU a record's candidate tasks spend, inside."""
+    spent = _Spent()
+    token = _SPENT.set(spent)
+    try:
+        yield spent
+    finally:
+        _SPENT.reset(token)
+
+
+def _children_cpu() -> float:
+    """CPU time [s] of this process's ended child processes (0 off Unix)."""
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - Windows
+        return 0.0
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def identify_record(path: str, identify: Mapping[str, Any] | None, *,
@@ -119,8 +189,12 @@ def identify_record(path: str, identify: Mapping[str, Any] | None, *,
         :class:`RecordSummary`, ``result.summary()``, as a dict: the row
         comes from the result itself, not from its ``results.json``) or
         ``error`` (the message), ``warnings`` (their texts),
-        ``seconds`` (wall), ``cpu_seconds`` (the process's CPU time over the
-        record, which other jobs on the machine do not inflate) and
+        ``seconds`` (wall), ``cpu_seconds`` (the CPU time [s] the record
+        cost, which other jobs on the machine do not inflate: this
+        process's over the record, with the candidates it scored elsewhere
+        — the cluster's tasks, or ``[identify] workers`` local processes —
+        and without the other tasks this worker ran while the record
+        waited for them) and
         ``peak_rss_mb`` (the worker's memory high-water mark after this
         record).
     """
@@ -128,9 +202,9 @@ def identify_record(path: str, identify: Mapping[str, Any] | None, *,
     from ..workflows import identify as run
     from ..workflows import method_of
 
-    start, cpu = time.perf_counter(), time.process_time()
+    start, cpu, children = time.perf_counter(), time.process_time(), _children_cpu()
     out: dict[str, Any] = {"status": "failed", "summary": None, "error": "", "warnings": []}
-    with warnings.catch_warnings(record=True) as caught:
+    with _counting() as spent, warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
             spec = load_experiment_spec(path)
@@ -151,7 +225,8 @@ def identify_record(path: str, identify: Mapping[str, Any] | None, *,
             out["error"] = f"internal error ({type(exc).__name__}: {exc}); please report it"
     out["warnings"] = sorted({str(w.message) for w in caught})
     out["seconds"] = time.perf_counter() - start
-    out["cpu_seconds"] = time.process_time() - cpu
+    out["cpu_seconds"] = (time.process_time() - cpu - spent.others + spent.tasks
+                          + _children_cpu() - children)
     out["peak_rss_mb"] = _peak_rss_mb()
     return out
 
