@@ -66,9 +66,11 @@ def run_one(folder: Path, name: str, est: Experiment, val: Experiment,
             linear: str | list[str] = "n4sid", states: list[int] | None = None
             ) -> dict[str, Any]:
     """PNLSS on one record, with the grid's choice and the validation fit."""
-    result, seconds = identify_record(folder, name, est, val, {
-        "method": "pnlss", "n_states": states or [1, 2, 3, 4], "degree": [2, 3],
-        "monomials": "state", "linear": linear})
+    table: dict[str, Any] = {"method": "pnlss", "n_states": states or [1, 2, 3, 4],
+                             "degree": [2, 3], "monomials": "state", "linear": linear}
+    if linear == "auto":  # the states are the order of the linear model model choice picks
+        del table["n_states"]
+    result, seconds = identify_record(folder, name, est, val, table)
     o = result.estimate.options
     refit = o.get("refit")
     chosen = result.grid[0]
@@ -77,7 +79,11 @@ def run_one(folder: Path, name: str, est: Experiment, val: Experiment,
     v = result.validation
     fit = round(float(v.fit_percent), 2) if hasattr(v, "fit_percent") else None  # diverged
     kept = o["held_out"]["kept"]
+    choice = o.get("linear_choice")
     return {"record": name, "linear_start": chosen.linear,
+            "linear_choice": None if choice is None else
+            {"chosen": choice["chosen"], "reason": choice["reason"],
+             "n_states": choice["n_states"], "samples": choice["samples"]},
             "pnlss": f"n_states = {chosen.n_states}, degree = {chosen.degree}",
             "kept": kept, "refitted": refit is not None, "why": o["held_out"]["why"],
             "pnlss_validation": fit, "best_linear": label, "best_linear_validation": linear,

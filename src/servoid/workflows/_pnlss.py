@@ -70,6 +70,7 @@ class PnlssResult(IdentificationResult):
         out = super().to_dict()
         out["model"] = self.estimate.model.to_dict()
         out["grid"] = [c.__dict__ for c in self.grid] or None
+        out["linear_choice"] = self.estimate.options.get("linear_choice")
         share = self._share()
         out["nonlinear_share"] = None if share is None else share
         return out
@@ -137,7 +138,16 @@ class PnlssResult(IdentificationResult):
                 f"{o['linear_rms']:.4g}, PNLSS {np.sqrt(o['cost']):.4g}. The covariance is "
                 "σ̂²(JᵀJ)⁺ with the similarity-transform directions left out.")
         refit = o.get("refit")
-        if refit:
+        if refit and refit.get("by"):
+            text = (f"PNLSS model (Paduart et al. 2010) with {o['n_states']} states, on the "
+                    f"signals normalised to zero mean and unit variance: started from a linear "
+                    f"model ({o['linear']}), fitted with monomials of degree ≤ "
+                    f"{refit['degree']} ({o['monomials']}) on {refit['fitted_samples']} "
+                    f"samples, whose held-out part kept that linear start itself (E = F = 0); "
+                    f"{refit['by']} was then fitted by its own method on the estimation data "
+                    f"({refit['fitted_on']}) and is this model with E = F = 0 (free-run RMS "
+                    f"on the estimation data {refit['rms_before']:.4g} → {refit['rms']:.4g}).")
+        elif refit:
             text = (f"PNLSS model (Paduart et al. 2010) with {o['n_states']} states, on the "
                     f"signals normalised to zero mean and unit variance: started from a linear "
                     f"model ({o['linear']}), fitted with monomials of degree ≤ "
@@ -212,7 +222,16 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     """Fit a PNLSS model (choosing states and degree from a grid) and validate it."""
     estimation, validations = spec.records()
     fitting = {**options, "_plan": _plan(spec, options)}
-    states = _grid(options["n_states"])
+    if options["linear"] == "auto":
+        if "n_states" in (getattr(spec, "identify", None) or {}):
+            raise OptionError('[identify] linear = "auto" starts from the linear model that '
+                              "model choice picks, and the states are its order; n_states = "
+                              f"{options['n_states']} cannot be given with it: remove "
+                              'n_states, or give linear = "n4sid" (or "oe") to choose the '
+                              "states on the held-out part")
+        fitting["_auto"] = _auto_start(spec, estimation, options)
+        fitting["n_states"] = fitting["_auto"].model.n_states
+    states = _grid(fitting["n_states"])
     degrees = _grid(options["degree"])
     grid: tuple[Candidate, ...] = ()
     with keyed(_KEYS), warnings_as_notes() as notes:
@@ -227,10 +246,12 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                             {**fitting, "linear": _starts(options["linear"])[0]})
         held = estimate.options.get("held_out")
         if held and (held["kept"] == "linear" or (held["kept"] == "the linear start"
-                                                  and estimate.options["linear"] == "oe")):
+                                                  and _refits_start(options["linear"]))):
             # an output-error fit, E = F = 0, kept there: refit it on all the data (n4sid's
             # start kept means its refinement by output error did not pay there: no refit)
-            estimate = _refit(estimation, estimate, fitting)
+            estimate = (_refit_chosen(spec, estimation, estimate, fitting)
+                        if held["kept"] == "the linear start" and "_auto" in fitting else
+                        _refit(estimation, estimate, fitting))
         estimate = replace(estimate, options={**estimate.options,
                                               "holdout": options["holdout"]})
     if grid and estimate.options.get("refit"):
@@ -273,14 +294,21 @@ def _fit(data: Experiment | ExperimentSet, n_states: int, degree: int,
     from ..nonlinear import fit_pnlss
 
     bla = options["linear"] == "bla"
+    auto = options["linear"] == "auto"
     start = _bla_start(data, n_states, options) if bla else None
+    if auto:
+        start = options["_auto"].model
     est = fit_pnlss(data, n_states, degree, monomials=options["monomials"],
-                    linear="n4sid" if bla else options["linear"], initial=start,
+                    linear="n4sid" if bla or auto else options["linear"], initial=start,
                     ridge=options["ridge"], prune=options["prune"], input=options["input"],
-                    output=options["output"], max_iter=options["max_iter"], held_out=held)
-    if start is not None:
+                    output=options["output"], max_iter=options["max_iter"], held_out=held,
+                    offset=options["_auto"].offset if auto else None)
+    if bla:
         est = replace(est, options={**est.options,
                                     "linear": f"BLA, ML fit in z of {n_states} poles"})
+    elif auto:
+        est = replace(est, options={**est.options, "linear": options["_auto"].text,
+                                    "linear_choice": options["_auto"].record()})
     return est
 
 
@@ -330,7 +358,9 @@ def _refit(data: Experiment | ExperimentSet, kept: Any, options: Mapping[str, An
              "iterations": est.options["iterations"]}
     return replace(est, options={**est.options, "held_out": held, "refit": refit,
                                  "linear": o["linear"], "linear_start": o["linear_start"],
-                                 "offset": offset})
+                                 "offset": offset,
+                                 **({"linear_choice": o["linear_choice"]}
+                                    if "linear_choice" in o else {})})
 
 
 def _rms(model: Any, records: Sequence[Experiment], role: str, output: str) -> float:
@@ -392,12 +422,218 @@ def _starts(value: str | Sequence[str]) -> list[str]:
 
 def _linear(value: Any, where: str, name: str) -> str | list[str]:
     """The linear option: one start, or a list of n4sid and oe chosen per order."""
-    items = choices(("n4sid", "oe", "bla"))(value, where, name)
+    items = choices(("n4sid", "oe", "bla", "auto"))(value, where, name)
+    if len(items) > 1 and "auto" in items:
+        raise OptionError(f'{where} {name} = {items}: "auto" (the linear model that model '
+                          'choice picks) is given alone; a list chooses between "n4sid" and '
+                          '"oe" per order on the held-out part')
     if len(items) > 1 and "bla" in items:
         raise OptionError(f'{where} {name} = {items}: "bla" starts from the multisine test\'s '
                           'best linear approximation and is given alone; a list chooses '
                           'between "n4sid" and "oe" per order on the held-out part')
     return items[0] if len(items) == 1 else items
+
+
+def _refits_start(linear: str | Sequence[str]) -> bool:
+    """Whether a kept linear start is refitted on all the data: an OE start, or model
+    choice's (chosen on the fitted part only, so refitted as OE is)."""
+    return linear in ("oe", "auto")
+
+
+@dataclass(frozen=True)
+class AutoStart:
+    """The linear start of ``linear = "auto"``: model choice's linear model in state space.
+
+    Attributes
+    ----------
+    model : StateSpace
+        The chosen model, discrete at the records' dt (a continuous one by zero-order hold).
+    label, reason : str
+        The chosen candidate and why model choice chose it.
+    offset : float or None
+        Its output offset G(1)·ū on the fitted records (None: the output's mean, for a
+        gain that is not finite or puts it far away, as an integrator's).
+    samples : int
+        The samples model choice saw (PNLSS's fitted part, never its held-out part).
+    candidates : tuple of (str, float, str)
+        Each linear candidate's label, held-out fit [%] and status.
+    """
+
+    model: Any
+    label: str
+    reason: str
+    offset: float | None
+    samples: int
+    candidates: tuple[tuple[str, float, str], ...] = ()
+    scheme: tuple[Any, Any, Any] = field(default=(None, None, None), repr=False)
+
+    @property
+    def text(self) -> str:
+        """The start in words, for the model text."""
+        return (f"{self.label}, chosen by model choice among the linear candidates on "
+                f"{self.samples} samples: {self.reason}")
+
+    def record(self) -> dict[str, Any]:
+        """Plain data for ``results.json``."""
+        return {"chosen": self.label, "reason": self.reason, "samples": self.samples,
+                "n_states": int(self.model.n_states),
+                "candidates": [{"label": c, "held_out_fit_percent": None if not
+                                np.isfinite(f) else f, "status": st}
+                               for c, f, st in self.candidates]}
+
+
+def _auto_start(spec: ExperimentSpec, estimation: Experiment | ExperimentSet,
+                options: Mapping[str, Any]) -> AutoStart:
+    """Model choice's linear model on PNLSS's fitted part (the estimation data but its
+    held-out part, which stays the PNLSS search's guard), as a discrete state space."""
+    from ._choice import (
+        Fold,
+        _HeldSpec,
+        auto_candidates,
+        choice_method,
+        declares_loop,
+        folds_of,
+        pick,
+        score_candidates,
+        score_name,
+    )
+    from ._leaderboard import _in_the_loop, _whole_fit
+
+    if options["holdout"] > 0:
+        fit_on, _ = _split(estimation, options["holdout"])
+    else:
+        fit_on = estimation
+    segments = (fit_on,) if isinstance(fit_on, Experiment) else tuple(fit_on)
+    own = _HeldSpec(spec, Fold(fit_on, segments))  # records: the fitted part alone
+    table = {"input": options["input"]}
+    if options["output"] is not None:
+        table["output"] = options["output"]
+    choosing = choice_method({"method": "auto"}).parse(table)
+    folds = folds_of(fit_on, int(choosing["folds"]), float(choosing["holdout"]))
+    scores = score_candidates(own, auto_candidates(loop=declares_loop(spec)), choosing, folds)
+    scores = _in_the_loop(spec, scores)
+    what = score_name(choosing)
+    rest = list(scores)
+    errors: list[str] = []
+    while True:
+        chosen, reason = pick(rest, choosing["rule"], what)
+        if chosen is None:
+            raise ConvergenceError(
+                '[identify] linear = "auto": no linear candidate of model choice gave a '
+                "stable model on the fitted part of the estimation data ("
+                + "; ".join(f"{s.candidate.label}: {s.status}" for s in scores)
+                + (f"; {'; '.join(errors)}" if errors else "")
+                + '); give linear = "n4sid" or "oe"')
+        fitted = _whole_fit(own, choosing, folds, chosen)  # type: ignore[arg-type]
+        model = None
+        if fitted.result is not None:
+            try:
+                model = _discrete_ss(fitted.result.estimate.model, float(estimation.dt))
+            except ServoidError as exc:
+                errors.append(f"{chosen.candidate.label}: {exc}")
+        else:
+            errors.append(f"{chosen.candidate.label}: {fitted.error}")
+        if model is not None:
+            break
+        rest = [s for s in rest if s is not chosen]
+    if fitted.kept:
+        reason += f"; {fitted.kept}"
+    if errors:
+        reason += f" ({'; '.join(errors)}: passed over)"
+    n = sum(seg.n_samples for seg in segments)
+    return AutoStart(model, chosen.candidate.label, reason, _own_offset(model, segments,
+                                                                        options),
+                     n, tuple((s.candidate.label, float(s.mean), s.status) for s in scores),
+                     (choosing, tuple(folds), chosen))
+
+
+def _refit_chosen(spec: ExperimentSpec, data: Experiment | ExperimentSet, kept: Any,
+                  options: Mapping[str, Any]) -> Any:
+    """``linear = "auto"`` whose search kept its linear start (E = F = 0): the chosen linear
+    candidate fitted by its own method on all the estimation data (model choice's rules for
+    that fit), as a PNLSS model with E = F = 0 and the same response.  The output-error
+    refit of the start (:func:`_refit`) when that fit fails."""
+    from ..nonlinear import fit_pnlss
+    from ._choice import Fold, _HeldSpec
+    from ._leaderboard import _whole_fit
+
+    auto: AutoStart = options["_auto"]
+    choosing, folds, score = auto.scheme
+    segments = (data,) if isinstance(data, Experiment) else tuple(data)
+    o = kept.options
+    fitted = _whole_fit(_HeldSpec(spec, Fold(data, segments)),  # type: ignore[arg-type]
+                        choosing, folds, score)
+    try:
+        if fitted.result is None:
+            raise ConvergenceError(fitted.error)
+        model = _discrete_ss(fitted.result.estimate.model, float(data.dt))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ServoidWarning)
+            est = fit_pnlss(data, model.n_states, 1, monomials=o["monomials"], initial=model,
+                            input=options["input"], output=o["output"], max_iter=0,
+                            offset=_own_offset(model, segments, options))
+    except ServoidError:
+        return _refit(data, kept, options)
+    before = _rms(kept.model, list(segments), options["input"], o["output"])
+    after = _rms(est.model, list(segments), options["input"], o["output"])
+    where = (f"on all {est.n_samples} estimation samples" if fitted.fitted_on == "all" else
+             f"({fitted.kept})")
+    held = {**o["held_out"], "why": (
+        f"{o['held_out']['why']}; that linear model, {auto.label}, was then fitted by its own "
+        f"method {where}, as model choice fits the model it returns: free-run RMS on "
+        f"them {before:.4g} → {after:.4g}")}
+    refit = {"degree": o["degree"], "fitted_samples": kept.n_samples,
+             "samples": est.n_samples, "rms_before": before, "rms": after,
+             "iterations": 0, "by": auto.label, "fitted_on": fitted.fitted_on}
+    return replace(est, options={**est.options, "held_out": held, "refit": refit,
+                                 "linear": o["linear"], "linear_choice": o["linear_choice"],
+                                 "linear_start": o["linear_start"]})
+
+
+def _discrete_ss(model: Any, dt: float) -> Any:
+    """A linear model as a discrete single-output state space at `dt`: a polynomial model's
+    transfer function, a continuous model by zero-order hold."""
+    from ..models import PolynomialModel, StateSpace, TransferFunction, c2d
+
+    if isinstance(model, PolynomialModel):
+        if model.n_inputs != 1:
+            raise OptionError('[identify] linear = "auto" starts from a single-input '
+                              'polynomial model; for several inputs use linear = "n4sid"')
+        model = model.transfer_function(0)
+    if not isinstance(model, (TransferFunction, StateSpace)):
+        raise OptionError(f'[identify] linear = "auto": the chosen model '
+                          f"({type(model).__name__}) is not a linear transfer function or "
+                          'state space; use linear = "n4sid" or "oe"')
+    if model.dt is None:
+        model = c2d(model, dt, "zoh")
+    elif abs(model.dt - dt) > 1e-9 * dt:
+        raise DataError(f"the chosen linear model's dt = {model.dt:g} s is not the "
+                        f"records' {dt:g} s")
+    if isinstance(model, TransferFunction):
+        if model.delay:  # a whole number of samples in a discrete model: z^-k, as states
+            k = round(model.delay / dt)
+            model = TransferFunction(model.num, np.concatenate([model.den, np.zeros(k)]),
+                                     dt=dt)
+        model = model.to_ss()
+    return model
+
+
+def _own_offset(model: Any, segments: Sequence[Experiment],
+                options: Mapping[str, Any]) -> float | None:
+    """G(1)·ū: the output offset of a linear model fitted on the records as they are (no
+    offset of its own); None (the output's mean) when the gain is not finite or puts the
+    offset more than 10 output standard deviations from the output's mean."""
+    u = np.concatenate([np.asarray(r.signal(options["input"]), dtype=float)
+                        .reshape(r.n_samples, -1) for r in segments])
+    out = options["output"] or segments[0].names_of("y")[0]
+    y = np.concatenate([np.asarray(r[out], dtype=float) for r in segments])
+    A, B, C, D = (np.asarray(m, float) for m in (model.A, model.B, model.C, model.D))
+    try:
+        gain = (C @ np.linalg.solve(np.eye(A.shape[0]) - A, B) + D)[0]
+    except np.linalg.LinAlgError:
+        return None
+    offset = float(gain @ u.mean(axis=0))
+    return offset if np.isfinite(offset) and abs(offset - y.mean()) < 10 * y.std() else None
 
 
 def _grid(value: int | Sequence[int]) -> list[int]:
@@ -458,7 +694,8 @@ def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Se
                    "(E = F = 0)", "the linear start": "linear start kept (E = F = 0)"}
                   [h["kept"]])
         rows.append(Candidate(n, d, est.parameters.size, h["chosen"] if finite else np.inf,
-                              status, h["linear"], h["kept"], start))
+                              status, h["linear"], h["kept"],
+                              options["_auto"].label if start == "auto" else start))
         if finite:
             fits[n, d, start] = est
         return float(h["chosen"]) if finite else np.inf
@@ -480,7 +717,8 @@ def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Se
                                "lower n_states or degree, or try linear = \"oe\"")
     best = rows[0]
     rows[0] = replace(best, status=f"chosen: lowest held-out RMS; {best.status}")
-    return tuple(rows), fits[best.n_states, best.degree, best.linear]
+    return tuple(rows), fits[best.n_states, best.degree,
+                             "auto" if "_auto" in options else best.linear]
 
 
 def _plot_linear(result: PnlssResult, path: Path, overwrite: bool) -> None:
@@ -490,8 +728,9 @@ def _plot_linear(result: PnlssResult, path: Path, overwrite: bool) -> None:
     model = result.estimate.model
     o = result.estimate.options
     start = o["linear_start"]
+    named = o.get("linear_choice", {}).get("chosen", o["linear"])
     models = {"PNLSS linear part": model.linear_part().to_tf(),
-              f"linear start ({o['linear']})": StateSpace(
+              f"linear start ({named})": StateSpace(
                   start["A"], start["B"], start["C"], start["D"], dt=model.dt).to_tf()}
     n = result.estimate.n_samples
     plot_bode(models, path, f_min=max(1.0 / (n * model.dt), 1e-6),
@@ -537,7 +776,9 @@ METHOD = Method(
                "the linear start: n4sid, OE turned into state space, or the best linear "
                "approximation of a multisine test (its ML fit in z; needs the plan); a list "
                "of n4sid and oe: each order's start chosen by its linear model's free-run "
-               "error on the held-out part (the first when holdout = 0)"),
+               "error on the held-out part (the first when holdout = 0); auto: the linear "
+               "model that model choice (method = \"auto\", its linear candidates) picks on "
+               "the fitted part, in state space; n_states is then its order"),
         Option("plan", None, optional(text()),
                'the multisine plan file of linear = "bla" (default: <data file>.plan.json '
                "beside it)"),
