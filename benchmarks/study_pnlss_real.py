@@ -53,10 +53,14 @@ _LINEAR_FAMILIES = ("arx", "oe", "bj", "tf", "n4sid")
 
 def best_linear(name: str, by: str = "validation") -> tuple[str, float | None]:
     """The best linear candidate of ``auto`` on `name`, by its validation fit (hindsight) or
-    by its held-out score (``by = "held_out"``: as a user would choose); (label, its
-    validation fit)."""
+    as ``auto`` chose it on held-out data (``by = "held_out"``: as a user would choose, its
+    one-standard-error rule included; the best held-out score among the linear candidates
+    when ``auto`` chose a nonlinear one); (label, its validation fit)."""
     saved = {r["record"]: r for r in json.loads(LINEAR.read_text())["results"]}
-    rows = [c for c in saved[name]["candidates"]
+    record = saved[name]
+    if by == "held_out" and record["chosen"].split(" ")[0] in _LINEAR_FAMILIES:
+        return record["chosen"], record["chosen_validation"]
+    rows = [c for c in record["candidates"]
             if c["label"].split(" ")[0] in _LINEAR_FAMILIES and c[by] is not None]
     best = max(rows, key=lambda c: c[by])
     return best["label"], best["validation"]  # None: its free run diverged there

@@ -144,9 +144,10 @@ class PnlssResult(IdentificationResult):
                     f"model ({o['linear']}), fitted with monomials of degree ≤ "
                     f"{refit['degree']} ({o['monomials']}) on {refit['fitted_samples']} "
                     f"samples, whose held-out part kept that linear start itself (E = F = 0); "
-                    f"{refit['by']} was then fitted by its own method on the estimation data "
-                    f"({refit['fitted_on']}) and is this model with E = F = 0 (free-run RMS "
-                    f"on the estimation data {refit['rms_before']:.4g} → {refit['rms']:.4g}).")
+                    f"model choice then picked {refit['by']} among its linear candidates on "
+                    f"all {refit['samples']} estimation samples ({refit['choice']['reason']}),"
+                    f" and this model is it with E = F = 0 (free-run RMS on the estimation "
+                    f"data {refit['rms_before']:.4g} → {refit['rms']:.4g}).")
         elif refit:
             text = (f"PNLSS model (Paduart et al. 2010) with {o['n_states']} states, on the "
                     f"signals normalised to zero mean and unit variance: started from a linear "
@@ -276,6 +277,11 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         title = (f"PNLSS (n_states = {o['n_states']}, degree = {refit['degree']}, "
                  f"{o['monomials']} monomials), E = F = 0 kept on held-out data, that linear "
                  "model refitted on all the estimation data")
+        if refit.get("by"):
+            title = (f"PNLSS (n_states = {o['n_states']}, degree = {refit['degree']}, "
+                     f"{o['monomials']} monomials), E = F = 0 kept on held-out data: the "
+                     f"linear model model choice picks on all the estimation data, "
+                     f"{refit['by']}")
     elif o.get("held_out") and o["held_out"]["kept"] != "nonlinear":
         title += ", E = F = 0 kept on held-out data"
     result = lti_result(spec, "pnlss", estimate, title, validations, options, notes=notes,
@@ -465,7 +471,6 @@ class AutoStart:
     offset: float | None
     samples: int
     candidates: tuple[tuple[str, float, str], ...] = ()
-    scheme: tuple[Any, Any, Any] = field(default=(None, None, None), repr=False)
 
     @property
     def text(self) -> str:
@@ -486,6 +491,17 @@ def _auto_start(spec: ExperimentSpec, estimation: Experiment | ExperimentSet,
                 options: Mapping[str, Any]) -> AutoStart:
     """Model choice's linear model on PNLSS's fitted part (the estimation data but its
     held-out part, which stays the PNLSS search's guard), as a discrete state space."""
+    if options["holdout"] > 0:
+        fit_on, _ = _split(estimation, options["holdout"])
+    else:
+        fit_on = estimation
+    return _choose_linear(spec, fit_on, options)
+
+
+def _choose_linear(spec: ExperimentSpec, fit_on: Experiment | ExperimentSet,
+                   options: Mapping[str, Any]) -> AutoStart:
+    """Model choice's linear model on the records `fit_on` alone (its candidates scored on
+    their own held-out part), as a discrete state space."""
     from ._choice import (
         Fold,
         _HeldSpec,
@@ -499,10 +515,6 @@ def _auto_start(spec: ExperimentSpec, estimation: Experiment | ExperimentSet,
     )
     from ._leaderboard import _in_the_loop, _whole_fit
 
-    if options["holdout"] > 0:
-        fit_on, _ = _split(estimation, options["holdout"])
-    else:
-        fit_on = estimation
     segments = (fit_on,) if isinstance(fit_on, Experiment) else tuple(fit_on)
     own = _HeldSpec(spec, Fold(fit_on, segments))  # records: the fitted part alone
     table = {"input": options["input"]}
@@ -528,7 +540,7 @@ def _auto_start(spec: ExperimentSpec, estimation: Experiment | ExperimentSet,
         model = None
         if fitted.result is not None:
             try:
-                model = _discrete_ss(fitted.result.estimate.model, float(estimation.dt))
+                model = _discrete_ss(fitted.result.estimate.model, float(fit_on.dt))
             except ServoidError as exc:
                 errors.append(f"{chosen.candidate.label}: {exc}")
         else:
@@ -543,48 +555,38 @@ def _auto_start(spec: ExperimentSpec, estimation: Experiment | ExperimentSet,
     n = sum(seg.n_samples for seg in segments)
     return AutoStart(model, chosen.candidate.label, reason, _own_offset(model, segments,
                                                                         options),
-                     n, tuple((s.candidate.label, float(s.mean), s.status) for s in scores),
-                     (choosing, tuple(folds), chosen))
+                     n, tuple((s.candidate.label, float(s.mean), s.status) for s in scores))
 
 
 def _refit_chosen(spec: ExperimentSpec, data: Experiment | ExperimentSet, kept: Any,
                   options: Mapping[str, Any]) -> Any:
-    """``linear = "auto"`` whose search kept its linear start (E = F = 0): the chosen linear
-    candidate fitted by its own method on all the estimation data (model choice's rules for
-    that fit), as a PNLSS model with E = F = 0 and the same response.  The output-error
-    refit of the start (:func:`_refit`) when that fit fails."""
+    """``linear = "auto"`` whose search kept its linear start (E = F = 0): the nonlinear
+    terms did not pay on the held-out part, so the model is the linear one model choice
+    picks on all the estimation data (as ``method = "auto"`` would return among its linear
+    candidates), as a PNLSS model with E = F = 0 and the same response.  The output-error
+    refit of the kept start (:func:`_refit`) when that fails."""
     from ..nonlinear import fit_pnlss
-    from ._choice import Fold, _HeldSpec
-    from ._leaderboard import _whole_fit
 
-    auto: AutoStart = options["_auto"]
-    choosing, folds, score = auto.scheme
     segments = (data,) if isinstance(data, Experiment) else tuple(data)
     o = kept.options
-    fitted = _whole_fit(_HeldSpec(spec, Fold(data, segments)),  # type: ignore[arg-type]
-                        choosing, folds, score)
     try:
-        if fitted.result is None:
-            raise ConvergenceError(fitted.error)
-        model = _discrete_ss(fitted.result.estimate.model, float(data.dt))
+        whole = _choose_linear(spec, data, options)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ServoidWarning)
-            est = fit_pnlss(data, model.n_states, 1, monomials=o["monomials"], initial=model,
-                            input=options["input"], output=o["output"], max_iter=0,
-                            offset=_own_offset(model, segments, options))
+            est = fit_pnlss(data, whole.model.n_states, 1, monomials=o["monomials"],
+                            initial=whole.model, input=options["input"], output=o["output"],
+                            max_iter=0, offset=whole.offset)
     except ServoidError:
         return _refit(data, kept, options)
     before = _rms(kept.model, list(segments), options["input"], o["output"])
     after = _rms(est.model, list(segments), options["input"], o["output"])
-    where = (f"on all {est.n_samples} estimation samples" if fitted.fitted_on == "all" else
-             f"({fitted.kept})")
     held = {**o["held_out"], "why": (
-        f"{o['held_out']['why']}; that linear model, {auto.label}, was then fitted by its own "
-        f"method {where}, as model choice fits the model it returns: free-run RMS on "
-        f"them {before:.4g} → {after:.4g}")}
+        f"{o['held_out']['why']}; the nonlinear terms did not pay there, so the model is "
+        f"the linear one model choice picks on all {whole.samples} estimation samples, "
+        f"{whole.label} ({whole.reason}): free-run RMS on them {before:.4g} → {after:.4g}")}
     refit = {"degree": o["degree"], "fitted_samples": kept.n_samples,
              "samples": est.n_samples, "rms_before": before, "rms": after,
-             "iterations": 0, "by": auto.label, "fitted_on": fitted.fitted_on}
+             "iterations": 0, "by": whole.label, "choice": whole.record()}
     return replace(est, options={**est.options, "held_out": held, "refit": refit,
                                  "linear": o["linear"], "linear_choice": o["linear_choice"],
                                  "linear_start": o["linear_start"]})
