@@ -256,8 +256,10 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         estimate = replace(estimate, options={**estimate.options,
                                               "holdout": options["holdout"]})
     if grid and estimate.options.get("refit"):
-        grid = (replace(grid[0], status=f"{grid[0].status}; refitted on all the estimation "
-                                        "data"), *grid[1:])
+        by = estimate.options["refit"].get("by")
+        grid = (replace(grid[0], status=f"{grid[0].status}; " + (
+            f"model choice's linear model on all the estimation data: {by}" if by else
+            "refitted on all the estimation data")), *grid[1:])
     model = estimate.model
     contribution: tuple[Any, ...] = ()
     first = validations[0]
