@@ -94,10 +94,10 @@ def test_ball_and_beam_starts_from_the_continuous_model_not_n4sid(tmp_path):
 
 
 @pytest.mark.parametrize(("table", "words"), [
-    ({"linear": ["auto", "n4sid"]}, '"auto" (the linear model that model choice picks) is '
-                                    "given alone"),
-    ({"linear": "auto", "n_states": 3}, "the states are its order; n_states = 3 cannot be "
-                                        "given with it"),
+    ({"linear": ["auto", "n4sid"]},
+     '"auto" (the linear model that model choice picks) is given alone'),
+    ({"linear": "auto", "n_states": 3},
+     "the states are its order; n_states = 3 cannot be given with it"),
 ])
 def test_refused_combinations_say_why(tmp_path, table, words):
     spec = open_loop(tmp_path, 0, identify={"method": "pnlss", **table})
