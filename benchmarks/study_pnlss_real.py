@@ -21,10 +21,14 @@ Usage, from the repository root::
     PYTHONPATH=src python benchmarks/study_pnlss_real.py --write    # ... and record it
 
     PYTHONPATH=src python benchmarks/study_pnlss_real.py --linear n4sid,oe --write
+    PYTHONPATH=src python benchmarks/study_pnlss_real.py --linear auto --write
 
 ``--write`` replaces ``benchmarks/results-pnlss-real.json`` (with
 ``--linear n4sid,oe``, each order's linear start chosen between n4sid and
-OE on the held-out part: ``benchmarks/results-pnlss-real-starts.json``).
+OE on the held-out part: ``benchmarks/results-pnlss-real-starts.json``;
+with ``--linear auto``, the start the linear model that model choice picks
+on the fitted part, ``n_states`` its order and only ``degree`` a grid:
+``benchmarks/results-pnlss-real-auto.json``).
 """
 
 from __future__ import annotations
@@ -48,15 +52,20 @@ HERE = Path(__file__).resolve().parent
 LINEAR = HERE / "results-model-choice-real.json"
 RECORDED = HERE / "results-pnlss-real.json"
 RECORDED_STARTS = HERE / "results-pnlss-real-starts.json"
+RECORDED_AUTO = HERE / "results-pnlss-real-auto.json"
 _LINEAR_FAMILIES = ("arx", "oe", "bj", "tf", "n4sid")
 
 
 def best_linear(name: str, by: str = "validation") -> tuple[str, float | None]:
     """The best linear candidate of ``auto`` on `name`, by its validation fit (hindsight) or
-    by its held-out score (``by = "held_out"``: as a user would choose); (label, its
-    validation fit)."""
+    as ``auto`` chose it on held-out data (``by = "held_out"``: as a user would choose, its
+    one-standard-error rule included; the best held-out score among the linear candidates
+    when ``auto`` chose a nonlinear one); (label, its validation fit)."""
     saved = {r["record"]: r for r in json.loads(LINEAR.read_text())["results"]}
-    rows = [c for c in saved[name]["candidates"]
+    record = saved[name]
+    if by == "held_out" and record["chosen"].split(" ")[0] in _LINEAR_FAMILIES:
+        return record["chosen"], record["chosen_validation"]
+    rows = [c for c in record["candidates"]
             if c["label"].split(" ")[0] in _LINEAR_FAMILIES and c[by] is not None]
     best = max(rows, key=lambda c: c[by])
     return best["label"], best["validation"]  # None: its free run diverged there
@@ -66,9 +75,11 @@ def run_one(folder: Path, name: str, est: Experiment, val: Experiment,
             linear: str | list[str] = "n4sid", states: list[int] | None = None
             ) -> dict[str, Any]:
     """PNLSS on one record, with the grid's choice and the validation fit."""
-    result, seconds = identify_record(folder, name, est, val, {
-        "method": "pnlss", "n_states": states or [1, 2, 3, 4], "degree": [2, 3],
-        "monomials": "state", "linear": linear})
+    table: dict[str, Any] = {"method": "pnlss", "n_states": states or [1, 2, 3, 4],
+                             "degree": [2, 3], "monomials": "state", "linear": linear}
+    if linear == "auto":  # the states are the order of the linear model model choice picks
+        del table["n_states"]
+    result, seconds = identify_record(folder, name, est, val, table)
     o = result.estimate.options
     refit = o.get("refit")
     chosen = result.grid[0]
@@ -77,7 +88,12 @@ def run_one(folder: Path, name: str, est: Experiment, val: Experiment,
     v = result.validation
     fit = round(float(v.fit_percent), 2) if hasattr(v, "fit_percent") else None  # diverged
     kept = o["held_out"]["kept"]
+    choice = o.get("linear_choice")
     return {"record": name, "linear_start": chosen.linear,
+            "linear_choice": None if choice is None else
+            {"chosen": choice["chosen"], "reason": choice["reason"],
+             "n_states": choice["n_states"], "samples": choice["samples"]},
+            "returned_linear": refit.get("by") if refit else None,
             "pnlss": f"n_states = {chosen.n_states}, degree = {chosen.degree}",
             "kept": kept, "refitted": refit is not None, "why": o["held_out"]["why"],
             "pnlss_validation": fit, "best_linear": label, "best_linear_validation": linear,
@@ -101,7 +117,9 @@ def table(results: list[dict[str, Any]]) -> str:
         fit = "diverged" if r["pnlss_validation"] is None else r["pnlss_validation"]
         kept = {"nonlinear": "nonlinear terms", "linear": "linear part (E = F = 0)",
                 "the linear start": "linear start (E = F = 0)"}[r["kept"]]
-        if r["refitted"]:
+        if r.get("returned_linear"):
+            kept += f"; model choice on all: {r['returned_linear']}"
+        elif r["refitted"]:
             kept += ", refitted on all"
         lines.append(f"| {r['record']} | {r['pnlss']} ({r['linear_start']}) | {kept} | {fit} | "
                      f"{r['best_linear']} | {r['best_linear_validation']} | "
@@ -134,7 +152,8 @@ def main(argv: list[str] | None = None) -> int:
                           partial(run_one, linear=starts[0] if len(starts) == 1 else starts,
                                   states=states), table)
     if args.write:
-        write_results(RECORDED if starts == ["n4sid"] else RECORDED_STARTS, results)
+        write_results(RECORDED if starts == ["n4sid"] else
+                      RECORDED_AUTO if starts == ["auto"] else RECORDED_STARTS, results)
     return 0
 
 

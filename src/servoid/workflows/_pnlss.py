@@ -29,6 +29,7 @@ from ._options import (
     orders,
     text,
 )
+from ._pnlss_start import AutoStart, choose_linear
 from ._registry import FigureWriter, Method, Option
 
 __all__ = ["METHOD", "PnlssResult"]
@@ -70,6 +71,7 @@ class PnlssResult(IdentificationResult):
         out = super().to_dict()
         out["model"] = self.estimate.model.to_dict()
         out["grid"] = [c.__dict__ for c in self.grid] or None
+        out["linear_choice"] = self.estimate.options.get("linear_choice")
         share = self._share()
         out["nonlinear_share"] = None if share is None else share
         return out
@@ -137,7 +139,17 @@ class PnlssResult(IdentificationResult):
                 f"{o['linear_rms']:.4g}, PNLSS {np.sqrt(o['cost']):.4g}. The covariance is "
                 "σ̂²(JᵀJ)⁺ with the similarity-transform directions left out.")
         refit = o.get("refit")
-        if refit:
+        if refit and refit.get("by"):
+            text = (f"PNLSS model (Paduart et al. 2010) with {o['n_states']} states, on the "
+                    f"signals normalised to zero mean and unit variance: started from a linear "
+                    f"model ({o['linear']}), fitted with monomials of degree ≤ "
+                    f"{refit['degree']} ({o['monomials']}) on {refit['fitted_samples']} "
+                    f"samples, whose held-out part kept that linear start itself (E = F = 0); "
+                    f"model choice then picked {refit['by']} among its linear candidates on "
+                    f"all {refit['samples']} estimation samples ({refit['choice']['reason']}),"
+                    f" and this model is it with E = F = 0 (free-run RMS on the estimation "
+                    f"data {refit['rms_before']:.4g} → {refit['rms']:.4g}).")
+        elif refit:
             text = (f"PNLSS model (Paduart et al. 2010) with {o['n_states']} states, on the "
                     f"signals normalised to zero mean and unit variance: started from a linear "
                     f"model ({o['linear']}), fitted with monomials of degree ≤ "
@@ -213,7 +225,16 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     """Fit a PNLSS model (choosing states and degree from a grid) and validate it."""
     estimation, validations = spec.records()
     fitting = {**options, "_plan": _plan(spec, options)}
-    states = _grid(options["n_states"])
+    if options["linear"] == "auto":
+        if "n_states" in (getattr(spec, "identify", None) or {}):
+            raise OptionError('[identify] linear = "auto" starts from the linear model that '
+                              "model choice picks, and the states are its order; n_states = "
+                              f"{options['n_states']} cannot be given with it: remove "
+                              'n_states, or give linear = "n4sid" (or "oe") to choose the '
+                              "states on the held-out part")
+        fitting["_auto"] = _auto_start(spec, estimation, options)
+        fitting["n_states"] = fitting["_auto"].model.n_states
+    states = _grid(fitting["n_states"])
     degrees = _grid(options["degree"])
     grid: tuple[Candidate, ...] = ()
     with keyed(_KEYS), warnings_as_notes() as notes:
@@ -228,15 +249,19 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
                             {**fitting, "linear": _starts(options["linear"])[0]})
         held = estimate.options.get("held_out")
         if held and (held["kept"] == "linear" or (held["kept"] == "the linear start"
-                                                  and estimate.options["linear"] == "oe")):
+                                                  and _refits_start(options["linear"]))):
             # an output-error fit, E = F = 0, kept there: refit it on all the data (n4sid's
             # start kept means its refinement by output error did not pay there: no refit)
-            estimate = _refit(estimation, estimate, fitting)
+            estimate = (_refit_chosen(spec, estimation, estimate, fitting)
+                        if held["kept"] == "the linear start" and "_auto" in fitting else
+                        _refit(estimation, estimate, fitting))
         estimate = replace(estimate, options={**estimate.options,
                                               "holdout": options["holdout"]})
     if grid and estimate.options.get("refit"):
-        grid = (replace(grid[0], status=f"{grid[0].status}; refitted on all the estimation "
-                                        "data"), *grid[1:])
+        by = estimate.options["refit"].get("by")
+        grid = (replace(grid[0], status=f"{grid[0].status}; " + (
+            f"model choice's linear model on all the estimation data: {by}" if by else
+            "refitted on all the estimation data")), *grid[1:])
     model = estimate.model
     contribution: tuple[Any, ...] = ()
     first = validations[0]
@@ -256,6 +281,11 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
         title = (f"PNLSS (n_states = {o['n_states']}, degree = {refit['degree']}, "
                  f"{o['monomials']} monomials), E = F = 0 kept on held-out data, that linear "
                  "model refitted on all the estimation data")
+        if refit.get("by"):
+            title = (f"PNLSS (n_states = {o['n_states']}, degree = {refit['degree']}, "
+                     f"{o['monomials']} monomials), E = F = 0 kept on held-out data: the "
+                     f"linear model model choice picks on all the estimation data, "
+                     f"{refit['by']}")
     elif o.get("held_out") and o["held_out"]["kept"] != "nonlinear":
         title += ", E = F = 0 kept on held-out data"
     result = lti_result(spec, "pnlss", estimate, title, validations, options, notes=notes,
@@ -274,15 +304,22 @@ def _fit(data: Experiment | ExperimentSet, n_states: int, degree: int,
     from ..nonlinear import fit_pnlss
 
     bla = options["linear"] == "bla"
+    auto = options["linear"] == "auto"
     start = _bla_start(data, n_states, options) if bla else None
+    if auto:
+        start = options["_auto"].model
     est = fit_pnlss(data, n_states, degree, monomials=options["monomials"],
-                    linear="n4sid" if bla else options["linear"], initial=start,
+                    linear="n4sid" if bla or auto else options["linear"], initial=start,
                     ridge=options["ridge"], prune=options["prune"], input=options["input"],
                     output=options["output"], max_iter=options["max_iter"], held_out=held,
-                    weighting=options["weighting"], plan=options["_plan"])
-    if start is not None:
+                    weighting=options["weighting"], plan=options["_plan"],
+                    offset=options["_auto"].offset if auto else None)
+    if bla:
         est = replace(est, options={**est.options,
                                     "linear": f"BLA, ML fit in z of {n_states} poles"})
+    elif auto:
+        est = replace(est, options={**est.options, "linear": options["_auto"].text,
+                                    "linear_choice": options["_auto"].record()})
     return est
 
 
@@ -333,7 +370,9 @@ def _refit(data: Experiment | ExperimentSet, kept: Any, options: Mapping[str, An
              "iterations": est.options["iterations"]}
     return replace(est, options={**est.options, "held_out": held, "refit": refit,
                                  "linear": o["linear"], "linear_start": o["linear_start"],
-                                 "offset": offset})
+                                 "offset": offset,
+                                 **({"linear_choice": o["linear_choice"]}
+                                    if "linear_choice" in o else {})})
 
 
 def _rms(model: Any, records: Sequence[Experiment], role: str, output: str) -> float:
@@ -409,12 +448,67 @@ def _starts(value: str | Sequence[str]) -> list[str]:
 
 def _linear(value: Any, where: str, name: str) -> str | list[str]:
     """The linear option: one start, or a list of n4sid and oe chosen per order."""
-    items = choices(("n4sid", "oe", "bla"))(value, where, name)
+    items = choices(("n4sid", "oe", "bla", "auto"))(value, where, name)
+    if len(items) > 1 and "auto" in items:
+        raise OptionError(f'{where} {name} = {items}: "auto" (the linear model that model '
+                          'choice picks) is given alone; a list chooses between "n4sid" and '
+                          '"oe" per order on the held-out part')
     if len(items) > 1 and "bla" in items:
         raise OptionError(f'{where} {name} = {items}: "bla" starts from the multisine test\'s '
                           'best linear approximation and is given alone; a list chooses '
                           'between "n4sid" and "oe" per order on the held-out part')
     return items[0] if len(items) == 1 else items
+
+
+def _refits_start(linear: str | Sequence[str]) -> bool:
+    """Whether a kept linear start is refitted on all the data: an OE start, or model
+    choice's (chosen on the fitted part only, so refitted as OE is)."""
+    return linear in ("oe", "auto")
+
+
+def _auto_start(spec: ExperimentSpec, estimation: Experiment | ExperimentSet,
+                options: Mapping[str, Any]) -> AutoStart:
+    """Model choice's linear model on PNLSS's fitted part (the estimation data but its
+    held-out part, which stays the PNLSS search's guard), as a discrete state space."""
+    if options["holdout"] > 0:
+        fit_on, _ = _split(estimation, options["holdout"])
+    else:
+        fit_on = estimation
+    return choose_linear(spec, fit_on, options)
+
+
+def _refit_chosen(spec: ExperimentSpec, data: Experiment | ExperimentSet, kept: Any,
+                  options: Mapping[str, Any]) -> Any:
+    """``linear = "auto"`` whose search kept its linear start (E = F = 0): the nonlinear
+    terms did not pay on the held-out part, so the model is the linear one model choice
+    picks on all the estimation data (as ``method = "auto"`` would return among its linear
+    candidates), as a PNLSS model with E = F = 0 and the same response.  The output-error
+    refit of the kept start (:func:`_refit`) when that fails."""
+    from ..nonlinear import fit_pnlss
+
+    segments = (data,) if isinstance(data, Experiment) else tuple(data)
+    o = kept.options
+    try:
+        whole = choose_linear(spec, data, options)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ServoidWarning)
+            est = fit_pnlss(data, whole.model.n_states, 1, monomials=o["monomials"],
+                            initial=whole.model, input=options["input"], output=o["output"],
+                            max_iter=0, offset=whole.offset)
+    except ServoidError:
+        return _refit(data, kept, options)
+    before = _rms(kept.model, list(segments), options["input"], o["output"])
+    after = _rms(est.model, list(segments), options["input"], o["output"])
+    held = {**o["held_out"], "why": (
+        f"{o['held_out']['why']}; the nonlinear terms did not pay there, so the model is "
+        f"the linear one model choice picks on all {whole.samples} estimation samples, "
+        f"{whole.label} ({whole.reason}): free-run RMS on them {before:.4g} → {after:.4g}")}
+    refit = {"degree": o["degree"], "fitted_samples": kept.n_samples,
+             "samples": est.n_samples, "rms_before": before, "rms": after,
+             "iterations": 0, "by": whole.label, "choice": whole.record()}
+    return replace(est, options={**est.options, "held_out": held, "refit": refit,
+                                 "linear": o["linear"], "linear_choice": o["linear_choice"],
+                                 "linear_start": o["linear_start"]})
 
 
 def _grid(value: int | Sequence[int]) -> list[int]:
@@ -475,7 +569,8 @@ def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Se
                    "(E = F = 0)", "the linear start": "linear start kept (E = F = 0)"}
                   [h["kept"]])
         rows.append(Candidate(n, d, est.parameters.size, h["chosen"] if finite else np.inf,
-                              status, h["linear"], h["kept"], start))
+                              status, h["linear"], h["kept"],
+                              options["_auto"].label if start == "auto" else start))
         if finite:
             fits[n, d, start] = est
         return float(h["chosen"]) if finite else np.inf
@@ -497,7 +592,8 @@ def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Se
                                "lower n_states or degree, or try linear = \"oe\"")
     best = rows[0]
     rows[0] = replace(best, status=f"chosen: lowest held-out RMS; {best.status}")
-    return tuple(rows), fits[best.n_states, best.degree, best.linear]
+    return tuple(rows), fits[best.n_states, best.degree,
+                             "auto" if "_auto" in options else best.linear]
 
 
 def _plot_linear(result: PnlssResult, path: Path, overwrite: bool) -> None:
@@ -507,8 +603,9 @@ def _plot_linear(result: PnlssResult, path: Path, overwrite: bool) -> None:
     model = result.estimate.model
     o = result.estimate.options
     start = o["linear_start"]
+    named = o.get("linear_choice", {}).get("chosen", o["linear"])
     models = {"PNLSS linear part": model.linear_part().to_tf(),
-              f"linear start ({o['linear']})": StateSpace(
+              f"linear start ({named})": StateSpace(
                   start["A"], start["B"], start["C"], start["D"], dt=model.dt).to_tf()}
     n = result.estimate.n_samples
     plot_bode(models, path, f_min=max(1.0 / (n * model.dt), 1e-6),
@@ -554,7 +651,9 @@ METHOD = Method(
                "the linear start: n4sid, OE turned into state space, or the best linear "
                "approximation of a multisine test (its ML fit in z; needs the plan); a list "
                "of n4sid and oe: each order's start chosen by its linear model's free-run "
-               "error on the held-out part (the first when holdout = 0)"),
+               "error on the held-out part (the first when holdout = 0); auto: the linear "
+               "model that model choice (method = \"auto\", its linear candidates) picks on "
+               "the fitted part, in state space; n_states is then its order"),
         Option("plan", None, optional(text()),
                'the multisine plan file of linear = "bla" and weighting = "bla" (default: '
                "<data file>.plan.json beside it)"),

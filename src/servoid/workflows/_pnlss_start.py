@@ -1,0 +1,163 @@
+"""The linear start of ``method = "pnlss"`` with ``linear = "auto"``: the linear model that
+model choice picks (``method = "auto"``'s linear candidates, scored on their own hold-out),
+as a discrete state space."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .._errors import ConvergenceError, DataError, OptionError, ServoidError
+from ..data import Experiment, ExperimentSet, ExperimentSpec
+
+__all__ = ["AutoStart", "choose_linear", "discrete_ss", "own_offset"]
+
+
+@dataclass(frozen=True)
+class AutoStart:
+    """The linear start of ``linear = "auto"``: model choice's linear model in state space.
+
+    Attributes
+    ----------
+    model : StateSpace
+        The chosen model, discrete at the records' dt (a continuous one by zero-order hold).
+    label, reason : str
+        The chosen candidate and why model choice chose it.
+    offset : float or None
+        Its output offset G(1)·ū on the fitted records (None: the output's mean, for a
+        gain that is not finite or puts it far away, as an integrator's).
+    samples : int
+        The samples model choice saw (PNLSS's fitted part, never its held-out part).
+    candidates : tuple of (str, float, str)
+        Each linear candidate's label, held-out fit [%] and status.
+    """
+
+    model: Any
+    label: str
+    reason: str
+    offset: float | None
+    samples: int
+    candidates: tuple[tuple[str, float, str], ...] = ()
+
+    @property
+    def text(self) -> str:
+        """The start in words, for the model text."""
+        return (f"{self.label}, chosen by model choice among the linear candidates on "
+                f"{self.samples} samples: {self.reason}")
+
+    def record(self) -> dict[str, Any]:
+        """Plain data for ``results.json``."""
+        return {"chosen": self.label, "reason": self.reason, "samples": self.samples,
+                "n_states": int(self.model.n_states),
+                "candidates": [{"label": c, "held_out_fit_percent": None if not
+                                np.isfinite(f) else f, "status": st}
+                               for c, f, st in self.candidates]}
+
+
+def choose_linear(spec: ExperimentSpec, fit_on: Experiment | ExperimentSet,
+                  options: Mapping[str, Any]) -> AutoStart:
+    """Model choice's linear model on the records `fit_on` alone (its candidates scored on
+    their own held-out part), as a discrete state space."""
+    from ._choice import (
+        Fold,
+        _HeldSpec,
+        auto_candidates,
+        choice_method,
+        declares_loop,
+        folds_of,
+        pick,
+        score_candidates,
+        score_name,
+    )
+    from ._leaderboard import _in_the_loop, _whole_fit
+
+    segments = (fit_on,) if isinstance(fit_on, Experiment) else tuple(fit_on)
+    own = _HeldSpec(spec, Fold(fit_on, segments))  # records: the fitted part alone
+    table = {"input": options["input"]}
+    if options["output"] is not None:
+        table["output"] = options["output"]
+    choosing = choice_method({"method": "auto"}).parse(table)
+    folds = folds_of(fit_on, int(choosing["folds"]), float(choosing["holdout"]))
+    scores = score_candidates(own, auto_candidates(loop=declares_loop(spec)), choosing, folds)
+    scores = _in_the_loop(spec, scores)
+    what = score_name(choosing)
+    rest = list(scores)
+    errors: list[str] = []
+    while True:
+        chosen, reason = pick(rest, choosing["rule"], what)
+        if chosen is None:
+            raise ConvergenceError(
+                '[identify] linear = "auto": no linear candidate of model choice gave a '
+                "stable model on the fitted part of the estimation data ("
+                + "; ".join(f"{s.candidate.label}: {s.status}" for s in scores)
+                + (f"; {'; '.join(errors)}" if errors else "")
+                + '); give linear = "n4sid" or "oe"')
+        fitted = _whole_fit(own, choosing, folds, chosen)  # type: ignore[arg-type]
+        model = None
+        if fitted.result is not None:
+            try:
+                model = discrete_ss(fitted.result.estimate.model, float(fit_on.dt))
+            except ServoidError as exc:
+                errors.append(f"{chosen.candidate.label}: {exc}")
+        else:
+            errors.append(f"{chosen.candidate.label}: {fitted.error}")
+        if model is not None:
+            break
+        rest = [s for s in rest if s is not chosen]
+    if fitted.kept:
+        reason += f"; {fitted.kept}"
+    if errors:
+        reason += f" ({'; '.join(errors)}: passed over)"
+    n = sum(seg.n_samples for seg in segments)
+    return AutoStart(model, chosen.candidate.label, reason, own_offset(model, segments,
+                                                                        options),
+                     n, tuple((s.candidate.label, float(s.mean), s.status) for s in scores))
+
+
+def discrete_ss(model: Any, dt: float) -> Any:
+    """A linear model as a discrete single-output state space at `dt`: a polynomial model's
+    transfer function, a continuous model by zero-order hold."""
+    from ..models import PolynomialModel, StateSpace, TransferFunction, c2d
+
+    if isinstance(model, PolynomialModel):
+        if model.n_inputs != 1:
+            raise OptionError('[identify] linear = "auto" starts from a single-input '
+                              'polynomial model; for several inputs use linear = "n4sid"')
+        model = model.transfer_function(0)
+    if not isinstance(model, (TransferFunction, StateSpace)):
+        raise OptionError(f'[identify] linear = "auto": the chosen model '
+                          f"({type(model).__name__}) is not a linear transfer function or "
+                          'state space; use linear = "n4sid" or "oe"')
+    if model.dt is None:
+        model = c2d(model, dt, "zoh")
+    elif abs(model.dt - dt) > 1e-9 * dt:
+        raise DataError(f"the chosen linear model's dt = {model.dt:g} s is not the "
+                        f"records' {dt:g} s")
+    if isinstance(model, TransferFunction):
+        if model.delay:  # a whole number of samples in a discrete model: z^-k, as states
+            k = round(model.delay / dt)
+            model = TransferFunction(model.num, np.concatenate([model.den, np.zeros(k)]),
+                                     dt=dt)
+        model = model.to_ss()
+    return model
+
+
+def own_offset(model: Any, segments: Sequence[Experiment],
+                options: Mapping[str, Any]) -> float | None:
+    """G(1)·ū: the output offset of a linear model fitted on the records as they are (no
+    offset of its own); None (the output's mean) when the gain is not finite or puts the
+    offset more than 10 output standard deviations from the output's mean."""
+    u = np.concatenate([np.asarray(r.signal(options["input"]), dtype=float)
+                        .reshape(r.n_samples, -1) for r in segments])
+    out = options["output"] or segments[0].names_of("y")[0]
+    y = np.concatenate([np.asarray(r[out], dtype=float) for r in segments])
+    A, B, C, D = (np.asarray(m, float) for m in (model.A, model.B, model.C, model.D))
+    try:
+        gain = (C @ np.linalg.solve(np.eye(A.shape[0]) - A, B) + D)[0]
+    except np.linalg.LinAlgError:
+        return None
+    offset = float(gain @ u.mean(axis=0))
+    return offset if np.isfinite(offset) and abs(offset - y.mean()) < 10 * y.std() else None
