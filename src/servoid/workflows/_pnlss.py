@@ -225,15 +225,16 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
     """Fit a PNLSS model (choosing states and degree from a grid) and validate it."""
     estimation, validations = spec.records()
     fitting = {**options, "_plan": _plan(spec, options)}
-    if options["linear"] == "auto":
-        if "n_states" in (getattr(spec, "identify", None) or {}):
+    if "auto" in _starts(options["linear"]):
+        if options["linear"] == "auto" and "n_states" in (getattr(spec, "identify", None) or {}):
             raise OptionError('[identify] linear = "auto" starts from the linear model that '
                               "model choice picks, and the states are its order; n_states = "
                               f"{options['n_states']} cannot be given with it: remove "
                               'n_states, or give linear = "n4sid" (or "oe") to choose the '
                               "states on the held-out part")
         fitting["_auto"] = _auto_start(spec, estimation, options)
-        fitting["n_states"] = fitting["_auto"].model.n_states
+        if options["linear"] == "auto":
+            fitting["n_states"] = fitting["_auto"].model.n_states
     states = _grid(fitting["n_states"])
     degrees = _grid(options["degree"])
     grid: tuple[Candidate, ...] = ()
@@ -248,12 +249,14 @@ def run(spec: ExperimentSpec, options: Mapping[str, Any],
             estimate = _fit(estimation, states[0], degrees[0],
                             {**fitting, "linear": _starts(options["linear"])[0]})
         held = estimate.options.get("held_out")
+        by_choice = "linear_choice" in estimate.options  # grown from model choice's start
         if held and (held["kept"] == "linear" or (held["kept"] == "the linear start"
-                                                  and _refits_start(options["linear"]))):
+                                                  and (by_choice or
+                                                       estimate.options["linear"] == "oe"))):
             # an output-error fit, E = F = 0, kept there: refit it on all the data (n4sid's
             # start kept means its refinement by output error did not pay there: no refit)
             estimate = (_refit_chosen(spec, estimation, estimate, fitting)
-                        if held["kept"] == "the linear start" and "_auto" in fitting else
+                        if held["kept"] == "the linear start" and by_choice else
                         _refit(estimation, estimate, fitting))
         estimate = replace(estimate, options={**estimate.options,
                                               "holdout": options["holdout"]})
@@ -447,23 +450,15 @@ def _starts(value: str | Sequence[str]) -> list[str]:
 
 
 def _linear(value: Any, where: str, name: str) -> str | list[str]:
-    """The linear option: one start, or a list of n4sid and oe chosen per order."""
+    """The linear option: one start, or a list of n4sid and oe chosen per order, and auto
+    (model choice's linear model, its own order) beside them."""
     items = choices(("n4sid", "oe", "bla", "auto"))(value, where, name)
-    if len(items) > 1 and "auto" in items:
-        raise OptionError(f'{where} {name} = {items}: "auto" (the linear model that model '
-                          'choice picks) is given alone; a list chooses between "n4sid" and '
-                          '"oe" per order on the held-out part')
     if len(items) > 1 and "bla" in items:
         raise OptionError(f'{where} {name} = {items}: "bla" starts from the multisine test\'s '
                           'best linear approximation and is given alone; a list chooses '
-                          'between "n4sid" and "oe" per order on the held-out part')
+                          'between "n4sid" and "oe" per order on the held-out part, and '
+                          '"auto" beside them')
     return items[0] if len(items) == 1 else items
-
-
-def _refits_start(linear: str | Sequence[str]) -> bool:
-    """Whether a kept linear start is refitted on all the data: an OE start, or model
-    choice's (chosen on the fitted part only, so refitted as OE is)."""
-    return linear in ("oe", "auto")
 
 
 def _auto_start(spec: ExperimentSpec, estimation: Experiment | ExperimentSet,
@@ -546,10 +541,11 @@ def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Se
     """Fit every (n_states, degree) on the fitted part, each search guarded by the held-out
     part; the candidates best first, and the best one's estimate."""
     fit_on, held = _split(data, options["holdout"])
-    starts = _starts(options["linear"])
+    starts = [s for s in _starts(options["linear"]) if s != "auto"]
+    auto = options.get("_auto")  # model choice's start: its own order, beside the others
     rows: list[Candidate] = []
     fits: dict[tuple[int, int, str], Any] = {}
-    single = len(states) * len(degrees) * len(starts) == 1
+    single = len(states) * len(degrees) * len(starts) + (len(degrees) if auto else 0) == 1
 
     def candidate(n: int, d: int, start: str) -> float:
         """Fit one candidate, add its row; its held-out RMS (inf: failed or diverged)."""
@@ -568,14 +564,14 @@ def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Se
                   {"nonlinear": "nonlinear terms kept", "linear": "linear part kept "
                    "(E = F = 0)", "the linear start": "linear start kept (E = F = 0)"}
                   [h["kept"]])
+        label = auto.label if start == "auto" else start
         rows.append(Candidate(n, d, est.parameters.size, h["chosen"] if finite else np.inf,
-                              status, h["linear"], h["kept"],
-                              options["_auto"].label if start == "auto" else start))
+                              status, h["linear"], h["kept"], label))
         if finite:
-            fits[n, d, start] = est
+            fits[n, d, label] = est
         return float(h["chosen"]) if finite else np.inf
 
-    for n in states:
+    for n in states if starts else ():
         start = starts[0]
         if len(starts) > 1:
             # each start's linear model of this order (degree 1: E = F = 0, refined by output
@@ -585,6 +581,8 @@ def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Se
         for d in degrees:
             if d > 1 or len(starts) == 1:
                 candidate(n, d, start)
+    for d in degrees if auto else ():
+        candidate(auto.model.n_states, d, "auto")
     rows.sort(key=lambda c: (c.rms, c.n_parameters))
     if not fits:
         raise ConvergenceError("every PNLSS candidate failed or its free run diverged on the "
@@ -592,8 +590,7 @@ def _search(data: Experiment | ExperimentSet, states: Sequence[int], degrees: Se
                                "lower n_states or degree, or try linear = \"oe\"")
     best = rows[0]
     rows[0] = replace(best, status=f"chosen: lowest held-out RMS; {best.status}")
-    return tuple(rows), fits[best.n_states, best.degree,
-                             "auto" if "_auto" in options else best.linear]
+    return tuple(rows), fits[best.n_states, best.degree, best.linear]
 
 
 def _plot_linear(result: PnlssResult, path: Path, overwrite: bool) -> None:
