@@ -94,8 +94,8 @@ def test_ball_and_beam_starts_from_the_continuous_model_not_n4sid(tmp_path):
 
 
 @pytest.mark.parametrize(("table", "words"), [
-    ({"linear": ["auto", "n4sid"]},
-     '"auto" (the linear model that model choice picks) is given alone'),
+    ({"linear": ["auto", "bla"]},
+     '"bla" starts from the multisine test'),
     ({"linear": "auto", "n_states": 3},
      "the states are its order; n_states = 3 cannot be given with it"),
 ])

@@ -20,7 +20,7 @@ def _linear_record(folder, seed, **identify_table):
     filter), 1000 estimation samples."""
     return open_loop(folder, seed, kind="linear", coloured=True,
                      identify={"method": "pnlss", "n_states": 2, "degree": 2,
-                               **identify_table})
+                               "linear": "n4sid", **identify_table})
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,8 @@ from servoid.workflows._examples import open_loop
 def run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("pnlss")
     spec = open_loop(folder / "data", kind="wiener",
-                     identify={"method": "pnlss", "n_states": [1, 2], "degree": [1, 3]})
+                     identify={"method": "pnlss", "n_states": [1, 2], "degree": [1, 3],
+                               "linear": "n4sid"})
     return identify(spec, folder / "out"), folder / "out"
 
 

@@ -489,7 +489,8 @@ def _refit_chosen(spec: ExperimentSpec, data: Experiment | ExperimentSet, kept: 
             warnings.simplefilter("ignore", ServoidWarning)
             est = fit_pnlss(data, whole.model.n_states, 1, monomials=o["monomials"],
                             initial=whole.model, input=options["input"], output=o["output"],
-                            max_iter=0, offset=whole.offset)
+                            max_iter=0, offset=whole.offset, weighting=options["weighting"],
+                            plan=options["_plan"])
     except ServoidError:
         return _refit(data, kept, options)
     before = _rms(kept.model, list(segments), options["input"], o["output"])
@@ -504,6 +505,15 @@ def _refit_chosen(spec: ExperimentSpec, data: Experiment | ExperimentSet, kept: 
     return replace(est, options={**est.options, "held_out": held, "refit": refit,
                                  "linear": o["linear"], "linear_choice": o["linear_choice"],
                                  "linear_start": o["linear_start"]})
+
+
+def _degree(value: Any, where: str, name: str) -> int | list[int]:
+    """The degree option: an order from 1 to 6 (the monomials fit_pnlss forms), or a list."""
+    degrees = orders(1)(value, where, name)
+    if max(_grid(degrees)) > 6:
+        raise OptionError(f"{where} {name} = {value}: the monomials' degree goes from 1 to 6; "
+                          "give a lower degree (3 covers a cubic curve)")
+    return degrees
 
 
 def _grid(value: int | Sequence[int]) -> list[int]:
@@ -638,13 +648,13 @@ METHOD = Method(
         Option("n_states", 2, orders(1),
                "number of states (a list: a grid, chosen on the last quarter of the "
                "estimation data)"),
-        Option("degree", 3, orders(1),
+        Option("degree", 3, _degree,
                "highest degree of the monomials ζ = η (1: linear; a list: a grid as for "
                "n_states)"),
         Option("monomials", "full", choice(("full", "state", "input")),
                "monomials of states and inputs (full), of the states (state) or of the inputs "
                "(input)"),
-        Option("linear", "n4sid", _linear,
+        Option("linear", ["n4sid", "auto"], _linear,
                "the linear start: n4sid, OE turned into state space, or the best linear "
                "approximation of a multisine test (its ML fit in z; needs the plan); a list "
                "of n4sid and oe: each order's start chosen by its linear model's free-run "
