@@ -6,6 +6,7 @@ import csv
 import dataclasses
 import time
 import warnings
+from contextlib import contextmanager
 from types import MappingProxyType
 
 import numpy as np
@@ -30,6 +31,31 @@ def _unit(folder, seed):
                                         "y": {"source": "y", "role": "y"}},
                            "split": {"fraction": 0.5}}, path, overwrite=True)
     return path
+
+
+@contextmanager
+def _on_private_cluster(tmp_path):
+    """The fleet's own private 2-worker TLS cluster: (a client, run_fleet on it)."""
+    pytest.importorskip("distributed")
+    pytest.importorskip("cryptography")
+    import servoid.fleet._run as fleet_run
+    from servoid.fleet import tls_security
+
+    pool = fleet_run._Pool(None, 2, 2)
+    client = pool.client(2)
+    try:
+        pem = write_pem(client, tmp_path)
+
+        def run(out):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                return run_fleet(tmp_path / "fleet.toml", out, progress=False,
+                                 scheduler=pool._cluster.scheduler_address,
+                                 security=tls_security(pem["ca"], pem["cert"], pem["key"]))
+
+        yield client, run
+    finally:
+        pool.close()
 
 
 def test_a_fleet_with_a_method_list_shows_the_chosen_candidate_per_unit(tmp_path):
@@ -60,32 +86,18 @@ def test_a_fleet_with_a_method_list_shows_the_chosen_candidate_per_unit(tmp_path
 
 
 def test_a_fleet_on_dask_scores_each_units_candidates_as_cluster_tasks(tmp_path):
-    pytest.importorskip("distributed")
-    pytest.importorskip("cryptography")
-    import servoid.fleet._run as fleet_run
-    from servoid.fleet import tls_security
-
     [_unit(tmp_path, k) for k in range(2)]
     (tmp_path / "fleet.toml").write_text(
         '[records]\nglob = "unit*.toml"\n\n[identify]\nmethod = ["arx", "oe", "tf"]\n\n'
         "[identify.arx]\nna = 1\nnb = 1\n\n[identify.oe]\nnb = 2\nnf = 2\n", encoding="utf-8")
-    pool = fleet_run._Pool(None, 2, 2)  # the fleet's own private cluster, two workers
-    client = pool.client(2)
-    try:
-        pem = write_pem(client, tmp_path)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            served = run_fleet(tmp_path / "fleet.toml", tmp_path / "dask",
-                               scheduler=pool._cluster.scheduler_address, progress=False,
-                               security=tls_security(pem["ca"], pem["cert"], pem["key"]))
+    with _on_private_cluster(tmp_path) as (client, run):
+        served = run(tmp_path / "dask")
 
         def done(dask_scheduler):  # tasks that finished, by their key's prefix
             return {name: p.state_counts["memory"]
                     for name, p in dask_scheduler.task_prefixes.items()}
 
         tasks = client.run_on_scheduler(done)
-    finally:
-        pool.close()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         serial = run_fleet(tmp_path / "fleet.toml", tmp_path / "serial", workers=1,
@@ -101,28 +113,14 @@ def test_a_fleet_on_dask_scores_each_units_candidates_as_cluster_tasks(tmp_path)
 
 
 def test_a_dask_fleet_row_counts_the_cpu_of_its_candidate_tasks(tmp_path):
-    pytest.importorskip("distributed")
-    pytest.importorskip("cryptography")
-    import servoid.fleet._run as fleet_run
-    from servoid.fleet import tls_security
-
     _unit(tmp_path, 0)  # one unit: every task on the cluster is its record's or a candidate's
     (tmp_path / "fleet.toml").write_text(
         '[records]\nglob = "unit*.toml"\n\n[identify]\nmethod = ["oe", "tf", "bj"]\n\n'
         "[identify.oe]\nnb = 2\nnf = 2\n\n[identify.tf]\nn_poles = 2\n", encoding="utf-8")
-    pool = fleet_run._Pool(None, 2, 2)  # the fleet's own private cluster, two workers
-    client = pool.client(2)
-    try:
-        pem = write_pem(client, tmp_path)
+    with _on_private_cluster(tmp_path) as (client, run):
         before = client.run(time.process_time)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            result = run_fleet(tmp_path / "fleet.toml", tmp_path / "dask",
-                               scheduler=pool._cluster.scheduler_address, progress=False,
-                               security=tls_security(pem["ca"], pem["cert"], pem["key"]))
+        result = run(tmp_path / "dask")
         after = client.run(time.process_time)
-    finally:
-        pool.close()
     row = result.rows[0]
     assert row["status"] == "ok", row["error"]
     workers = sum(after[w] - before[w] for w in after)  # every task's CPU, and the workers' own

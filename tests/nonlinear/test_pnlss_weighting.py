@@ -238,17 +238,11 @@ def test_a_plan_of_the_wrong_type_or_rate_is_refused():
 
 
 def test_weighting_from_the_experiment_file(tmp_path):
-    from servoid.data import write_experiment_spec
-    from servoid.workflows import identify
-    from servoid.workflows._frequency_example import multisine_test
+    from _pnlss_multisine import multisine_pnlss
 
-    multisine_test(tmp_path)
-    path = tmp_path / "pnlss.toml"
-    spec = {"data": {"file": "record.csv"},
-            "channels": {"u": {"role": "u", "unit": "V"}, "y": {"role": "y", "unit": "mm"}},
-            "identify": {"method": "pnlss", "n_states": 2, "degree": 2, "weighting": "bla",
-                         "max_iter": 2}}
-    write_experiment_spec(spec, path)
+    from servoid.workflows import identify
+
+    path = multisine_pnlss(tmp_path, degree=2, weighting="bla", max_iter=2)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ServoidWarning)
         result = identify(path, write=False)

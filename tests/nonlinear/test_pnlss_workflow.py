@@ -82,16 +82,9 @@ def test_a_pruning_level_of_one_or_more_is_refused_naming_the_key(tmp_path):
 def test_the_linear_start_from_the_bla_of_a_multisine_test(tmp_path):
     # the frequency method's example: a multisine test (4 realisations × 2 periods) with its
     # plan file beside the data file; the estimation half holds two whole realisations
-    from servoid.data import write_experiment_spec
-    from servoid.workflows._frequency_example import multisine_test
+    from _pnlss_multisine import multisine_pnlss
 
-    multisine_test(tmp_path)
-    path = tmp_path / "pnlss.toml"
-    spec = {"data": {"file": "record.csv"},
-            "channels": {"u": {"role": "u", "unit": "V"}, "y": {"role": "y", "unit": "mm"}},
-            "identify": {"method": "pnlss", "n_states": 2, "degree": 3, "linear": "bla",
-                         "max_iter": 10}}
-    write_experiment_spec(spec, path)
+    path = multisine_pnlss(tmp_path, degree=3, linear="bla", max_iter=10)
     result = identify(path, write=False)
     assert result.estimate.options["linear"] == "BLA, ML fit in z of 2 poles"
     # the plant is 2nd order behind a mild cubic (σ = 0.02 white noise): the free run on the

@@ -43,7 +43,7 @@ from .._errors import (
 from ..data import Experiment, ExperimentSet
 from ..estimate import Estimate, output_name
 from ._pnlss import MONOMIALS, Monomials, PnlssModel, exponents
-from ._pnlss_kernel import jacobian_block, simulate
+from ._pnlss_kernel import jacobian_block, record_start, simulate
 from ._pnlss_prune import prune_monomials as _prune
 from ._pnlss_weight import (
     PeriodicWeights,
@@ -387,12 +387,7 @@ class _Search:
         r = np.empty(self.n_total)
         row = 0
         for k, ((u, y), x0) in enumerate(zip(self.records, x0s, strict=True)):
-            cols = np.r_[np.arange(nown), nmod + k * nx + np.arange(nx)]
-            x = np.array(x0, dtype=float)
-            S = np.zeros((nx, nown + nx))
-            S[:, nown:] = np.eye(nx)
-            Hk = np.zeros((nown + nx, nown + nx))
-            gk = np.zeros(nown + nx)
+            cols, x, S, Hk, gk = record_start(x0, k, nown, nmod, nx)
             Jb = np.empty((min(BLOCK, y.size), nown + nx))
             for a in range(0, y.size, BLOCK):
                 b = min(a + BLOCK, y.size)

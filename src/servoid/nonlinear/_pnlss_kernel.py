@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import numba as nb
 import numpy as np
+from numpy.typing import NDArray
 
-__all__ = ["jacobian", "jacobian_block", "simulate"]
+__all__ = ["jacobian", "jacobian_block", "record_start", "simulate"]
 
 #: |x| past which a run counts as diverged (its output is then NaN from there on).
 LIMIT = 1e12
@@ -220,3 +221,19 @@ def jacobian_block(A, B, C, D, E, F, P, u, x, S, first, y, J):  # pragma: no cov
                 y[s_] = np.nan
             return t + 1
     return -1
+
+
+def record_start(x0: NDArray[np.float64], k: int, nown: int, nmod: int, nx: int
+                 ) -> tuple[NDArray[np.intp], NDArray[np.float64], NDArray[np.float64],
+                            NDArray[np.float64], NDArray[np.float64]]:
+    """What :func:`jacobian_block` carries through record k, at its first sample.
+
+    Returns the record's columns of the whole Jacobian (the model's `nown`
+    formed ones and its own `nx` initial states), its state, the state's
+    sensitivity (∂x/∂x(0) = I), and its zeroed JᵀJ and Jᵀr blocks.
+    """
+    cols = np.r_[np.arange(nown), nmod + k * nx + np.arange(nx)]
+    sens = np.zeros((nx, nown + nx))
+    sens[:, nown:] = np.eye(nx)
+    return (cols, np.array(x0, dtype=float), sens, np.zeros((nown + nx, nown + nx)),
+            np.zeros(nown + nx))

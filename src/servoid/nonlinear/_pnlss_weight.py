@@ -60,7 +60,7 @@ from numpy.typing import NDArray
 
 from .._errors import ConvergenceError, DataError, OptionTypeError, ServoidWarning
 from .._warn import warn
-from ._pnlss_kernel import jacobian_block, simulate
+from ._pnlss_kernel import jacobian_block, record_start, simulate
 
 __all__ = ["MIN_DOF", "PeriodicWeights", "noise_spread", "periodic_weights"]
 
@@ -284,12 +284,7 @@ def weighted_normal_equations(args: tuple[Any, ...], records: Sequence[tuple[Any
                                                       strict=True)):
         if not starts:
             continue
-        cols = np.r_[np.arange(nown), nmod + k * nx + np.arange(nx)]
-        x = np.array(x0, dtype=float)
-        S = np.zeros((nx, nown + nx))
-        S[:, nown:] = np.eye(nx)
-        Hk = np.zeros((nown + nx, nown + nx))
-        gk = np.zeros(nown + nx)
+        cols, x, S, Hk, gk = record_start(x0, k, nown, nmod, nx)
         Jb = np.empty((min(step, end), nown + nx))
         in_cost = set(starts)
         for a in range(0, end, step):
