@@ -655,12 +655,11 @@ METHOD = Method(
                "monomials of states and inputs (full), of the states (state) or of the inputs "
                "(input)"),
         Option("linear", ["n4sid", "auto"], _linear,
-               "the linear start: n4sid, OE turned into state space, or the best linear "
-               "approximation of a multisine test (its ML fit in z; needs the plan); a list "
-               "of n4sid and oe: each order's start chosen by its linear model's free-run "
-               "error on the held-out part (the first when holdout = 0); auto: the linear "
-               "model that model choice (method = \"auto\", its linear candidates) picks on "
-               "the fitted part, in state space; n_states is then its order"),
+               "the linear start: n4sid, OE turned into state space, the best linear "
+               "approximation of a multisine test (bla: its ML fit in z; needs the plan), or "
+               "auto: the linear model model choice picks on the fitted part (its order, not "
+               "n_states); a list grows the nonlinear terms from each (n4sid and oe: the "
+               "better per order) and keeps the lowest held-out RMS"),
         Option("plan", None, optional(text()),
                'the multisine plan file of linear = "bla" and weighting = "bla" (default: '
                "<data file>.plan.json beside it)"),
