@@ -66,6 +66,8 @@ BLOCK = 4096
 
 #: Accepted iterations without a lower held-out error after which a stage stops early.
 PATIENCE = 10
+#: Gauss–Newton iterations on the initial states alone when ``max_iter = 0`` (the model kept).
+X0_ITERATIONS = 20
 
 Record = tuple[NDArray[np.float64], NDArray[np.float64]]  # (u (N, nu), y (N,))
 
@@ -124,7 +126,9 @@ def fit_pnlss(
     output : str, optional
         The output channel when there are several.
     max_iter : int
-        Most Levenberg–Marquardt iterations (Jacobian evaluations).
+        Most Levenberg–Marquardt iterations (Jacobian evaluations).  0 keeps the
+        start as it is and fits only the records' initial states (the cost and
+        covariance then describe the given model, not its start-up from x = 0).
     tol : float
         Relative decrease of the cost below which the search stops.
     held_out : Experiment or ExperimentSet, optional
@@ -453,6 +457,11 @@ class _Search:
         x0s = [np.zeros(nx) for _ in self.records]
         n_all = self.n_model + nx * len(self.records)
         self.best = None
+        if max_iter == 0 and self.held is None:
+            # the model as given: only its initial states are fitted (from x = 0, an unstable
+            # or slow model's cost and covariance would describe its start-up, not the model)
+            theta, x0s, _ = self._lm(theta, x0s, X0_ITERATIONS, tol,
+                                     np.arange(self.n_model, n_all), "initial states")
         self._watch(theta, x0s, "the linear start", 0)
         theta, x0s, first = self._lm(theta, x0s, max_iter, tol,
                                      np.setdiff1d(np.arange(n_all), self.ef), "linear")
