@@ -87,7 +87,7 @@ def fit_pnlss(
     max_iter: int = 100,
     tol: float = 1e-9,
     held_out: Experiment | ExperimentSet | None = None,
-    offset: float | None = None,
+    offset: float | Literal["start"] | None = None,
     weighting: Literal["none", "bla"] | None = None,
     plan: Any = None,
 ) -> Estimate:
@@ -140,9 +140,12 @@ def fit_pnlss(
         diverges there; a stage stops after :data:`PATIENCE` iterations
         without a lower held-out error.  ``options["held_out"]`` says which
         was kept and why.
-    offset : float, optional
-        The output offset (the model's ``y_mean``) [output unit], fixed.  Default the
-        output's mean (with `held_out` and a fitted start also G(1)·ū: the better there).
+    offset : float or "start", optional
+        The output offset (the model's ``y_mean``) [output unit], fixed; ``"start"``:
+        G(1)·ū of the linear start (a model fitted with no offset of its own reads so on
+        centred inputs; the output's mean when G(1) is not finite or puts it more than 10
+        output standard deviations away).  Default the output's mean (with `held_out` and a
+        fitted start also G(1)·ū: the better there).
     weighting : {"none", "bla"}, optional
         ``"bla"``: the squared simulation error of each whole period of
         a multisine test, line by line of its DFT, weighted by 1/σ̂²_Y(k),
@@ -235,9 +238,15 @@ def fit_pnlss(
                                                                       strict=True)]
         return _Search(model, normal, ridge, held, weights)
 
-    search = setup(y_mean if offset is None else as_float("offset", offset))
+    if isinstance(offset, str) and offset != "start":
+        raise OptionError(f'offset = {offset!r}: give a number [output unit], "start" (G(1)·ū '
+                          "of the linear start) or None (the output's mean)")
+    search = setup(y_mean if offset is None else
+                   _offset(start, u_mean, u_scale, y_mean, y_scale) if offset == "start" else
+                   as_float("offset", offset))
     theta, x0s, info = search.run(max_iter, tol)
-    offset_rule = "the output's mean" if offset is None else "given"
+    offset_rule = ("the output's mean" if offset is None else
+                   "G(1)·ū, the linear start's own" if offset == "start" else "given")
     if held is not None and initial is None and offset is None:
         # the start fitted on the records as they are (no offset) is E = F = 0 only with the
         # offset G(1)·ū; the output's mean is the other natural one (a static nonlinearity

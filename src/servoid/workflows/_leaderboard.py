@@ -17,7 +17,7 @@ import dataclasses
 import math
 import time
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -53,7 +53,7 @@ from ._methods import get_method
 from ._registry import FigureWriter
 from ._summary import Displayed, RecordSummary
 
-__all__ = ["ChoiceResult", "Entry", "candidate_models", "choose"]
+__all__ = ["ChoiceResult", "Entry", "candidate_models", "choose", "fit_choice"]
 
 #: Candidates drawn in the overlaid figures (the chosen and the best-scored others).
 _DRAWN = 6
@@ -295,32 +295,21 @@ def choose(spec: ExperimentSpec, options: Mapping[str, Any],
     if spec.identify.get("method") == "auto":
         scores, gate = gate_of(spec, options, folds, scores)
     what = score_name(options)
-    chosen, reason = pick(scores, options["rule"], what)
-    if chosen is None:
+    if pick(scores, options["rule"], what)[0] is None:
         listed = "; ".join(f"{s.candidate.label}: {s.status}" for s in scores)
         raise ConvergenceError(f"no candidate gave a stable model that could be scored on the "
                                f"held-out data ({listed}); try other orders or methods")
-    # the chosen one is fitted first, with the run's warnings and the truth; a chosen model
-    # that has no fit (on the whole estimation data nor on a fold) is passed over
-    fitted: dict[int, Fitted] = {}
-    passed: list[str] = []
-    while True:
-        fitted[id(chosen)] = _whole_fit(spec, options, folds, chosen, truth, quiet=False)
-        if fitted[id(chosen)].result is not None:
-            break
-        passed.append(chosen.candidate.label)
-        rest = [s for s in scores if id(s) not in fitted]
-        chosen, reason = pick(rest, options["rule"], what)
-        if chosen is None:
-            failed = [s for s in scores if id(s) in fitted]
-            raise ConvergenceError("no scored candidate could be fitted on the estimation data ("
-                                   + "; ".join(f"{s.candidate.label}: {fitted[id(s)].error}"
-                                               for s in failed) + "); try other orders or "
-                                   "methods")
+    # the chosen one is fitted first, with the run's warnings and the truth
+    chosen, reason, fitted, passed = fit_choice(spec, options, folds, scores, what, truth,
+                                                quiet=False)
+    if chosen is None:
+        raise ConvergenceError("no scored candidate could be fitted on the estimation data ("
+                               + "; ".join(f"{label}: {why}" for label, why in passed)
+                               + "); try other orders or methods")
     result = fitted[id(chosen)].result
     if passed:
-        reason += (f" ({', '.join(passed)} scored better but failed on the whole estimation "
-                   "data: passed over)")
+        reason += (f" ({', '.join(label for label, _ in passed)} scored better but failed on "
+                   "the whole estimation data: passed over)")
     if fitted[id(chosen)].kept:
         reason += f"; {fitted[id(chosen)].kept}"
     # the others for the leaderboard (on the fleet's cluster when it runs there)
@@ -358,6 +347,29 @@ def _in_the_loop(spec: ExperimentSpec, scores: Sequence[Score]) -> list[Score]:
     return [dataclasses.replace(s, status="passed over: fits (u, y) as if open, biased in "
                                 "the loop the file declares") if s.admissible and s.open_loop
             else s for s in scores]
+
+
+def fit_choice(spec: ExperimentSpec, options: Mapping[str, Any], folds: Sequence[Fold],
+               scores: Sequence[Score], what: str, truth: Mapping[str, float] | None = None,
+               quiet: bool = True, usable: Callable[[Fitted], str] | None = None
+               ) -> tuple[Score | None, str, dict[int, Fitted], list[tuple[str, str]]]:
+    """Pick among `scores` and fit the pick (:func:`_whole_fit`); a pick with no model, or
+    one `usable` finds fault with (its words), is passed over for the next pick.
+
+    Returns the chosen score (None: none left) and the reason, every attempted fit by the
+    ``id`` of its score, and the (label, why) of each pick passed over.
+    """
+    fitted: dict[int, Fitted] = {}
+    passed: list[tuple[str, str]] = []
+    while True:
+        chosen, reason = pick([s for s in scores if id(s) not in fitted], options["rule"], what)
+        if chosen is None:
+            return None, reason, fitted, passed
+        f = fitted[id(chosen)] = _whole_fit(spec, options, folds, chosen, truth, quiet)
+        why = f.error if f.result is None else usable(f) if usable else ""
+        if f.result is not None and not why:
+            return chosen, reason, fitted, passed
+        passed.append((chosen.candidate.label, why))
 
 
 @dataclass(frozen=True)

@@ -316,7 +316,7 @@ def _fit(data: Experiment | ExperimentSet, n_states: int, degree: int,
                     ridge=options["ridge"], prune=options["prune"], input=options["input"],
                     output=options["output"], max_iter=options["max_iter"], held_out=held,
                     weighting=options["weighting"], plan=options["_plan"],
-                    offset=options["_auto"].offset if auto else None)
+                    offset="start" if auto else None)
     if bla:
         est = replace(est, options={**est.options,
                                     "linear": f"BLA, ML fit in z of {n_states} poles"})
@@ -341,13 +341,9 @@ def _refit(data: Experiment | ExperimentSet, kept: Any, options: Mapping[str, An
     records = [data] if isinstance(data, Experiment) else list(data)
     u_all = np.concatenate([np.asarray(r.signal(options["input"]), dtype=float)
                             .reshape(r.n_samples, -1) for r in records])
-    try:
-        gain = (lin.C @ np.linalg.solve(np.eye(lin.A.shape[0]) - lin.A, lin.B) + lin.D)[0]
-        offset: float | None = float(model.y_mean - gain @ model.u_mean
-                                     + gain @ u_all.mean(axis=0))
-    except np.linalg.LinAlgError:
-        offset = None
-    if offset is not None and not np.isfinite(offset):
+    gain = np.asarray(lin.dc_gain(), dtype=float).reshape(-1)
+    offset: float | None = float(model.y_mean - gain @ model.u_mean + gain @ u_all.mean(axis=0))
+    if not np.isfinite(offset):
         offset = None  # a pure integrator: the output's mean, as fit_pnlss takes it
     o = kept.options
     try:
@@ -489,7 +485,7 @@ def _refit_chosen(spec: ExperimentSpec, data: Experiment | ExperimentSet, kept: 
             warnings.simplefilter("ignore", ServoidWarning)
             est = fit_pnlss(data, whole.model.n_states, 1, monomials=o["monomials"],
                             initial=whole.model, input=options["input"], output=o["output"],
-                            max_iter=0, offset=whole.offset, weighting=options["weighting"],
+                            max_iter=0, offset="start", weighting=options["weighting"],
                             plan=options["_plan"])
     except ServoidError:
         return _refit(data, kept, options)

@@ -4,7 +4,7 @@ as a discrete state space."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -13,7 +13,7 @@ import numpy as np
 from .._errors import ConvergenceError, DataError, OptionError, ServoidError
 from ..data import Experiment, ExperimentSet, ExperimentSpec
 
-__all__ = ["AutoStart", "choose_linear", "discrete_ss", "own_offset"]
+__all__ = ["AutoStart", "choose_linear", "discrete_ss"]
 
 
 @dataclass(frozen=True)
@@ -26,9 +26,6 @@ class AutoStart:
         The chosen model, discrete at the records' dt (a continuous one by zero-order hold).
     label, reason : str
         The chosen candidate and why model choice chose it.
-    offset : float or None
-        Its output offset G(1)·ū on the fitted records (None: the output's mean, for a
-        gain that is not finite or puts it far away, as an integrator's).
     samples : int
         The samples model choice saw (PNLSS's fitted part, never its held-out part).
     candidates : tuple of (str, float, str)
@@ -38,7 +35,6 @@ class AutoStart:
     model: Any
     label: str
     reason: str
-    offset: float | None
     samples: int
     candidates: tuple[tuple[str, float, str], ...] = ()
 
@@ -68,11 +64,10 @@ def choose_linear(spec: ExperimentSpec, fit_on: Experiment | ExperimentSet,
         choice_method,
         declares_loop,
         folds_of,
-        pick,
         score_candidates,
         score_name,
     )
-    from ._leaderboard import _in_the_loop, _whole_fit
+    from ._leaderboard import Fitted, _in_the_loop, fit_choice
 
     segments = (fit_on,) if isinstance(fit_on, Experiment) else tuple(fit_on)
     own = _HeldSpec(spec, Fold(fit_on, segments))  # records: the fitted part alone
@@ -83,38 +78,33 @@ def choose_linear(spec: ExperimentSpec, fit_on: Experiment | ExperimentSet,
     folds = folds_of(fit_on, int(choosing["folds"]), float(choosing["holdout"]))
     scores = score_candidates(own, auto_candidates(loop=declares_loop(spec)), choosing, folds)
     scores = _in_the_loop(spec, scores)
-    what = score_name(choosing)
-    rest = list(scores)
-    errors: list[str] = []
-    while True:
-        chosen, reason = pick(rest, choosing["rule"], what)
-        if chosen is None:
-            raise ConvergenceError(
-                '[identify] linear = "auto": no linear candidate of model choice gave a '
-                "stable model on the fitted part of the estimation data ("
-                + "; ".join(f"{s.candidate.label}: {s.status}" for s in scores)
-                + (f"; {'; '.join(errors)}" if errors else "")
-                + '); give linear = "n4sid" or "oe"')
-        fitted = _whole_fit(own, choosing, folds, chosen)  # type: ignore[arg-type]
-        model = None
-        if fitted.result is not None:
-            try:
-                model = discrete_ss(fitted.result.estimate.model, float(fit_on.dt))
-            except ServoidError as exc:
-                errors.append(f"{chosen.candidate.label}: {exc}")
-        else:
-            errors.append(f"{chosen.candidate.label}: {fitted.error}")
-        if model is not None:
-            break
-        rest = [s for s in rest if s is not chosen]
+    converted: dict[int, Any] = {}
+
+    def usable(fitted: Fitted) -> str:
+        try:
+            converted[id(fitted)] = discrete_ss(fitted.result.estimate.model, float(fit_on.dt))
+        except ServoidError as exc:
+            return str(exc)
+        return ""
+
+    chosen, reason, fits, passed = fit_choice(
+        own, choosing, folds, scores, score_name(choosing), usable=usable)  # type: ignore[arg-type]
+    if chosen is None:
+        raise ConvergenceError(
+            '[identify] linear = "auto": no linear candidate of model choice gave a '
+            "stable model on the fitted part of the estimation data ("
+            + "; ".join(f"{s.candidate.label}: {s.status}" for s in scores)
+            + "".join(f"; {label}: {why}" for label, why in passed)
+            + '); give linear = "n4sid" or "oe"')
+    fitted = fits[id(chosen)]
+    model = converted[id(fitted)]
     if fitted.kept:
         reason += f"; {fitted.kept}"
-    if errors:
-        reason += f" ({'; '.join(errors)}: passed over)"
+    if passed:
+        reason += f" ({'; '.join(f'{label}: {why}' for label, why in passed)}: passed over)"
     n = sum(seg.n_samples for seg in segments)
-    return AutoStart(model, chosen.candidate.label, reason, own_offset(model, segments,
-                                                                        options),
-                     n, tuple((s.candidate.label, float(s.mean), s.status) for s in scores))
+    return AutoStart(model, chosen.candidate.label, reason, n,
+                     tuple((s.candidate.label, float(s.mean), s.status) for s in scores))
 
 
 def discrete_ss(model: Any, dt: float) -> Any:
@@ -144,20 +134,3 @@ def discrete_ss(model: Any, dt: float) -> Any:
         model = model.to_ss()
     return model
 
-
-def own_offset(model: Any, segments: Sequence[Experiment],
-                options: Mapping[str, Any]) -> float | None:
-    """G(1)·ū: the output offset of a linear model fitted on the records as they are (no
-    offset of its own); None (the output's mean) when the gain is not finite or puts the
-    offset more than 10 output standard deviations from the output's mean."""
-    u = np.concatenate([np.asarray(r.signal(options["input"]), dtype=float)
-                        .reshape(r.n_samples, -1) for r in segments])
-    out = options["output"] or segments[0].names_of("y")[0]
-    y = np.concatenate([np.asarray(r[out], dtype=float) for r in segments])
-    A, B, C, D = (np.asarray(m, float) for m in (model.A, model.B, model.C, model.D))
-    try:
-        gain = (C @ np.linalg.solve(np.eye(A.shape[0]) - A, B) + D)[0]
-    except np.linalg.LinAlgError:
-        return None
-    offset = float(gain @ u.mean(axis=0))
-    return offset if np.isfinite(offset) and abs(offset - y.mean()) < 10 * y.std() else None
